@@ -1,0 +1,18 @@
+#include <CLI/CLI.hpp>
+
+#include "hivox/core/error.h"
+#include "hivox/core/log.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
+  app.require_subcommand(1);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const hivox::Error& e) {
+    hivox::log::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}

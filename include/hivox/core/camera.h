@@ -1,0 +1,46 @@
+#pragma once
+/// @file
+/// Pinhole camera model (OpenCV axes: x right, y down, z forward). A negative `fy` (as in
+/// ICL-NUIM) is legal: it mirrors the image vertically and every function here handles it.
+
+#include <string>
+
+#include "hivox/core/hd.h"
+#include "hivox/core/math.h"
+
+namespace hivox {
+
+struct PinholeCamera {
+  float fx = 0;  ///< focal length along x, pixels (> 0)
+  float fy = 0;  ///< focal length along y, pixels (non-zero; negative flips y)
+  float cx = 0;  ///< principal point x, pixels
+  float cy = 0;  ///< principal point y, pixels
+  int width = 0;   ///< image width, pixels
+  int height = 0;  ///< image height, pixels
+
+  /// Projects a camera-frame point (z > 0) to continuous pixel coordinates.
+  HIVOX_HD Vec2f project(const Vec3f& p_c) const {
+    const float inv_z = 1.0f / p_c.z;
+    return {fx * p_c.x * inv_z + cx, fy * p_c.y * inv_z + cy};
+  }
+  /// Back-projects pixel (u, v) at depth z (metres along the optical axis) to the camera frame.
+  HIVOX_HD Vec3f unproject(float u, float v, float z) const {
+    return {(u - cx) / fx * z, (v - cy) / fy * z, z};
+  }
+  /// Unit-depth ray (z = 1) through pixel (u, v).
+  HIVOX_HD Vec3f ray(float u, float v) const { return unproject(u, v, 1.0f); }
+  HIVOX_HD bool contains(float u, float v) const {
+    return u >= 0.0f && v >= 0.0f && u <= static_cast<float>(width) - 1.0f &&
+           v <= static_cast<float>(height) - 1.0f;
+  }
+
+  /// Camera for an image resampled by `factor` (0.5 = half resolution), pixel centres kept.
+  PinholeCamera scaled(float factor) const;
+
+  /// Throws `Error(InvalidArgument)` naming the first bad field. `what` prefixes the message
+  /// (e.g. the file the intrinsics came from).
+  void validate(const std::string& what = "camera") const;
+  std::string to_string() const;
+};
+
+}  // namespace hivox

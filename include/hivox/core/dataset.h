@@ -1,0 +1,56 @@
+#pragma once
+/// @file
+/// The one interface every source of RGB-D frames implements (file layouts in `io`, built-in
+/// synthetic scenes in `synth`). Frames carry depth in metres (float, 0 = invalid).
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "hivox/core/camera.h"
+#include "hivox/core/image.h"
+#include "hivox/core/pose.h"
+
+namespace hivox {
+
+enum class DatasetLayout { Tum, SevenScenes, InfiniTam, Synthetic };
+std::string_view to_string(DatasetLayout layout);
+
+struct DatasetInfo {
+  std::string source;  ///< directory, or `synthetic:NAME`
+  DatasetLayout layout = DatasetLayout::Tum;
+  std::size_t frame_count = 0;
+  PinholeCamera depth_camera;
+  /// Colour camera; equal to `depth_camera` when depth is registered to colour.
+  PinholeCamera color_camera;
+  /// Maps depth-camera points into the colour-camera frame (identity when registered).
+  Pose T_color_depth = Pose::Identity();
+  std::string intrinsics_source;  ///< where the intrinsics came from (file, preset name)
+  /// Raw depth units per metre (value / depth_scale = metres); 0 when depth is metric already.
+  double depth_scale = 0;
+  std::string depth_scale_source;  ///< file, preset or override that set `depth_scale`
+  bool has_color = false;
+  bool has_ground_truth = false;
+  double first_timestamp_s = 0;
+  std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
+};
+
+struct RgbdFrame {
+  std::size_t index = 0;
+  double timestamp_s = 0;
+  DepthImage depth_m;   ///< metres, 0 = invalid
+  ColorImage color;     ///< empty when the dataset has no colour
+  std::optional<Pose> T_wc_gt;  ///< ground-truth camera-to-world pose, when known
+};
+
+class DatasetReader {
+ public:
+  virtual ~DatasetReader() = default;
+  virtual const DatasetInfo& info() const = 0;
+  std::size_t size() const { return info().frame_count; }
+  /// Reads frame `index` (< size()). Throws `Error` naming the file when it cannot.
+  virtual RgbdFrame read(std::size_t index) = 0;
+};
+
+}  // namespace hivox

@@ -1,0 +1,11 @@
+#pragma once
+/// @file
+/// Host/device qualifiers. Math shared by the CPU and the (future) CUDA drivers is written once
+/// as `HIVOX_HD inline` functions on plain types; this header is the only place that knows
+/// whether a CUDA compiler is looking.
+
+#if defined(__CUDACC__)
+#define HIVOX_HD __host__ __device__
+#else
+#define HIVOX_HD
+#endif

@@ -1,0 +1,44 @@
+#include "hivox/core/camera.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "hivox/core/error.h"
+
+namespace hivox {
+
+PinholeCamera PinholeCamera::scaled(float factor) const {
+  PinholeCamera c = *this;
+  c.fx = fx * factor;
+  c.fy = fy * factor;
+  // Pixel centres are at integer coordinates: (u + 0.5) * factor - 0.5.
+  c.cx = (cx + 0.5f) * factor - 0.5f;
+  c.cy = (cy + 0.5f) * factor - 0.5f;
+  c.width = static_cast<int>(std::lround(width * factor));
+  c.height = static_cast<int>(std::lround(height * factor));
+  return c;
+}
+
+void PinholeCamera::validate(const std::string& what) const {
+  if (!std::isfinite(fx) || fx <= 0.0f)
+    fail(ErrorCode::InvalidArgument, "{}: fx must be a positive focal length in pixels, got {}",
+         what, fx);
+  if (!std::isfinite(fy) || fy == 0.0f)
+    fail(ErrorCode::InvalidArgument,
+         "{}: fy must be a non-zero focal length in pixels (negative is allowed), got {}", what,
+         fy);
+  if (!std::isfinite(cx) || !std::isfinite(cy))
+    fail(ErrorCode::InvalidArgument, "{}: principal point must be finite, got ({}, {})", what,
+         cx, cy);
+  if (width <= 0 || height <= 0)
+    fail(ErrorCode::InvalidArgument, "{}: image size must be positive, got {}x{}", what, width,
+         height);
+}
+
+std::string PinholeCamera::to_string() const {
+  return fmt::format("fx={:.3f} fy={:.3f} cx={:.3f} cy={:.3f} {}x{}", fx, fy, cx, cy, width,
+                     height);
+}
+
+}  // namespace hivox
