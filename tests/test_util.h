@@ -20,7 +20,7 @@ inline std::filesystem::path data_dir() {
 }
 
 /// Path of a real data set, or skips the test with a clear message when it is missing.
-#define HIVOX_REQUIRE_DATASET(var, name)                                                       \
+#define HIVOX_REQUIRE_DATASET(var, name)                                                      \
   const std::filesystem::path var = ::hivox::test::data_dir() / (name);                       \
   if (::hivox::test::data_dir().empty() || !std::filesystem::is_directory(var))               \
   GTEST_SKIP() << "real data set '" << (name) << "' not found (looked in ../shared/data and " \

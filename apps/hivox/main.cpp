@@ -4,7 +4,8 @@
 #include "hivox/core/log.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
+  CLI::App app{
+      "hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
   app.require_subcommand(1);
   try {
     app.parse(argc, argv);

@@ -29,8 +29,8 @@ void PinholeCamera::validate(const std::string& what) const {
          "{}: fy must be a non-zero focal length in pixels (negative is allowed), got {}", what,
          fy);
   if (!std::isfinite(cx) || !std::isfinite(cy))
-    fail(ErrorCode::InvalidArgument, "{}: principal point must be finite, got ({}, {})", what,
-         cx, cy);
+    fail(ErrorCode::InvalidArgument, "{}: principal point must be finite, got ({}, {})", what, cx,
+         cy);
   if (width <= 0 || height <= 0)
     fail(ErrorCode::InvalidArgument, "{}: image size must be positive, got {}x{}", what, width,
          height);

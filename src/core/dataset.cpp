@@ -4,10 +4,14 @@ namespace hivox {
 
 std::string_view to_string(DatasetLayout layout) {
   switch (layout) {
-    case DatasetLayout::Tum: return "TUM";
-    case DatasetLayout::SevenScenes: return "7-Scenes";
-    case DatasetLayout::InfiniTam: return "InfiniTAM";
-    case DatasetLayout::Synthetic: return "synthetic";
+    case DatasetLayout::Tum:
+      return "TUM";
+    case DatasetLayout::SevenScenes:
+      return "7-Scenes";
+    case DatasetLayout::InfiniTam:
+      return "InfiniTAM";
+    case DatasetLayout::Synthetic:
+      return "synthetic";
   }
   return "unknown";
 }

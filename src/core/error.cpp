@@ -4,12 +4,18 @@ namespace hivox {
 
 std::string_view to_string(ErrorCode code) {
   switch (code) {
-    case ErrorCode::InvalidArgument: return "invalid argument";
-    case ErrorCode::Io: return "I/O error";
-    case ErrorCode::InvalidData: return "invalid data";
-    case ErrorCode::OutOfCapacity: return "out of capacity";
-    case ErrorCode::Unsupported: return "unsupported";
-    case ErrorCode::Cuda: return "CUDA error";
+    case ErrorCode::InvalidArgument:
+      return "invalid argument";
+    case ErrorCode::Io:
+      return "I/O error";
+    case ErrorCode::InvalidData:
+      return "invalid data";
+    case ErrorCode::OutOfCapacity:
+      return "out of capacity";
+    case ErrorCode::Unsupported:
+      return "unsupported";
+    case ErrorCode::Cuda:
+      return "CUDA error";
   }
   return "unknown error";
 }

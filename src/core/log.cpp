@@ -24,11 +24,16 @@ Level g_level = Level::Info;
 
 spdlog::level::level_enum to_spdlog(Level level) {
   switch (level) {
-    case Level::Debug: return spdlog::level::debug;
-    case Level::Info: return spdlog::level::info;
-    case Level::Warn: return spdlog::level::warn;
-    case Level::Error: return spdlog::level::err;
-    case Level::Off: return spdlog::level::off;
+    case Level::Debug:
+      return spdlog::level::debug;
+    case Level::Info:
+      return spdlog::level::info;
+    case Level::Warn:
+      return spdlog::level::warn;
+    case Level::Error:
+      return spdlog::level::err;
+    case Level::Off:
+      return spdlog::level::off;
   }
   return spdlog::level::info;
 }
@@ -40,9 +45,13 @@ void set_level(Level level) {
   logger()->set_level(to_spdlog(level));
 }
 
-Level level() { return g_level; }
+Level level() {
+  return g_level;
+}
 
-void write(Level level, std::string_view message) { logger()->log(to_spdlog(level), message); }
+void write(Level level, std::string_view message) {
+  logger()->log(to_spdlog(level), message);
+}
 
 void write_once(Level level, std::string_view key, std::string_view message) {
   static std::mutex mutex;

@@ -6,7 +6,9 @@ namespace {
 int g_default_threads = 0;
 }
 
-int thread_count() { return omp_get_max_threads(); }
+int thread_count() {
+  return omp_get_max_threads();
+}
 
 void set_thread_count(int n) {
   if (g_default_threads == 0) g_default_threads = omp_get_max_threads();

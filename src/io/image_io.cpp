@@ -38,7 +38,8 @@ FilePtr open_for_reading(const fs::path& path) {
   if (fs::is_directory(path, ec))
     fail(ErrorCode::Io, "{}: is a directory, expected an image file", path.string());
   FilePtr f(std::fopen(path.c_str(), "rb"));
-  if (!f) fail(ErrorCode::Io, "{}: cannot open for reading ({})", path.string(), std::strerror(errno));
+  if (!f)
+    fail(ErrorCode::Io, "{}: cannot open for reading ({})", path.string(), std::strerror(errno));
   return f;
 }
 
@@ -77,8 +78,8 @@ enum class PngMode { Raw16Gray, Rgb8 };
 // Returns an empty string on success, otherwise libpng's reason.
 std::string read_png_file(std::FILE* f, PngMode mode, PngRaw* out, std::vector<png_bytep>* rows) {
   PngErrorState state;
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &state, png_error_fn,
-                                           png_warning_fn);
+  png_structp png =
+      png_create_read_struct(PNG_LIBPNG_VER_STRING, &state, png_error_fn, png_warning_fn);
   if (!png) return "out of memory";
   png_infop info = png_create_info_struct(png);
   if (!info) {
@@ -169,9 +170,8 @@ std::string read_jpeg_file(std::FILE* f, ColorImage* out) {
   jpeg_start_decompress(&cinfo);
   out->resize(static_cast<int>(cinfo.output_width), static_cast<int>(cinfo.output_height));
   while (cinfo.output_scanline < cinfo.output_height) {
-    JSAMPROW row = reinterpret_cast<JSAMPROW>(out->data() +
-                                              static_cast<std::size_t>(cinfo.output_scanline) *
-                                                  cinfo.output_width);
+    JSAMPROW row = reinterpret_cast<JSAMPROW>(
+        out->data() + static_cast<std::size_t>(cinfo.output_scanline) * cinfo.output_width);
     jpeg_read_scanlines(&cinfo, &row, 1);
   }
   jpeg_finish_decompress(&cinfo);
@@ -240,8 +240,8 @@ std::string write_png_file(std::FILE* f, int width, int height, int bit_depth, i
                            const uint8_t* pixels, std::size_t row_bytes,
                            std::vector<png_bytep>* rows) {
   PngErrorState state;
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &state, png_error_fn,
-                                            png_warning_fn);
+  png_structp png =
+      png_create_write_struct(PNG_LIBPNG_VER_STRING, &state, png_error_fn, png_warning_fn);
   if (!png) return "out of memory";
   png_infop info = png_create_info_struct(png);
   if (!info) {
@@ -275,7 +275,8 @@ void write_png_any(const fs::path& path, int width, int height, int bit_depth, i
   if (width <= 0 || height <= 0)
     fail(ErrorCode::InvalidArgument, "{}: cannot write an empty image", path.string());
   FilePtr f(std::fopen(path.c_str(), "wb"));
-  if (!f) fail(ErrorCode::Io, "{}: cannot open for writing ({})", path.string(), std::strerror(errno));
+  if (!f)
+    fail(ErrorCode::Io, "{}: cannot open for writing ({})", path.string(), std::strerror(errno));
   std::vector<png_bytep> rows;
   const std::string problem = write_png_file(f.get(), width, height, bit_depth, color_type,
                                              static_cast<const uint8_t*>(pixels), row_bytes, &rows);
@@ -315,7 +316,8 @@ Image<uint16_t> read_depth16(const fs::path& path) {
       fail(ErrorCode::InvalidData,
            "{}: depth must be a 16-bit single-channel PNG, found a JPEG (lossy colour image)",
            path.string());
-    case FileFormat::Unknown: break;
+    case FileFormat::Unknown:
+      break;
   }
   fail(ErrorCode::InvalidData, "{}: not a PNG or PGM image", path.string());
 }
@@ -341,8 +343,8 @@ ColorImage read_color(const fs::path& path) {
       const int channels = h.kind == '6' ? 3 : 1;
       const int sample_bytes = h.maxval > 255 ? 2 : 1;
       ColorImage image(h.width, h.height);
-      const auto bytes =
-          read_exact(path, f.get(), image.size() * static_cast<std::size_t>(channels * sample_bytes));
+      const auto bytes = read_exact(
+          path, f.get(), image.size() * static_cast<std::size_t>(channels * sample_bytes));
       auto sample = [&](std::size_t i) -> uint8_t {
         const unsigned v = sample_bytes == 2 ? (bytes[2 * i] << 8 | bytes[2 * i + 1]) : bytes[i];
         return static_cast<uint8_t>(v * 255u / static_cast<unsigned>(h.maxval));
@@ -355,7 +357,8 @@ ColorImage read_color(const fs::path& path) {
       }
       return image;
     }
-    case FileFormat::Unknown: break;
+    case FileFormat::Unknown:
+      break;
   }
   fail(ErrorCode::InvalidData, "{}: not a PNG, JPEG or PNM image", path.string());
 }

@@ -7,7 +7,9 @@
 namespace hivox {
 namespace {
 
-PinholeCamera tum_like() { return {525.0f, 525.0f, 319.5f, 239.5f, 640, 480}; }
+PinholeCamera tum_like() {
+  return {525.0f, 525.0f, 319.5f, 239.5f, 640, 480};
+}
 
 TEST(Camera, ProjectUnprojectRoundTrip) {
   for (const PinholeCamera cam :

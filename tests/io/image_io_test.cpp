@@ -26,7 +26,8 @@ TEST(ImageIo, Depth16PngRoundTrip) {
   TempDir dir;
   Image<uint16_t> depth(37, 21);
   for (int y = 0; y < depth.height(); ++y)
-    for (int x = 0; x < depth.width(); ++x) depth(x, y) = static_cast<uint16_t>(x * 1000 + y * 7 + 1);
+    for (int x = 0; x < depth.width(); ++x)
+      depth(x, y) = static_cast<uint16_t>(x * 1000 + y * 7 + 1);
   depth(3, 4) = 65535;
   write_png(dir / "d.png", depth);
   const Image<uint16_t> back = read_depth16(dir / "d.png");

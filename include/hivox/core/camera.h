@@ -11,10 +11,10 @@
 namespace hivox {
 
 struct PinholeCamera {
-  float fx = 0;  ///< focal length along x, pixels (> 0)
-  float fy = 0;  ///< focal length along y, pixels (non-zero; negative flips y)
-  float cx = 0;  ///< principal point x, pixels
-  float cy = 0;  ///< principal point y, pixels
+  float fx = 0;    ///< focal length along x, pixels (> 0)
+  float fy = 0;    ///< focal length along y, pixels (non-zero; negative flips y)
+  float cx = 0;    ///< principal point x, pixels
+  float cy = 0;    ///< principal point y, pixels
   int width = 0;   ///< image width, pixels
   int height = 0;  ///< image height, pixels
 

@@ -39,8 +39,8 @@ struct DatasetInfo {
 struct RgbdFrame {
   std::size_t index = 0;
   double timestamp_s = 0;
-  DepthImage depth_m;   ///< metres, 0 = invalid
-  ColorImage color;     ///< empty when the dataset has no colour
+  DepthImage depth_m;           ///< metres, 0 = invalid
+  ColorImage color;             ///< empty when the dataset has no colour
   std::optional<Pose> T_wc_gt;  ///< ground-truth camera-to-world pose, when known
 };
 

@@ -15,14 +15,18 @@ namespace hivox {
 struct Rgb8 {
   uint8_t r = 0, g = 0, b = 0;
 };
-inline bool operator==(const Rgb8& a, const Rgb8& b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+inline bool operator==(const Rgb8& a, const Rgb8& b) {
+  return a.r == b.r && a.g == b.g && a.b == b.b;
+}
 
 template <typename T>
 struct ImageView {
   T* data = nullptr;
   int width = 0;
   int height = 0;
-  HIVOX_HD T& operator()(int x, int y) const { return data[static_cast<std::size_t>(y) * width + x]; }
+  HIVOX_HD T& operator()(int x, int y) const {
+    return data[static_cast<std::size_t>(y) * width + x];
+  }
   HIVOX_HD bool inside(int x, int y) const { return x >= 0 && y >= 0 && x < width && y < height; }
   HIVOX_HD bool empty() const { return data == nullptr || width == 0 || height == 0; }
 };

@@ -29,7 +29,9 @@ struct Vec3i {
 HIVOX_HD inline bool operator==(const Vec3i& a, const Vec3i& b) {
   return a.x == b.x && a.y == b.y && a.z == b.z;
 }
-HIVOX_HD inline bool operator!=(const Vec3i& a, const Vec3i& b) { return !(a == b); }
+HIVOX_HD inline bool operator!=(const Vec3i& a, const Vec3i& b) {
+  return !(a == b);
+}
 HIVOX_HD inline Vec3i operator+(const Vec3i& a, const Vec3i& b) {
   return {a.x + b.x, a.y + b.y, a.z + b.z};
 }
@@ -40,19 +42,31 @@ HIVOX_HD inline Vec3f operator+(const Vec3f& a, const Vec3f& b) {
 HIVOX_HD inline Vec3f operator-(const Vec3f& a, const Vec3f& b) {
   return {a.x - b.x, a.y - b.y, a.z - b.z};
 }
-HIVOX_HD inline Vec3f operator-(const Vec3f& a) { return {-a.x, -a.y, -a.z}; }
-HIVOX_HD inline Vec3f operator*(const Vec3f& a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-HIVOX_HD inline Vec3f operator*(float s, const Vec3f& a) { return a * s; }
-HIVOX_HD inline Vec3f operator/(const Vec3f& a, float s) { return a * (1.0f / s); }
+HIVOX_HD inline Vec3f operator-(const Vec3f& a) {
+  return {-a.x, -a.y, -a.z};
+}
+HIVOX_HD inline Vec3f operator*(const Vec3f& a, float s) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+HIVOX_HD inline Vec3f operator*(float s, const Vec3f& a) {
+  return a * s;
+}
+HIVOX_HD inline Vec3f operator/(const Vec3f& a, float s) {
+  return a * (1.0f / s);
+}
 HIVOX_HD inline Vec3f& operator+=(Vec3f& a, const Vec3f& b) {
   a = a + b;
   return a;
 }
-HIVOX_HD inline float dot(const Vec3f& a, const Vec3f& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+HIVOX_HD inline float dot(const Vec3f& a, const Vec3f& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 HIVOX_HD inline Vec3f cross(const Vec3f& a, const Vec3f& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-HIVOX_HD inline float norm(const Vec3f& a) { return std::sqrt(dot(a, a)); }
+HIVOX_HD inline float norm(const Vec3f& a) {
+  return std::sqrt(dot(a, a));
+}
 HIVOX_HD inline Vec3f normalized(const Vec3f& a) {
   const float n = norm(a);
   return n > 0.0f ? a / n : Vec3f{0, 0, 0};
@@ -105,6 +119,8 @@ struct Rigid3f {
   }
 };
 
-HIVOX_HD inline float clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
+HIVOX_HD inline float clampf(float v, float lo, float hi) {
+  return v < lo ? lo : (v > hi ? hi : v);
+}
 
 }  // namespace hivox

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// Rigid poses. The API uses `Eigen::Isometry3d`; `T_wc` is camera-to-world (maps camera-frame
-/// points into the world frame). TUM trajectory lines are `t tx ty tz qx qy qz qw`, camera-to-world,
-/// with the quaternion's scalar *last* (Eigen's constructor takes it first: use these helpers).
+/// points into the world frame). TUM trajectory lines are `t tx ty tz qx qy qz qw`,
+/// camera-to-world, with the quaternion's scalar *last* (Eigen's constructor takes it first: use
+/// these helpers).
 
 #include <array>
 #include <vector>

@@ -19,8 +19,8 @@ ColorImage read_color(const std::filesystem::path& path);
 
 /// Converts raw depth to metres: `raw / depth_scale`; 0 and `invalid_raw` (e.g. 65535 in
 /// 7-Scenes) become 0 (invalid). `depth_offset_m` is added to valid values.
-DepthImage depth_to_metres(const Image<uint16_t>& raw, double depth_scale,
-                           uint16_t invalid_raw = 0, double depth_offset_m = 0.0);
+DepthImage depth_to_metres(const Image<uint16_t>& raw, double depth_scale, uint16_t invalid_raw = 0,
+                           double depth_offset_m = 0.0);
 
 /// Converts metric depth to raw units (rounded, clamped to 1..65535; 0 stays invalid).
 Image<uint16_t> depth_to_raw(const DepthImage& depth_m, double depth_scale);

@@ -1,0 +1,23 @@
+#pragma once
+/// @file
+/// `intrinsics.json`: `{"fx", "fy", "cx", "cy", "width", "height", "depth_scale"}` (+ optional
+/// `note` and distortion, which hivox reads but does not use).
+
+#include <filesystem>
+#include <string>
+
+#include "hivox/core/camera.h"
+
+namespace hivox {
+
+struct IntrinsicsFile {
+  PinholeCamera camera;
+  double depth_scale = 0;  ///< raw depth units per metre; 0 when the file has none
+  std::string note;
+};
+
+/// Reads and validates an intrinsics file. Errors name the file and the bad field.
+IntrinsicsFile read_intrinsics_json(const std::filesystem::path& path);
+void write_intrinsics_json(const std::filesystem::path& path, const IntrinsicsFile& intrinsics);
+
+}  // namespace hivox

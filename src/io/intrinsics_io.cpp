@@ -1,0 +1,76 @@
+#include "hivox/io/intrinsics_io.h"
+
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "hivox/core/error.h"
+
+namespace hivox {
+
+namespace {
+
+double number_field(const nlohmann::json& j, const std::filesystem::path& path, const char* name) {
+  if (!j.contains(name))
+    fail(ErrorCode::InvalidData, "{}: missing field '{}'", path.string(), name);
+  const auto& v = j.at(name);
+  if (!v.is_number())
+    fail(ErrorCode::InvalidData, "{}: field '{}' must be a number, found {}", path.string(), name,
+         v.dump());
+  return v.get<double>();
+}
+
+}  // namespace
+
+IntrinsicsFile read_intrinsics_json(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) fail(ErrorCode::Io, "{}: cannot open intrinsics file", path.string());
+  nlohmann::json j;
+  try {
+    in >> j;
+  } catch (const nlohmann::json::exception& e) {
+    fail(ErrorCode::InvalidData, "{}: not valid JSON ({})", path.string(), e.what());
+  }
+  if (!j.is_object()) fail(ErrorCode::InvalidData, "{}: expected a JSON object", path.string());
+  IntrinsicsFile out;
+  out.camera.fx = static_cast<float>(number_field(j, path, "fx"));
+  out.camera.fy = static_cast<float>(number_field(j, path, "fy"));
+  out.camera.cx = static_cast<float>(number_field(j, path, "cx"));
+  out.camera.cy = static_cast<float>(number_field(j, path, "cy"));
+  const double w = number_field(j, path, "width");
+  const double h = number_field(j, path, "height");
+  if (w != std::floor(w) || h != std::floor(h))
+    fail(ErrorCode::InvalidData, "{}: width/height must be integers, found {} x {}", path.string(),
+         w, h);
+  out.camera.width = static_cast<int>(w);
+  out.camera.height = static_cast<int>(h);
+  out.camera.validate(path.string());
+  if (j.contains("depth_scale")) {
+    out.depth_scale = number_field(j, path, "depth_scale");
+    if (!(out.depth_scale > 0))
+      fail(ErrorCode::InvalidArgument,
+           "{}: depth_scale must be > 0 (raw units per metre, e.g. 5000 for TUM), got {}",
+           path.string(), out.depth_scale);
+  }
+  if (j.contains("note") && j.at("note").is_string()) out.note = j.at("note").get<std::string>();
+  return out;
+}
+
+void write_intrinsics_json(const std::filesystem::path& path, const IntrinsicsFile& intrinsics) {
+  nlohmann::json j;
+  j["fx"] = intrinsics.camera.fx;
+  j["fy"] = intrinsics.camera.fy;
+  j["cx"] = intrinsics.camera.cx;
+  j["cy"] = intrinsics.camera.cy;
+  j["width"] = intrinsics.camera.width;
+  j["height"] = intrinsics.camera.height;
+  if (intrinsics.depth_scale > 0) j["depth_scale"] = intrinsics.depth_scale;
+  if (!intrinsics.note.empty()) j["note"] = intrinsics.note;
+  std::ofstream out(path);
+  if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
+  out << j.dump(2) << "\n";
+  if (!out) fail(ErrorCode::Io, "{}: write failed", path.string());
+}
+
+}  // namespace hivox
