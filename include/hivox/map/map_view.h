@@ -1,0 +1,107 @@
+#pragma once
+/// @file
+/// Plain-data view of the map for kernels (host and device) and the lookup functions written
+/// once on it. A view is passed by value; it does not own memory.
+
+#include <cstdint>
+
+#include "hivox/core/hd.h"
+#include "hivox/core/math.h"
+#include "hivox/map/params.h"
+#include "hivox/map/voxel.h"
+
+namespace hivox {
+
+/// What a hash entry's `ptr` means.
+enum class EntryState {
+  Allocated,  ///< ptr >= 0 indexes a voxel block in the pool
+  Split,      ///< the region lives at the next finer level
+  Empty,      ///< unused slot (reusable; the chain may continue through it)
+  Reserved,   ///< claimed by an insertion in progress (only seen while allocating)
+};
+
+inline constexpr int32_t kPtrEmpty = -1;
+inline constexpr int32_t kPtrSplit = -2;
+inline constexpr int32_t kPtrReserved = -3;
+inline constexpr int32_t kNoEntry = -1;  ///< end of a chain / "not found"
+
+HIVOX_HD inline EntryState entry_state(int32_t ptr) {
+  if (ptr >= 0) return EntryState::Allocated;
+  if (ptr == kPtrSplit) return EntryState::Split;
+  if (ptr == kPtrReserved) return EntryState::Reserved;
+  return EntryState::Empty;
+}
+
+/// One slot of a level's hash table: a bucket head (index < bucket count) or an excess entry.
+struct HashEntry {
+  Vec3i pos;                ///< block coordinates at this entry's level
+  int32_t ptr = kPtrEmpty;  ///< block index, kPtrSplit, kPtrEmpty or kPtrReserved
+  int32_t next = kNoEntry;  ///< next entry of the chain (an excess index) or kNoEntry
+};
+
+/// Bucket of block coordinates: the classic spatial hash on unsigned values, so a negative
+/// coordinate does not collide with its mirror image.
+HIVOX_HD inline uint32_t block_hash(const Vec3i& b, uint32_t bucket_mask) {
+  return ((static_cast<uint32_t>(b.x) * 73856093u) ^ (static_cast<uint32_t>(b.y) * 19349669u) ^
+          (static_cast<uint32_t>(b.z) * 83492791u)) &
+         bucket_mask;
+}
+
+/// A stack of free indices (voxel blocks or excess entries). Pops and pushes happen in separate
+/// phases, each with atomics only.
+struct FreeListView {
+  int32_t* items = nullptr;
+  int32_t* count = nullptr;  ///< number of free items (top of stack)
+  int32_t capacity = 0;
+};
+
+struct LevelView {
+  HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries
+  uint32_t bucket_mask = 0;      ///< bucket_count - 1
+  int32_t entry_count = 0;       ///< bucket_count + excess capacity
+  FreeListView excess;           ///< free excess entry indices (absolute indices in `entries`)
+  float voxel_size_m = 0;
+  float block_size_m = 0;
+};
+
+struct MapView {
+  LevelView level[kMaxLevels];
+  int32_t levels = 0;
+  TsdfVoxel* tsdf = nullptr;    ///< block_capacity * 512 voxels
+  ColorVoxel* color = nullptr;  ///< same layout, or null when colour is not stored
+  FreeListView blocks;          ///< free voxel-block indices
+  int32_t block_capacity = 0;
+  int32_t* level_block_count = nullptr;  ///< allocated blocks per level (kMaxLevels counters)
+};
+
+/// Index of the entry holding block `pos` at `level`, or kNoEntry. Empty slots are skipped.
+HIVOX_HD inline int32_t find_entry(const LevelView& lv, const Vec3i& pos) {
+  int32_t i = static_cast<int32_t>(block_hash(pos, lv.bucket_mask));
+  while (i != kNoEntry) {
+    const HashEntry& e = lv.entries[i];
+    if (e.ptr != kPtrEmpty && e.pos == pos) return i;
+    i = e.next;
+  }
+  return kNoEntry;
+}
+
+/// `ptr` of block `pos` at `level` (block index, kPtrSplit) or kPtrEmpty when absent.
+HIVOX_HD inline int32_t find_block_ptr(const LevelView& lv, const Vec3i& pos) {
+  const int32_t i = find_entry(lv, pos);
+  return i == kNoEntry ? kPtrEmpty : lv.entries[i].ptr;
+}
+
+/// Block containing world point `p_w` at a level with block size `block_size_m`.
+HIVOX_HD inline Vec3i block_of_point(const Vec3f& p_w, float block_size_m) {
+  return floor_to_int(p_w / block_size_m);
+}
+
+/// Splits a global voxel coordinate into block coordinates and the voxel index inside it.
+HIVOX_HD inline Vec3i block_of_voxel(const Vec3i& v) {
+  return {v.x >> 3, v.y >> 3, v.z >> 3};  // arithmetic shift = floor division by 8
+}
+HIVOX_HD inline int local_voxel_index(const Vec3i& v) {
+  return voxel_index(v.x & 7, v.y & 7, v.z & 7);
+}
+
+}  // namespace hivox

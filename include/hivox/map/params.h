@@ -1,0 +1,30 @@
+#pragma once
+/// @file
+/// Map parameters: resolution levels and capacities. Capacities are runtime settings.
+
+#include <cstdint>
+#include <string>
+
+namespace hivox {
+
+/// Upper bound of `MapParams::levels` (plain arrays in kernel views are sized by it).
+inline constexpr int kMaxLevels = 4;
+
+struct MapParams {
+  float voxel_size_m = 0.002f;   ///< finest voxel size s; level l has s * 2^l
+  int levels = 3;                ///< number of resolution levels, 1 (fixed grid) to kMaxLevels
+  int64_t max_blocks = 1 << 20;  ///< voxel-block pool size shared by all levels (--max-blocks)
+  int64_t buckets_per_level = 1 << 20;  ///< hash buckets per level (power of two)
+  int64_t excess_per_level = 1 << 18;   ///< overflow (chain) entries per level
+  bool store_color = true;              ///< keep a 4-byte colour per voxel
+
+  float voxel_size_at(int level) const { return voxel_size_m * static_cast<float>(1 << level); }
+  float block_size_at(int level) const { return 8.0f * voxel_size_at(level); }
+  int bytes_per_voxel() const { return store_color ? 8 : 4; }
+
+  /// Throws `Error(InvalidArgument)` naming the bad field.
+  void validate() const;
+  std::string to_string() const;
+};
+
+}  // namespace hivox

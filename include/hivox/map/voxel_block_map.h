@@ -1,0 +1,106 @@
+#pragma once
+/// @file
+/// The voxel block map: one hash table per resolution level and one voxel-block pool shared by
+/// all levels. Owns the memory; kernels work on its `MapView`.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "hivox/map/map_view.h"
+#include "hivox/map/params.h"
+
+namespace hivox {
+
+/// A block coordinate at a level (the unit of allocation).
+struct BlockKey {
+  Vec3i pos;
+  int32_t level = 0;
+};
+bool operator<(const BlockKey& a, const BlockKey& b);
+bool operator==(const BlockKey& a, const BlockKey& b);
+
+/// An allocated block: where its entry is and which pool block holds its voxels.
+struct BlockRef {
+  Vec3i pos;
+  int32_t level = 0;
+  int32_t entry = kNoEntry;
+  int32_t ptr = kPtrEmpty;
+};
+
+/// Outcome of a batched insertion; nothing is dropped silently.
+struct InsertStats {
+  int64_t inserted = 0;
+  int64_t dropped_hash_full = 0;  ///< excess (chain) entries of a level exhausted
+  int64_t dropped_pool_full = 0;  ///< voxel-block pool exhausted
+  int64_t dropped() const { return dropped_hash_full + dropped_pool_full; }
+};
+
+class VoxelBlockMap {
+ public:
+  /// Validates `params` and reserves the tables. Voxel memory is committed as blocks are used.
+  explicit VoxelBlockMap(const MapParams& params);
+  ~VoxelBlockMap();
+  VoxelBlockMap(const VoxelBlockMap&) = delete;
+  VoxelBlockMap& operator=(const VoxelBlockMap&) = delete;
+
+  const MapParams& params() const { return params_; }
+  int levels() const { return params_.levels; }
+  /// Plain-data view for kernels (pointers into this map's memory).
+  MapView view() const { return view_; }
+
+  /// Inserts blocks that are not in the map yet (`keys` unique and absent), in parallel.
+  /// Every new block is cleared to "unobserved". When a capacity runs out the block is dropped,
+  /// counted in the result and in `dropped_blocks()`, and a warning naming the option to raise
+  /// is logged once; the map stays consistent. `inserted` (optional) receives the new blocks.
+  InsertStats insert_blocks(std::span<const BlockKey> keys,
+                            std::vector<BlockRef>* inserted = nullptr);
+
+  std::optional<BlockRef> find(int level, const Vec3i& pos) const;
+  /// All allocated blocks (state Allocated), level by level.
+  std::vector<BlockRef> allocated_blocks() const;
+  /// Number of entries marked Split at each level.
+  std::vector<int64_t> split_entries_per_level() const;
+
+  TsdfVoxel* block_tsdf(int32_t ptr) const { return view_.tsdf + int64_t{ptr} * kBlockVoxels; }
+  ColorVoxel* block_color(int32_t ptr) const {
+    return view_.color ? view_.color + int64_t{ptr} * kBlockVoxels : nullptr;
+  }
+  /// Voxel at global voxel coordinate `v` of `level`, when its block is allocated there.
+  std::optional<TsdfVoxel> voxel(int level, const Vec3i& v) const;
+
+  int64_t block_capacity() const { return params_.max_blocks; }
+  int64_t blocks_in_use() const;
+  std::vector<int64_t> blocks_per_level() const;
+  int64_t excess_in_use(int level) const;
+  /// Bytes of voxel blocks in use plus the hash tables and free lists.
+  int64_t memory_bytes() const;
+  /// Blocks dropped so far because a capacity ran out.
+  int64_t dropped_blocks() const { return dropped_blocks_; }
+  /// Records blocks dropped by another stage (e.g. a split that found the pool full).
+  void add_dropped_blocks(int64_t n) { dropped_blocks_ += n; }
+
+  /// Empties the map (all blocks free, tables cleared).
+  void clear();
+
+ private:
+  struct FreeDeleter {
+    void operator()(void* p) const;
+  };
+  MapParams params_;
+  std::array<std::vector<HashEntry>, kMaxLevels> entries_;
+  std::array<std::vector<int32_t>, kMaxLevels> excess_free_;
+  std::vector<int32_t> block_free_;
+  // Counters addressed by kernels: [0, kMaxLevels) excess free counts, then the block free
+  // count, then kMaxLevels per-level block counts.
+  std::vector<int32_t> counters_;
+  std::unique_ptr<TsdfVoxel, FreeDeleter> tsdf_;
+  std::unique_ptr<ColorVoxel, FreeDeleter> color_;
+  MapView view_;
+  int64_t dropped_blocks_ = 0;
+};
+
+}  // namespace hivox

@@ -1,0 +1,42 @@
+#include "hivox/map/params.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "hivox/core/error.h"
+
+namespace hivox {
+
+namespace {
+bool is_power_of_two(int64_t v) {
+  return v > 0 && (v & (v - 1)) == 0;
+}
+}  // namespace
+
+void MapParams::validate() const {
+  if (!std::isfinite(voxel_size_m) || voxel_size_m <= 0.0f || voxel_size_m > 1.0f)
+    fail(ErrorCode::InvalidArgument, "voxel_size_m must be in (0, 1] metres, got {}", voxel_size_m);
+  if (levels < 1 || levels > kMaxLevels)
+    fail(ErrorCode::InvalidArgument, "levels must be between 1 and {}, got {}", kMaxLevels, levels);
+  if (max_blocks < 1 || max_blocks > (int64_t{1} << 30))
+    fail(ErrorCode::InvalidArgument, "max_blocks must be in [1, 2^30], got {}", max_blocks);
+  if (!is_power_of_two(buckets_per_level) || buckets_per_level > (int64_t{1} << 28))
+    fail(ErrorCode::InvalidArgument,
+         "buckets_per_level must be a power of two no larger than 2^28, got {}", buckets_per_level);
+  if (excess_per_level < 0 || excess_per_level > (int64_t{1} << 28))
+    fail(ErrorCode::InvalidArgument, "excess_per_level must be in [0, 2^28], got {}",
+         excess_per_level);
+}
+
+std::string MapParams::to_string() const {
+  std::string sizes;
+  for (int l = 0; l < levels; ++l)
+    sizes += fmt::format("{}{:.1f}", l ? "/" : "", voxel_size_at(l) * 1000.0f);
+  return fmt::format(
+      "voxel {} mm ({} level{}), max_blocks {}, buckets/level {}, excess/level {}, colour {}",
+      sizes, levels, levels > 1 ? "s" : "", max_blocks, buckets_per_level, excess_per_level,
+      store_color ? "on" : "off");
+}
+
+}  // namespace hivox

@@ -1,0 +1,195 @@
+#include "hivox/map/voxel_block_map.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <numeric>
+#include <tuple>
+
+#include "hivox/core/error.h"
+#include "hivox/core/log.h"
+#include "hivox/core/parallel.h"
+#include "map/map_kernels.h"
+
+namespace hivox {
+
+bool operator<(const BlockKey& a, const BlockKey& b) {
+  return std::tie(a.level, a.pos.z, a.pos.y, a.pos.x) <
+         std::tie(b.level, b.pos.z, b.pos.y, b.pos.x);
+}
+bool operator==(const BlockKey& a, const BlockKey& b) {
+  return a.level == b.level && a.pos == b.pos;
+}
+
+void VoxelBlockMap::FreeDeleter::operator()(void* p) const {
+  std::free(p);
+}
+
+namespace {
+
+// Large zeroed allocation: the kernel commits pages only when a block is first written, so
+// memory in use follows the number of blocks, not the capacity.
+template <typename T>
+T* allocate_lazily(int64_t count, const char* what) {
+  void* p = std::calloc(static_cast<std::size_t>(count), sizeof(T));
+  if (p == nullptr)
+    fail(ErrorCode::OutOfCapacity, "cannot reserve {} MiB for {}; lower --max-blocks",
+         count * static_cast<int64_t>(sizeof(T)) >> 20, what);
+  return static_cast<T*>(p);
+}
+
+constexpr int kBlockFreeCounter = kMaxLevels;
+constexpr int kLevelCountBase = kMaxLevels + 1;
+
+}  // namespace
+
+VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
+  params_.validate();
+  counters_.assign(2 * kMaxLevels + 1, 0);
+  const int64_t voxels = params_.max_blocks * kBlockVoxels;
+  tsdf_.reset(allocate_lazily<TsdfVoxel>(voxels, "TSDF voxels"));
+  if (params_.store_color) color_.reset(allocate_lazily<ColorVoxel>(voxels, "colour voxels"));
+  view_.levels = params_.levels;
+  view_.tsdf = tsdf_.get();
+  view_.color = color_.get();
+  view_.block_capacity = static_cast<int32_t>(params_.max_blocks);
+  view_.level_block_count = counters_.data() + kLevelCountBase;
+  block_free_.resize(static_cast<std::size_t>(params_.max_blocks));
+  view_.blocks = {block_free_.data(), counters_.data() + kBlockFreeCounter,
+                  static_cast<int32_t>(params_.max_blocks)};
+  for (int l = 0; l < params_.levels; ++l) {
+    const int64_t total = params_.buckets_per_level + params_.excess_per_level;
+    entries_[l].resize(static_cast<std::size_t>(total));
+    excess_free_[l].resize(static_cast<std::size_t>(params_.excess_per_level));
+    LevelView& lv = view_.level[l];
+    lv.entries = entries_[l].data();
+    lv.bucket_mask = static_cast<uint32_t>(params_.buckets_per_level - 1);
+    lv.entry_count = static_cast<int32_t>(total);
+    lv.excess = {excess_free_[l].data(), counters_.data() + l,
+                 static_cast<int32_t>(params_.excess_per_level)};
+    lv.voxel_size_m = params_.voxel_size_at(l);
+    lv.block_size_m = params_.block_size_at(l);
+  }
+  clear();
+}
+
+VoxelBlockMap::~VoxelBlockMap() = default;
+
+void VoxelBlockMap::clear() {
+  // Free stacks pop from the top: fill them so blocks 0, 1, 2, ... come out first, which keeps
+  // the committed voxel memory compact.
+  const int32_t n = static_cast<int32_t>(params_.max_blocks);
+  for (int32_t i = 0; i < n; ++i) block_free_[i] = n - 1 - i;
+  counters_[kBlockFreeCounter] = n;
+  for (int l = 0; l < params_.levels; ++l) {
+    std::fill(entries_[l].begin(), entries_[l].end(), HashEntry{});
+    const int32_t buckets = static_cast<int32_t>(params_.buckets_per_level);
+    const int32_t excess = static_cast<int32_t>(params_.excess_per_level);
+    for (int32_t i = 0; i < excess; ++i) excess_free_[l][i] = buckets + excess - 1 - i;
+    counters_[l] = excess;
+    counters_[kLevelCountBase + l] = 0;
+  }
+  dropped_blocks_ = 0;
+}
+
+InsertStats VoxelBlockMap::insert_blocks(std::span<const BlockKey> keys,
+                                         std::vector<BlockRef>* inserted) {
+  const int64_t n = static_cast<int64_t>(keys.size());
+  std::vector<BlockRef> refs(keys.size());
+  std::vector<uint8_t> outcome(keys.size());
+  const MapView map = view_;
+  parallel_for(n, [&](int64_t i) {
+    const BlockKey& k = keys[i];
+    int32_t entry = kNoEntry, block = kPtrEmpty;
+    const auto r = kernels::allocate_block(map, k.level, k.pos, &entry, &block);
+    outcome[i] = static_cast<uint8_t>(r);
+    refs[i] = {k.pos, k.level, entry, block};
+  });
+  InsertStats stats;
+  if (inserted) inserted->reserve(inserted->size() + keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    switch (static_cast<kernels::AllocResult>(outcome[i])) {
+      case kernels::AllocResult::Allocated:
+        ++stats.inserted;
+        if (inserted) inserted->push_back(refs[i]);
+        break;
+      case kernels::AllocResult::HashFull:
+        ++stats.dropped_hash_full;
+        break;
+      case kernels::AllocResult::PoolFull:
+        ++stats.dropped_pool_full;
+        break;
+    }
+  }
+  dropped_blocks_ += stats.dropped();
+  if (stats.dropped_pool_full > 0)
+    log::warn_once("map.pool_full",
+                   "voxel block pool is full ({} blocks): new blocks are being dropped and counted "
+                   "in stats (dropped_blocks); raise --max-blocks",
+                   params_.max_blocks);
+  if (stats.dropped_hash_full > 0)
+    log::warn_once("map.excess_full",
+                   "hash table overflow list is full ({} entries per level): new blocks are being "
+                   "dropped and counted in stats (dropped_blocks); raise --hash-excess or "
+                   "--hash-buckets",
+                   params_.excess_per_level);
+  return stats;
+}
+
+std::optional<BlockRef> VoxelBlockMap::find(int level, const Vec3i& pos) const {
+  if (level < 0 || level >= params_.levels) return std::nullopt;
+  const int32_t e = find_entry(view_.level[level], pos);
+  if (e == kNoEntry) return std::nullopt;
+  return BlockRef{pos, level, e, view_.level[level].entries[e].ptr};
+}
+
+std::vector<BlockRef> VoxelBlockMap::allocated_blocks() const {
+  std::vector<BlockRef> out;
+  out.reserve(static_cast<std::size_t>(blocks_in_use()));
+  for (int l = 0; l < params_.levels; ++l) {
+    const auto& entries = entries_[l];
+    for (std::size_t i = 0; i < entries.size(); ++i)
+      if (entries[i].ptr >= 0)
+        out.push_back({entries[i].pos, l, static_cast<int32_t>(i), entries[i].ptr});
+  }
+  return out;
+}
+
+std::vector<int64_t> VoxelBlockMap::split_entries_per_level() const {
+  std::vector<int64_t> out(params_.levels, 0);
+  for (int l = 0; l < params_.levels; ++l)
+    for (const HashEntry& e : entries_[l]) out[l] += e.ptr == kPtrSplit;
+  return out;
+}
+
+std::optional<TsdfVoxel> VoxelBlockMap::voxel(int level, const Vec3i& v) const {
+  if (level < 0 || level >= params_.levels) return std::nullopt;
+  const int32_t ptr = find_block_ptr(view_.level[level], block_of_voxel(v));
+  if (ptr < 0) return std::nullopt;
+  return block_tsdf(ptr)[local_voxel_index(v)];
+}
+
+int64_t VoxelBlockMap::blocks_in_use() const {
+  return params_.max_blocks - counters_[kBlockFreeCounter];
+}
+
+std::vector<int64_t> VoxelBlockMap::blocks_per_level() const {
+  std::vector<int64_t> out(params_.levels);
+  for (int l = 0; l < params_.levels; ++l) out[l] = counters_[kLevelCountBase + l];
+  return out;
+}
+
+int64_t VoxelBlockMap::excess_in_use(int level) const {
+  return params_.excess_per_level - counters_[level];
+}
+
+int64_t VoxelBlockMap::memory_bytes() const {
+  const int64_t block_bytes = int64_t{kBlockVoxels} * params_.bytes_per_voxel();
+  int64_t bytes = blocks_in_use() * block_bytes;
+  bytes += static_cast<int64_t>(block_free_.size() * sizeof(int32_t));
+  for (int l = 0; l < params_.levels; ++l)
+    bytes += static_cast<int64_t>(entries_[l].size() * sizeof(HashEntry) +
+                                  excess_free_[l].size() * sizeof(int32_t));
+  return bytes;
+}
+
+}  // namespace hivox

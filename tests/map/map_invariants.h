@@ -1,0 +1,67 @@
+#pragma once
+// Structural invariants of a VoxelBlockMap, checked by walking every chain.
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <tuple>
+#include <vector>
+
+#include "hivox/map/voxel_block_map.h"
+
+namespace hivox::test {
+
+/// Checks: every chain is acyclic and entries are reached from exactly one bucket; every used
+/// entry hashes to the bucket it hangs from; no key twice per level; every pool block is either
+/// free or owned by exactly one Allocated entry; per-level counters match the tables.
+inline void expect_map_consistent(const VoxelBlockMap& map) {
+  const MapView v = map.view();
+  std::vector<int> owner(static_cast<std::size_t>(v.block_capacity), 0);
+  for (int l = 0; l < v.levels; ++l) {
+    const LevelView& lv = v.level[l];
+    std::vector<uint8_t> seen(static_cast<std::size_t>(lv.entry_count), 0);
+    std::set<std::tuple<int, int, int>> keys;
+    int64_t allocated = 0;
+    const int32_t buckets = static_cast<int32_t>(lv.bucket_mask) + 1;
+    for (int32_t b = 0; b < buckets; ++b) {
+      for (int32_t i = b, steps = 0; i != kNoEntry; i = lv.entries[i].next, ++steps) {
+        ASSERT_LT(steps, lv.entry_count) << "cycle in chain of bucket " << b;
+        ASSERT_FALSE(seen[i]) << "entry " << i << " reachable twice (level " << l << ")";
+        seen[i] = 1;
+        const HashEntry& e = lv.entries[i];
+        ASSERT_NE(entry_state(e.ptr), EntryState::Reserved);
+        if (e.ptr == kPtrEmpty) continue;
+        EXPECT_EQ(block_hash(e.pos, lv.bucket_mask), static_cast<uint32_t>(b));
+        EXPECT_TRUE(keys.emplace(e.pos.x, e.pos.y, e.pos.z).second)
+            << "duplicate key at level " << l;
+        if (e.ptr >= 0) {
+          ASSERT_LT(e.ptr, v.block_capacity);
+          ++owner[e.ptr];
+          ++allocated;
+        }
+      }
+    }
+    EXPECT_EQ(allocated, map.blocks_per_level()[l]) << "level " << l << " counter";
+    // Excess entries not linked from any chain must be on the free list.
+    std::vector<uint8_t> free_excess(static_cast<std::size_t>(lv.entry_count), 0);
+    for (int32_t k = 0; k < *lv.excess.count; ++k) {
+      const int32_t e = lv.excess.items[k];
+      ASSERT_GE(e, buckets);
+      ASSERT_FALSE(free_excess[e]) << "excess entry " << e << " free twice";
+      free_excess[e] = 1;
+      EXPECT_FALSE(seen[e]) << "excess entry " << e << " is both free and linked";
+    }
+    for (int32_t e = buckets; e < lv.entry_count; ++e)
+      EXPECT_TRUE(seen[e] || free_excess[e]) << "excess entry " << e << " leaked";
+  }
+  for (int32_t k = 0; k < *v.blocks.count; ++k) {
+    const int32_t b = v.blocks.items[k];
+    ASSERT_GE(b, 0);
+    ASSERT_LT(b, v.block_capacity);
+    ++owner[b];
+  }
+  for (int32_t b = 0; b < v.block_capacity; ++b)
+    ASSERT_EQ(owner[b], 1) << "pool block " << b << " is owned " << owner[b] << " times";
+}
+
+}  // namespace hivox::test
