@@ -1,0 +1,201 @@
+#include "hivox/fusion/integrator.h"
+
+#include <algorithm>
+
+#include "fusion/fusion_kernels.h"
+#include "hivox/core/atomic.h"
+#include "hivox/core/error.h"
+#include "hivox/core/parallel.h"
+
+namespace hivox {
+
+namespace {
+
+/// Per-thread direct-mapped cache of blocks already handled this frame: neighbouring pixels
+/// cross the same blocks, so most hash look-ups are skipped.
+class BlockCache {
+ public:
+  static constexpr int kSlots = 1024;
+  struct Slot {
+    Vec3i pos;
+    int32_t level = -1;
+    int32_t ptr = kPtrEmpty;
+  };
+  void reset() { std::fill(std::begin(slots_), std::end(slots_), Slot{}); }
+  Slot& slot(int level, const Vec3i& pos) {
+    const uint32_t h = block_hash(pos, kSlots - 1) ^ static_cast<uint32_t>(level * 0x9E37);
+    return slots_[h & (kSlots - 1)];
+  }
+
+ private:
+  Slot slots_[kSlots];
+};
+
+struct ThreadState {
+  BlockCache cache;
+  std::vector<BlockKey> missing;
+  std::vector<BlockRef> found;
+  int64_t valid_pixels = 0;
+};
+
+/// Stage-one visitor on the CPU: looks a block up (once per thread, thanks to the cache),
+/// records it as missing or marks it visible (once per frame, via the per-block stamp).
+struct AllocationVisitor {
+  const MapView& map;
+  ThreadState& state;
+  int32_t* stamps;
+  int32_t frame;
+
+  int32_t block(int level, const Vec3i& pos) {
+    BlockCache::Slot& slot = state.cache.slot(level, pos);
+    if (slot.level == level && slot.pos == pos) return slot.ptr;
+    const LevelView& lv = map.level[level];
+    const int32_t entry = find_entry(lv, pos);
+    const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
+    if (ptr == kPtrEmpty) {
+      state.missing.push_back({pos, level});
+    } else if (ptr >= 0 && atomic_exchange(&stamps[ptr], frame) != frame) {
+      state.found.push_back({pos, level, entry, ptr});
+    }
+    slot = {pos, level, ptr};
+    return ptr;
+  }
+};
+
+kernels::DepthFrameView depth_view(const FusionInput& in, const FusionParams& p) {
+  kernels::DepthFrameView v;
+  v.depth_m = {in.depth_m->data(), in.depth_m->width(), in.depth_m->height()};
+  v.camera = in.depth_camera;
+  v.min_depth_m = std::max(p.min_depth_m, 1e-6f);
+  v.max_depth_m = p.max_depth_m;
+  return v;
+}
+
+}  // namespace
+
+struct TsdfIntegrator::Scratch {
+  std::vector<ThreadState> threads;
+  std::vector<int32_t> stamps;  // per pool block: frame counter of the last visit
+  int32_t frame = 0;
+};
+
+TsdfIntegrator::TsdfIntegrator(const FusionParams& params)
+    : params_(params), scratch_(std::make_unique<Scratch>()) {
+  params_.validate();
+}
+TsdfIntegrator::~TsdfIntegrator() = default;
+TsdfIntegrator::TsdfIntegrator(TsdfIntegrator&&) noexcept = default;
+TsdfIntegrator& TsdfIntegrator::operator=(TsdfIntegrator&&) noexcept = default;
+
+void validate_input(const FusionInput& in) {
+  if (in.depth_m == nullptr || in.depth_m->empty())
+    fail(ErrorCode::InvalidArgument, "fusion input: depth image is missing");
+  in.depth_camera.validate("depth camera");
+  if (in.depth_m->width() != in.depth_camera.width ||
+      in.depth_m->height() != in.depth_camera.height)
+    fail(ErrorCode::InvalidArgument, "fusion input: depth image is {}x{} but the camera is {}x{}",
+         in.depth_m->width(), in.depth_m->height(), in.depth_camera.width, in.depth_camera.height);
+  if (in.color != nullptr && !in.color->empty()) {
+    in.color_camera.validate("colour camera");
+    if (in.color->width() != in.color_camera.width || in.color->height() != in.color_camera.height)
+      fail(ErrorCode::InvalidArgument,
+           "fusion input: colour image is {}x{} but the colour camera is {}x{}", in.color->width(),
+           in.color->height(), in.color_camera.width, in.color_camera.height);
+  }
+}
+
+AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& in) {
+  validate_input(in);
+  Scratch& s = *scratch_;
+  const MapView view = map.view();
+  if (static_cast<int64_t>(s.stamps.size()) != map.block_capacity()) {
+    s.stamps.assign(static_cast<std::size_t>(map.block_capacity()), -1);
+    s.frame = 0;
+  }
+  // Frame counter for visibility stamps; on wrap-around, reset the stamps.
+  if (++s.frame == INT32_MAX) {
+    std::fill(s.stamps.begin(), s.stamps.end(), -1);
+    s.frame = 0;
+  }
+  const int32_t frame = s.frame;
+  const int threads = thread_count();
+  s.threads.resize(static_cast<std::size_t>(threads));
+  const kernels::DepthFrameView depth = depth_view(in, params_);
+  const Rigid3f T_wc = to_rigid3f(in.T_wc);
+  const float mu = params_.truncation_m;
+  const int height = depth.depth_m.height, width = depth.depth_m.width;
+
+  // Stage 1: every valid pixel walks its band; rows in chunks keep neighbouring pixels (which
+  // cross the same blocks) on one thread and its cache.
+  parallel_threads([&](int t, int) {
+    ThreadState& ts = s.threads[static_cast<std::size_t>(t)];
+    ts.cache.reset();
+    ts.missing.clear();
+    ts.found.clear();
+    ts.valid_pixels = 0;
+    AllocationVisitor visitor{view, ts, s.stamps.data(), frame};
+#pragma omp for schedule(dynamic, 4) nowait
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        Vec3f a, b;
+        if (!kernels::band_segment(depth, T_wc, mu, x, y, &a, &b)) continue;
+        ++ts.valid_pixels;
+        kernels::walk_segment(view, a, b, visitor);
+      }
+    }
+  });
+
+  AllocationStats stats;
+  std::vector<BlockKey> missing;
+  visible_.clear();
+  for (const ThreadState& ts : s.threads) {
+    missing.insert(missing.end(), ts.missing.begin(), ts.missing.end());
+    visible_.insert(visible_.end(), ts.found.begin(), ts.found.end());
+    stats.valid_pixels += ts.valid_pixels;
+  }
+  // Stage 2: de-duplicate (threads may have recorded the same block) and insert.
+  std::sort(missing.begin(), missing.end());
+  missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
+  const std::size_t before = visible_.size();
+  const InsertStats inserted = map.insert_blocks(missing, &visible_);
+  for (std::size_t i = before; i < visible_.size(); ++i) s.stamps[visible_[i].ptr] = frame;
+  stats.new_blocks = inserted.inserted;
+  stats.dropped_blocks = inserted.dropped();
+  stats.visible_blocks = static_cast<int64_t>(visible_.size());
+  return stats;
+}
+
+void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) const {
+  validate_input(in);
+  const MapView view = map.view();
+  const kernels::DepthFrameView depth = depth_view(in, params_);
+  kernels::ColorFrameView color;
+  if (params_.integrate_color && in.color != nullptr && !in.color->empty() && view.color) {
+    color.image = {in.color->data(), in.color->width(), in.color->height()};
+    color.camera = in.color_camera;
+    color.T_color_depth = to_rigid3f(in.T_color_depth);
+    const PinholeCamera& a = in.color_camera;
+    const PinholeCamera& b = in.depth_camera;
+    color.registered = in.T_color_depth.isApprox(Pose::Identity()) && a.fx == b.fx &&
+                       a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
+                       a.height == b.height;
+  }
+  kernels::IntegrationConstants k;
+  k.T_cw = to_rigid3f(in.T_wc.inverse());
+  k.mu_m = params_.truncation_m;
+  k.inv_mu = 1.0f / params_.truncation_m;
+  k.max_weight = params_.max_weight;
+  const std::vector<BlockRef>& blocks = visible_;
+  parallel_for_dynamic(static_cast<int64_t>(blocks.size()), 16, [&](int64_t i) {
+    const BlockRef& b = blocks[static_cast<std::size_t>(i)];
+    kernels::integrate_block(view, b.level, b.pos, b.ptr, depth, color, k);
+  });
+}
+
+AllocationStats TsdfIntegrator::fuse(VoxelBlockMap& map, const FusionInput& in) {
+  const AllocationStats stats = allocate(map, in);
+  integrate(map, in);
+  return stats;
+}
+
+}  // namespace hivox

@@ -1,0 +1,298 @@
+#include "hivox/fusion/integrator.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "analytic_scene.h"
+#include "hivox/core/error.h"
+#include "hivox/core/parallel.h"
+#include "map/map_invariants.h"
+
+namespace hivox {
+namespace {
+
+PinholeCamera small_camera() {
+  return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
+}
+
+MapParams fixed_grid(float voxel_m) {
+  MapParams p;
+  p.voxel_size_m = voxel_m;
+  p.levels = 1;
+  p.max_blocks = 1 << 16;
+  p.buckets_per_level = 1 << 16;
+  p.excess_per_level = 1 << 14;
+  return p;
+}
+
+struct Fused {
+  std::unique_ptr<VoxelBlockMap> map;
+  std::vector<AllocationStats> stats;
+};
+
+Fused fuse_orbit(const test::SphereOnPlane& scene, float voxel_m, float mu_m, int views,
+                 double sweep = 2 * M_PI) {
+  Fused out{std::make_unique<VoxelBlockMap>(fixed_grid(voxel_m)), {}};
+  FusionParams fp;
+  fp.truncation_m = mu_m;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = small_camera();
+  for (const Pose& T_wc : test::orbit(scene.centre, 0.9, 0.5, views, 0.3, sweep)) {
+    const DepthImage depth = scene.render(cam, T_wc);
+    FusionInput in;
+    in.depth_m = &depth;
+    in.depth_camera = cam;
+    in.T_wc = T_wc;
+    out.stats.push_back(integrator.fuse(*out.map, in));
+  }
+  return out;
+}
+
+Eigen::Vector3d voxel_position(const BlockRef& b, int i, float voxel_m) {
+  const Vec3i v = voxel_coords(i);
+  return Eigen::Vector3d(b.pos.x * 8 + v.x, b.pos.y * 8 + v.y, b.pos.z * 8 + v.z) * voxel_m;
+}
+
+TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
+  // A floor plane seen from 1 m above, within ~35 degrees of its normal. The projective
+  // distance along the optical axis exceeds the Euclidean one by 1/cos(angle) (< 1.22 here)
+  // and the nearest-pixel lookup adds < half a pixel (~3 mm) of lateral offset.
+  test::SphereOnPlane scene;
+  scene.radius = 0.0;
+  scene.centre = {0, 0, -5};
+  const float voxel = 0.01f, mu = 0.04f;
+  VoxelBlockMap map(fixed_grid(voxel));
+  FusionParams fp;
+  fp.truncation_m = mu;
+  fp.max_depth_m = 1.6f;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = small_camera();
+  for (int i = 0; i < 10; ++i) {
+    const double a = i * 0.6;
+    const Pose T_wc = look_at({0.3 * std::cos(a), 0.3 * std::sin(a), 1.0}, {0.05 * i - 0.2, 0, 0},
+                              Eigen::Vector3d::UnitY());
+    const DepthImage depth = scene.render(cam, T_wc);
+    FusionInput in{.depth_m = &depth, .depth_camera = cam};
+    in.T_wc = T_wc;
+    integrator.fuse(map, in);
+  }
+  double sum_err = 0, max_err = 0;
+  int n = 0;
+  for (const BlockRef& b : map.allocated_blocks()) {
+    const TsdfVoxel* vox = map.block_tsdf(b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      if (vox[i].weight < 3) continue;
+      const double sdf = scene.sdf(voxel_position(b, i, voxel));
+      if (std::abs(sdf) > 0.5 * mu) continue;
+      const double err = std::abs(tsdf_to_float(vox[i].tsdf) * mu - sdf);
+      sum_err += err;
+      max_err = std::max(max_err, err);
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 10000);
+  EXPECT_LT(sum_err / n, 0.25 * voxel) << "mean |TSDF - SDF| over " << n << " voxels";
+  EXPECT_LT(max_err, 1.0 * voxel);
+}
+
+TEST(Integrator, ZeroCrossingsLieOnTheTrueSurface) {
+  // Sphere on a floor seen from all around: wherever two neighbouring observed voxels change
+  // sign, the linearly interpolated crossing must lie on the exact surface.
+  const test::SphereOnPlane scene;
+  const float voxel = 0.01f, mu = 0.04f;
+  const Fused f = fuse_orbit(scene, voxel, mu, 24);
+  double sum_err = 0, max_err = 0;
+  int n = 0;
+  for (const BlockRef& b : f.map->allocated_blocks()) {
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      const Vec3i c = voxel_coords(i);
+      const Vec3i g{b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z};
+      const auto va = f.map->voxel(0, g);
+      if (!va || va->weight < 3) continue;
+      for (int axis = 0; axis < 3; ++axis) {
+        Vec3i h = g;
+        h[axis] += 1;
+        const auto vb = f.map->voxel(0, h);
+        if (!vb || vb->weight < 3) continue;
+        const float fa = tsdf_to_float(va->tsdf), fb = tsdf_to_float(vb->tsdf);
+        if ((fa > 0) == (fb > 0)) continue;
+        Eigen::Vector3d x(g.x, g.y, g.z);
+        x[axis] += fa / (fa - fb);
+        const double err = std::abs(scene.sdf(x * voxel));
+        sum_err += err;
+        max_err = std::max(max_err, err);
+        ++n;
+      }
+    }
+  }
+  ASSERT_GT(n, 10000);
+  EXPECT_LT(sum_err / n, 0.1 * voxel) << "mean distance of " << n << " crossings";
+  EXPECT_LT(max_err, 0.5 * voxel);
+}
+
+TEST(Integrator, SignIsPositiveInFrontAndNegativeBehind) {
+  const test::SphereOnPlane scene;
+  const float voxel = 0.01f, mu = 0.04f;
+  const Fused f = fuse_orbit(scene, voxel, mu, 12);
+  int wrong = 0, n = 0;
+  for (const BlockRef& b : f.map->allocated_blocks()) {
+    const TsdfVoxel* vox = f.map->block_tsdf(b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      if (vox[i].weight == 0) continue;
+      const double sdf = scene.sdf(voxel_position(b, i, voxel));
+      if (std::abs(sdf) < 1.5 * voxel) continue;
+      ++n;
+      wrong += (sdf > 0) != (vox[i].tsdf > 0);
+    }
+  }
+  ASSERT_GT(n, 1000);
+  EXPECT_LT(wrong, n / 200) << wrong << " of " << n << " voxels have the wrong sign";
+}
+
+TEST(Integrator, AllocatesOnlyTheTruncationBand) {
+  const test::SphereOnPlane scene;
+  const float voxel = 0.01f, mu = 0.03f;
+  const Fused f = fuse_orbit(scene, voxel, mu, 8);
+  const double block = 8 * voxel;
+  const double half_diag = std::sqrt(3.0) * block / 2;
+  for (const BlockRef& b : f.map->allocated_blocks()) {
+    const Eigen::Vector3d centre =
+        (Eigen::Vector3d(b.pos.x, b.pos.y, b.pos.z) + Eigen::Vector3d::Constant(0.5)) * block;
+    // A block is allocated only when some ray's band [d - mu, d + mu] crosses it; the band is
+    // at most mu / cos(angle) from the surface. Generous bound: mu * 3 + half the block diagonal.
+    EXPECT_LT(std::abs(scene.sdf(centre)), 3 * mu + half_diag);
+  }
+  // Every visible surface point has its block: sample the sphere's upper half.
+  int missing = 0;
+  for (int i = 0; i < 500; ++i) {
+    const double a = 2 * M_PI * i / 500.0, e = 0.2 + 1.0 * ((i * 37) % 100) / 100.0;
+    const Eigen::Vector3d p =
+        scene.centre + scene.radius * Eigen::Vector3d(std::cos(a) * std::cos(e),
+                                                      std::sin(a) * std::cos(e), std::sin(e));
+    const Vec3i bp{static_cast<int>(std::floor(p.x() / block)),
+                   static_cast<int>(std::floor(p.y() / block)),
+                   static_cast<int>(std::floor(p.z() / block))};
+    missing += !f.map->find(0, bp).has_value();
+  }
+  EXPECT_EQ(missing, 0);
+}
+
+TEST(Integrator, ParallelAllocationEqualsSerial) {
+  const test::SphereOnPlane scene;
+  auto blocks_with = [&](int threads) {
+    set_thread_count(threads);
+    const Fused f = fuse_orbit(scene, 0.005f, 0.02f, 6);
+    test::expect_map_consistent(*f.map);
+    std::vector<BlockKey> keys;
+    for (const BlockRef& b : f.map->allocated_blocks()) keys.push_back({b.pos, b.level});
+    std::sort(keys.begin(), keys.end());
+    return std::make_pair(keys, f.stats);
+  };
+  const auto [serial, s1] = blocks_with(1);
+  const auto [parallel, s2] = blocks_with(3);
+  set_thread_count(0);
+  EXPECT_EQ(serial, parallel);
+  ASSERT_EQ(s1.size(), s2.size());
+  for (std::size_t i = 0; i < s1.size(); ++i) {
+    EXPECT_EQ(s1[i].visible_blocks, s2[i].visible_blocks);
+    EXPECT_EQ(s1[i].new_blocks, s2[i].new_blocks);
+  }
+}
+
+TEST(Integrator, VisibleBlocksAreUniqueAndNewBlocksCounted) {
+  const test::SphereOnPlane scene;
+  const Fused f = fuse_orbit(scene, 0.01f, 0.04f, 4, M_PI / 4);
+  int64_t total_new = 0;
+  for (const AllocationStats& s : f.stats) {
+    EXPECT_GT(s.valid_pixels, 1000);
+    EXPECT_LE(s.new_blocks, s.visible_blocks);
+    EXPECT_EQ(s.dropped_blocks, 0);
+    total_new += s.new_blocks;
+  }
+  EXPECT_EQ(total_new, f.map->blocks_in_use());
+  // The second view of a nearly identical pose allocates few new blocks.
+  EXPECT_LT(f.stats[1].new_blocks, f.stats[0].new_blocks);
+}
+
+TEST(Integrator, FullPoolDropsAreCountedAndFusionContinues) {
+  const test::SphereOnPlane scene;
+  MapParams mp = fixed_grid(0.005f);
+  mp.max_blocks = 100;
+  VoxelBlockMap map(mp);
+  TsdfIntegrator integrator;
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
+  const DepthImage depth = scene.render(cam, T_wc);
+  FusionInput in{.depth_m = &depth, .depth_camera = cam};
+  in.T_wc = T_wc;
+  const AllocationStats s = integrator.fuse(map, in);
+  EXPECT_EQ(map.blocks_in_use(), 100);
+  EXPECT_GT(s.dropped_blocks, 0);
+  EXPECT_EQ(map.dropped_blocks(), s.dropped_blocks);
+  EXPECT_EQ(s.visible_blocks, 100);
+  test::expect_map_consistent(map);
+}
+
+TEST(Integrator, DepthRangeIsRespected) {
+  const test::SphereOnPlane scene;
+  FusionParams fp;
+  fp.max_depth_m = 0.5f;  // everything is farther: nothing to do
+  TsdfIntegrator integrator(fp);
+  VoxelBlockMap map(fixed_grid(0.01f));
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
+  const DepthImage depth = scene.render(cam, T_wc);
+  FusionInput in{.depth_m = &depth, .depth_camera = cam};
+  in.T_wc = T_wc;
+  const AllocationStats s = integrator.fuse(map, in);
+  EXPECT_EQ(s.valid_pixels, 0);
+  EXPECT_EQ(map.blocks_in_use(), 0);
+}
+
+TEST(Integrator, ColourIsFusedNearTheSurface) {
+  const test::SphereOnPlane scene;
+  VoxelBlockMap map(fixed_grid(0.01f));
+  TsdfIntegrator integrator;
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
+  const DepthImage depth = scene.render(cam, T_wc);
+  const ColorImage color(cam.width, cam.height, Rgb8{200, 100, 50});
+  FusionInput in{.depth_m = &depth, .depth_camera = cam, .color = &color, .color_camera = cam};
+  in.T_wc = T_wc;
+  integrator.fuse(map, in);
+  int coloured = 0;
+  for (const BlockRef& b : map.allocated_blocks())
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      const ColorVoxel c = map.block_color(b.ptr)[i];
+      if (c.weight == 0) continue;
+      ++coloured;
+      ASSERT_EQ(c.r, 200);
+      ASSERT_EQ(c.g, 100);
+      ASSERT_EQ(c.b, 50);
+    }
+  EXPECT_GT(coloured, 1000);
+}
+
+TEST(Integrator, BadInputIsAClearError) {
+  TsdfIntegrator integrator;
+  VoxelBlockMap map(fixed_grid(0.01f));
+  const DepthImage depth(100, 80);
+  FusionInput in{.depth_m = &depth, .depth_camera = small_camera()};
+  try {
+    integrator.fuse(map, in);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("100x80"), std::string::npos) << e.what();
+  }
+  FusionParams bad;
+  bad.truncation_m = -1;
+  EXPECT_THROW(TsdfIntegrator{bad}, Error);
+  bad = FusionParams{};
+  bad.max_depth_m = 0.1f;
+  EXPECT_THROW(bad.validate(), Error);
+}
+
+}  // namespace
+}  // namespace hivox
