@@ -125,13 +125,26 @@ HIVOX_HD inline bool band_segment(const DepthFrameView& frame, const Rigid3f& T_
 
 /// Running weighted average of the truncated signed distance (KinectFusion):
 /// F <- (W F + f) / (W + 1), W <- min(W + 1, W_max), with f = min(1, eta / mu), eta >= -mu.
+/// Works on the voxel's 32-bit word (int16 TSDF low, uint16 weight high) so that a row of
+/// voxels vectorizes.
+HIVOX_HD inline uint32_t fuse_tsdf_word(uint32_t word, float eta_m, float inv_mu, int max_weight) {
+  const float f = clampf(eta_m * inv_mu, -1.0f, 1.0f);
+  const int w = static_cast<int>(word >> 16);
+  const float old_f =
+      static_cast<float>(static_cast<int16_t>(word & 0xFFFFu)) * (1.0f / kTsdfScale);
+  const float fused = (old_f * static_cast<float>(w) + f) / static_cast<float>(w + 1);
+  // Round half away from zero by truncation (vectorizes, unlike lrintf/floorf calls).
+  const float scaled = clampf(fused, -1.0f, 1.0f) * kTsdfScale;
+  const int fused_i = static_cast<int>(scaled + (scaled >= 0.0f ? 0.5f : -0.5f));
+  const int new_w = w + 1 < max_weight ? w + 1 : max_weight;
+  return (static_cast<uint32_t>(new_w) << 16) | (static_cast<uint32_t>(fused_i) & 0xFFFFu);
+}
+
 HIVOX_HD inline void fuse_tsdf(TsdfVoxel& v, float eta_m, float inv_mu, int max_weight) {
-  const float f = fminf(1.0f, eta_m * inv_mu);
-  const int w = v.weight;
-  const float fused =
-      (tsdf_to_float(v.tsdf) * static_cast<float>(w) + f) / static_cast<float>(w + 1);
-  v.tsdf = tsdf_from_float(fused);
-  v.weight = static_cast<uint16_t>(w + 1 < max_weight ? w + 1 : max_weight);
+  const uint32_t word = (static_cast<uint32_t>(v.weight) << 16) | static_cast<uint16_t>(v.tsdf);
+  const uint32_t fused = fuse_tsdf_word(word, eta_m, inv_mu, max_weight);
+  v.tsdf = static_cast<int16_t>(fused & 0xFFFFu);
+  v.weight = static_cast<uint16_t>(fused >> 16);
 }
 
 HIVOX_HD inline void fuse_color(ColorVoxel& c, const Rgb8& rgb, int max_weight) {
@@ -144,22 +157,32 @@ HIVOX_HD inline void fuse_color(ColorVoxel& c, const Rgb8& rgb, int max_weight) 
   c.weight = static_cast<uint8_t>(c.weight + 1 < cap ? c.weight + 1 : cap);
 }
 
-/// Nearest pixel of continuous coordinates (u, v), or false when outside the image.
-HIVOX_HD inline bool nearest_pixel(float u, float v, int width, int height, int* x, int* y) {
-  if (!(u >= -0.5f && v >= -0.5f && u < static_cast<float>(width) - 0.5f &&
-        v < static_cast<float>(height) - 0.5f))
-    return false;
-  *x = static_cast<int>(u + 0.5f);
-  *y = static_cast<int>(v + 0.5f);
-  return true;
-}
-
 struct IntegrationConstants {
   Rigid3f T_cw;  ///< world -> depth camera
   float mu_m = 0;
   float inv_mu = 0;
   int max_weight = 0;
 };
+
+/// Nearest pixel of a camera-frame point: `*index` is always a valid pixel index (clamped to
+/// the image), the return value says whether the point really projects inside the image (and
+/// lies in front of the camera). Branch-free, so that a row of voxels vectorizes.
+HIVOX_HD inline bool project_to_pixel(const PinholeCamera& cam, Vec3f p_c, int* index) {
+  const float inv_z = 1.0f / p_c.z;
+  const float u = cam.fx * p_c.x * inv_z + cam.cx + 0.5f;
+  const float v = cam.fy * p_c.y * inv_z + cam.cy + 0.5f;
+  const float w = static_cast<float>(cam.width), h = static_cast<float>(cam.height);
+  const float last_u = w - 1.0f, last_v = h - 1.0f;
+  // Non-short-circuit '&' and compare-and-select (not fminf/fmaxf, whose NaN rules block
+  // vectorization) keep this free of branches.
+  const bool inside = (p_c.z > 0.0f) & (u >= 0.0f) & (v >= 0.0f) & (u < w) & (v < h);
+  float uc = u > 0.0f ? u : 0.0f;
+  float vc = v > 0.0f ? v : 0.0f;
+  uc = uc < last_u ? uc : last_u;
+  vc = vc < last_v ? vc : last_v;
+  *index = static_cast<int>(vc) * cam.width + static_cast<int>(uc);
+  return inside;
+}
 
 /// Integrates one depth (and colour) frame into every voxel of one block, at the block's own
 /// voxel size: project the voxel into the depth image; where a valid depth d lies at or beyond
@@ -177,34 +200,41 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
   ColorVoxel* colors = (map.color != nullptr && !color.image.empty())
                            ? map.color + static_cast<int64_t>(ptr) * kBlockVoxels
                            : nullptr;
-  const PinholeCamera& cam = depth.camera;
+  const float* depth_m = depth.depth_m.data;
+  const float min_d = depth.min_depth_m, max_d = depth.max_depth_m;
   for (int z = 0; z < kBlockSide; ++z) {
     for (int y = 0; y < kBlockSide; ++y) {
-      Vec3f p = origin_c + step_y * static_cast<float>(y) + step_z * static_cast<float>(z);
-      for (int x = 0; x < kBlockSide; ++x, p += step_x) {
-        if (p.z <= 0.0f) continue;
-        const float inv_z = 1.0f / p.z;
-        int px, py;
-        if (!nearest_pixel(cam.fx * p.x * inv_z + cam.cx, cam.fy * p.y * inv_z + cam.cy, cam.width,
-                           cam.height, &px, &py))
-          continue;
-        const float d = depth.valid_depth(px, py);
-        if (d <= 0.0f) continue;
-        const float eta = d - p.z;
-        if (eta < -k.mu_m) continue;
-        const int i = voxel_index(x, y, z);
-        fuse_tsdf(voxels[i], eta, k.inv_mu, k.max_weight);
-        if (colors != nullptr && eta < k.mu_m) {
-          int cx = px, cy = py;
-          bool inside = true;
-          if (!color.registered) {
-            const Vec3f q = color.T_color_depth * p;
-            inside =
-                q.z > 0.0f && nearest_pixel(color.camera.project(q).x, color.camera.project(q).y,
-                                            color.image.width, color.image.height, &cx, &cy);
-          }
-          if (inside) fuse_color(colors[i], color.image(cx, cy), k.max_weight);
+      const Vec3f row = origin_c + step_y * static_cast<float>(y) + step_z * static_cast<float>(z);
+      // The voxel's TSDF and weight as one 32-bit word (layout checked in voxel.h).
+      uint32_t* out = reinterpret_cast<uint32_t*>(voxels + voxel_index(0, y, z));
+      int pixel[kBlockSide];
+      float eta[kBlockSide];
+      for (int x = 0; x < kBlockSide; ++x) {
+        const float xf = static_cast<float>(x);
+        const Vec3f p{row.x + step_x.x * xf, row.y + step_x.y * xf, row.z + step_x.z * xf};
+        int px;
+        const bool inside = project_to_pixel(depth.camera, p, &px);
+        const float d = depth_m[px];
+        const bool observed = inside & (d >= min_d) & (d <= max_d) & (d - p.z >= -k.mu_m);
+        eta[x] = d - p.z;
+        const uint32_t word = out[x];
+        const uint32_t fused = fuse_tsdf_word(word, eta[x], k.inv_mu, k.max_weight);
+        // Selects written as bit operations: a ternary lets the compiler sink the update into
+        // a branch, which blocks vectorization.
+        const uint32_t keep = static_cast<uint32_t>(observed) - 1u;  // all ones when unobserved
+        out[x] = (fused & ~keep) | (word & keep);
+        pixel[x] = px | static_cast<int>(keep);
+      }
+      if (colors == nullptr) continue;
+      for (int x = 0; x < kBlockSide; ++x) {
+        if (pixel[x] < 0 || eta[x] >= k.mu_m) continue;  // colour only near the surface
+        int c = pixel[x];
+        if (!color.registered) {
+          if (!project_to_pixel(color.camera,
+                                color.T_color_depth * (row + step_x * static_cast<float>(x)), &c))
+            continue;
         }
+        fuse_color(colors[voxel_index(x, y, z)], color.image.data[c], k.max_weight);
       }
     }
   }

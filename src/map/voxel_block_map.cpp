@@ -1,9 +1,15 @@
 #include "hivox/map/voxel_block_map.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <numeric>
 #include <tuple>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
@@ -20,21 +26,42 @@ bool operator==(const BlockKey& a, const BlockKey& b) {
   return a.level == b.level && a.pos == b.pos;
 }
 
-void VoxelBlockMap::FreeDeleter::operator()(void* p) const {
-  std::free(p);
-}
-
 namespace {
 
-// Large zeroed allocation: the kernel commits pages only when a block is first written, so
-// memory in use follows the number of blocks, not the capacity.
-template <typename T>
-T* allocate_lazily(int64_t count, const char* what) {
-  void* p = std::calloc(static_cast<std::size_t>(count), sizeof(T));
-  if (p == nullptr)
-    fail(ErrorCode::OutOfCapacity, "cannot reserve {} MiB for {}; lower --max-blocks",
-         count * static_cast<int64_t>(sizeof(T)) >> 20, what);
-  return static_cast<T*>(p);
+// Large zeroed reservation whose pages are committed only when a block is first written, so
+// memory in use follows the number of blocks, not the capacity. On Linux it is an anonymous
+// mapping marked for transparent huge pages: one fault per 2 MiB instead of per 4 KiB when
+// blocks are first used (a measurable share of fusion time otherwise).
+struct LazyBuffer {
+  void* data = nullptr;
+  std::size_t bytes = 0;
+};
+
+LazyBuffer reserve_lazily(std::size_t bytes, const char* what) {
+  LazyBuffer b;
+  b.bytes = bytes;
+#if defined(__linux__)
+  b.data = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE,
+                -1, 0);
+  if (b.data == MAP_FAILED) b.data = nullptr;
+  if (b.data != nullptr) madvise(b.data, bytes, MADV_HUGEPAGE);  // a hint; failure is harmless
+#else
+  b.data = std::calloc(bytes, 1);
+#endif
+  if (b.data == nullptr)
+    fail(ErrorCode::OutOfCapacity, "cannot reserve {} MiB for {}; lower --max-blocks", bytes >> 20,
+         what);
+  return b;
+}
+
+void release(void* data, std::size_t bytes) {
+  if (data == nullptr) return;
+#if defined(__linux__)
+  munmap(data, bytes);
+#else
+  (void)bytes;
+  std::free(data);
+#endif
 }
 
 constexpr int kBlockFreeCounter = kMaxLevels;
@@ -45,12 +72,16 @@ constexpr int kLevelCountBase = kMaxLevels + 1;
 VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
   params_.validate();
   counters_.assign(2 * kMaxLevels + 1, 0);
-  const int64_t voxels = params_.max_blocks * kBlockVoxels;
-  tsdf_.reset(allocate_lazily<TsdfVoxel>(voxels, "TSDF voxels"));
-  if (params_.store_color) color_.reset(allocate_lazily<ColorVoxel>(voxels, "colour voxels"));
+  const auto voxels = static_cast<std::size_t>(params_.max_blocks * kBlockVoxels);
+  const LazyBuffer tsdf = reserve_lazily(voxels * sizeof(TsdfVoxel), "TSDF voxels");
+  tsdf_ = {static_cast<TsdfVoxel*>(tsdf.data), tsdf.bytes};
+  if (params_.store_color) {
+    const LazyBuffer color = reserve_lazily(voxels * sizeof(ColorVoxel), "colour voxels");
+    color_ = {static_cast<ColorVoxel*>(color.data), color.bytes};
+  }
   view_.levels = params_.levels;
-  view_.tsdf = tsdf_.get();
-  view_.color = color_.get();
+  view_.tsdf = tsdf_.data;
+  view_.color = color_.data;
   view_.block_capacity = static_cast<int32_t>(params_.max_blocks);
   view_.level_block_count = counters_.data() + kLevelCountBase;
   block_free_.resize(static_cast<std::size_t>(params_.max_blocks));
@@ -72,7 +103,10 @@ VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
   clear();
 }
 
-VoxelBlockMap::~VoxelBlockMap() = default;
+VoxelBlockMap::~VoxelBlockMap() {
+  release(tsdf_.data, tsdf_.bytes);
+  release(color_.data, color_.bytes);
+}
 
 void VoxelBlockMap::clear() {
   // Free stacks pop from the top: fill them so blocks 0, 1, 2, ... come out first, which keeps

@@ -39,7 +39,7 @@ HIVOX_HD inline float tsdf_to_float(int16_t v) {
 }
 HIVOX_HD inline int16_t tsdf_from_float(float f) {
   f = f > 1.0f ? 1.0f : (f < -1.0f ? -1.0f : f);
-  return static_cast<int16_t>(lrintf(f * kTsdfScale));
+  return static_cast<int16_t>(floorf(f * kTsdfScale + 0.5f));
 }
 
 /// Linear index of voxel (x, y, z) inside a block; x runs fastest.

@@ -87,8 +87,10 @@ class VoxelBlockMap {
   void clear();
 
  private:
-  struct FreeDeleter {
-    void operator()(void* p) const;
+  template <typename T>
+  struct Reservation {
+    T* data = nullptr;
+    std::size_t bytes = 0;
   };
   MapParams params_;
   std::array<std::vector<HashEntry>, kMaxLevels> entries_;
@@ -97,8 +99,8 @@ class VoxelBlockMap {
   // Counters addressed by kernels: [0, kMaxLevels) excess free counts, then the block free
   // count, then kMaxLevels per-level block counts.
   std::vector<int32_t> counters_;
-  std::unique_ptr<TsdfVoxel, FreeDeleter> tsdf_;
-  std::unique_ptr<ColorVoxel, FreeDeleter> color_;
+  Reservation<TsdfVoxel> tsdf_;
+  Reservation<ColorVoxel> color_;
   MapView view_;
   int64_t dropped_blocks_ = 0;
 };
