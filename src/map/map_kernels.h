@@ -85,6 +85,8 @@ HIVOX_HD inline AllocResult allocate_block(const MapView& map, int level, const 
     return AllocResult::PoolFull;
   }
   clear_block(map, block);
+  map.meta[block] = {pos, level, entry};
+  atomic_max(map.block_high_water, block + 1);
   atomic_store(&lv.entries[entry].ptr, block);
   atomic_add(&map.level_block_count[level], 1);
   *entry_out = entry;

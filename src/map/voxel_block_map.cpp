@@ -66,12 +66,13 @@ void release(void* data, std::size_t bytes) {
 
 constexpr int kBlockFreeCounter = kMaxLevels;
 constexpr int kLevelCountBase = kMaxLevels + 1;
+constexpr int kHighWaterCounter = 2 * kMaxLevels + 1;
 
 }  // namespace
 
 VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
   params_.validate();
-  counters_.assign(2 * kMaxLevels + 1, 0);
+  counters_.assign(2 * kMaxLevels + 2, 0);
   const auto voxels = static_cast<std::size_t>(params_.max_blocks * kBlockVoxels);
   const LazyBuffer tsdf = reserve_lazily(voxels * sizeof(TsdfVoxel), "TSDF voxels");
   tsdf_ = {static_cast<TsdfVoxel*>(tsdf.data), tsdf.bytes};
@@ -85,6 +86,9 @@ VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
   view_.block_capacity = static_cast<int32_t>(params_.max_blocks);
   view_.level_block_count = counters_.data() + kLevelCountBase;
   block_free_.resize(static_cast<std::size_t>(params_.max_blocks));
+  meta_.resize(static_cast<std::size_t>(params_.max_blocks));
+  view_.meta = meta_.data();
+  view_.block_high_water = counters_.data() + kHighWaterCounter;
   view_.blocks = {block_free_.data(), counters_.data() + kBlockFreeCounter,
                   static_cast<int32_t>(params_.max_blocks)};
   for (int l = 0; l < params_.levels; ++l) {
@@ -114,6 +118,8 @@ void VoxelBlockMap::clear() {
   const int32_t n = static_cast<int32_t>(params_.max_blocks);
   for (int32_t i = 0; i < n; ++i) block_free_[i] = n - 1 - i;
   counters_[kBlockFreeCounter] = n;
+  counters_[kHighWaterCounter] = 0;
+  std::fill(meta_.begin(), meta_.end(), BlockMeta{});
   for (int l = 0; l < params_.levels; ++l) {
     std::fill(entries_[l].begin(), entries_[l].end(), HashEntry{});
     const int32_t buckets = static_cast<int32_t>(params_.buckets_per_level);
@@ -179,11 +185,10 @@ std::optional<BlockRef> VoxelBlockMap::find(int level, const Vec3i& pos) const {
 std::vector<BlockRef> VoxelBlockMap::allocated_blocks() const {
   std::vector<BlockRef> out;
   out.reserve(static_cast<std::size_t>(blocks_in_use()));
-  for (int l = 0; l < params_.levels; ++l) {
-    const auto& entries = entries_[l];
-    for (std::size_t i = 0; i < entries.size(); ++i)
-      if (entries[i].ptr >= 0)
-        out.push_back({entries[i].pos, l, static_cast<int32_t>(i), entries[i].ptr});
+  const int32_t n = block_high_water();
+  for (int32_t ptr = 0; ptr < n; ++ptr) {
+    const BlockMeta& m = meta_[static_cast<std::size_t>(ptr)];
+    if (m.level >= 0) out.push_back({m.pos, m.level, m.entry, ptr});
   }
   return out;
 }
@@ -219,7 +224,8 @@ int64_t VoxelBlockMap::excess_in_use(int level) const {
 int64_t VoxelBlockMap::memory_bytes() const {
   const int64_t block_bytes = int64_t{kBlockVoxels} * params_.bytes_per_voxel();
   int64_t bytes = blocks_in_use() * block_bytes;
-  bytes += static_cast<int64_t>(block_free_.size() * sizeof(int32_t));
+  bytes +=
+      static_cast<int64_t>(block_free_.size() * sizeof(int32_t) + meta_.size() * sizeof(BlockMeta));
   for (int l = 0; l < params_.levels; ++l)
     bytes += static_cast<int64_t>(entries_[l].size() * sizeof(HashEntry) +
                                   excess_free_[l].size() * sizeof(int32_t));

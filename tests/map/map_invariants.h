@@ -38,6 +38,11 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
           ASSERT_LT(e.ptr, v.block_capacity);
           ++owner[e.ptr];
           ++allocated;
+          const BlockMeta& m = map.block_meta(e.ptr);
+          EXPECT_EQ(m.level, l);
+          EXPECT_EQ(m.pos, e.pos);
+          EXPECT_EQ(m.entry, i);
+          EXPECT_LT(e.ptr, map.block_high_water());
         }
       }
     }
@@ -59,6 +64,7 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
     ASSERT_GE(b, 0);
     ASSERT_LT(b, v.block_capacity);
     ++owner[b];
+    EXPECT_EQ(map.block_meta(b).level, -1) << "free pool block " << b << " still has a level";
   }
   for (int32_t b = 0; b < v.block_capacity; ++b)
     ASSERT_EQ(owner[b], 1) << "pool block " << b << " is owned " << owner[b] << " times";

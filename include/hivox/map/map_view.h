@@ -55,6 +55,13 @@ struct FreeListView {
   int32_t capacity = 0;
 };
 
+/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free).
+struct BlockMeta {
+  Vec3i pos;
+  int32_t level = -1;
+  int32_t entry = kNoEntry;
+};
+
 struct LevelView {
   HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries
   uint32_t bucket_mask = 0;      ///< bucket_count - 1
@@ -72,6 +79,8 @@ struct MapView {
   FreeListView blocks;          ///< free voxel-block indices
   int32_t block_capacity = 0;
   int32_t* level_block_count = nullptr;  ///< allocated blocks per level (kMaxLevels counters)
+  BlockMeta* meta = nullptr;             ///< per pool block
+  int32_t* block_high_water = nullptr;   ///< 1 + the largest pool index ever handed out
 };
 
 /// Index of the entry holding block `pos` at `level`, or kNoEntry. Empty slots are skipped.

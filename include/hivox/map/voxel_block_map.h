@@ -60,8 +60,12 @@ class VoxelBlockMap {
                             std::vector<BlockRef>* inserted = nullptr);
 
   std::optional<BlockRef> find(int level, const Vec3i& pos) const;
-  /// All allocated blocks (state Allocated), level by level.
+  /// All allocated blocks (state Allocated), in pool order.
   std::vector<BlockRef> allocated_blocks() const;
+  /// What pool block `ptr` holds (level -1 when free).
+  const BlockMeta& block_meta(int32_t ptr) const { return meta_[static_cast<std::size_t>(ptr)]; }
+  /// 1 + the largest pool index handed out so far: pool blocks [0, high water) cover all blocks.
+  int32_t block_high_water() const { return *view_.block_high_water; }
   /// Number of entries marked Split at each level.
   std::vector<int64_t> split_entries_per_level() const;
 
@@ -96,8 +100,9 @@ class VoxelBlockMap {
   std::array<std::vector<HashEntry>, kMaxLevels> entries_;
   std::array<std::vector<int32_t>, kMaxLevels> excess_free_;
   std::vector<int32_t> block_free_;
+  std::vector<BlockMeta> meta_;
   // Counters addressed by kernels: [0, kMaxLevels) excess free counts, then the block free
-  // count, then kMaxLevels per-level block counts.
+  // count, then kMaxLevels per-level block counts, then the pool high-water mark.
   std::vector<int32_t> counters_;
   Reservation<TsdfVoxel> tsdf_;
   Reservation<ColorVoxel> color_;
