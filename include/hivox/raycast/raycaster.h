@@ -1,0 +1,60 @@
+#pragma once
+/// @file
+/// Raycasting the TSDF (DESIGN §5): one ray per pixel from a camera pose to the first surface.
+/// Produces depth, world points and normals (the tracking input), colour and the level of the
+/// block hit.
+
+#include <cstdint>
+#include <vector>
+
+#include "hivox/core/camera.h"
+#include "hivox/core/image.h"
+#include "hivox/core/math.h"
+#include "hivox/core/pose.h"
+#include "hivox/map/voxel_block_map.h"
+#include "hivox/raycast/params.h"
+
+namespace hivox {
+
+/// Per-pixel raycast outputs; a pixel without a hit has depth 0 and level -1.
+struct RaycastResult {
+  PinholeCamera camera;
+  Pose T_wc = Pose::Identity();
+  DepthImage depth_m;      ///< depth along the optical axis
+  Image<Vec3f> points_w;   ///< surface points, world frame
+  Image<Vec3f> normals_w;  ///< unit normals (pointing to free space), world frame
+  ColorImage colors;       ///< fused colour at the hit (black without colour)
+  Image<int8_t> levels;    ///< level of the block hit, -1 for no hit
+  bool has_color = false;
+
+  bool hit(int x, int y) const { return depth_m(x, y) > 0.0f; }
+  /// Point and normal of pixel (x, y) in the camera frame.
+  Vec3f point_c(int x, int y) const;
+  Vec3f normal_c(int x, int y) const;
+};
+
+struct RaycastStats {
+  int64_t blocks_projected = 0;  ///< blocks whose bounding box landed in the view
+  int64_t hits = 0;              ///< pixels with a surface
+  double range_ms = 0;           ///< building the min/max depth range image
+  double march_ms = 0;           ///< marching the rays
+};
+
+class Raycaster {
+ public:
+  explicit Raycaster(const RaycastParams& params = {});
+  const RaycastParams& params() const { return params_; }
+
+  /// Casts every pixel of `camera` from pose `T_wc` into `map`. The result is kept (and its
+  /// buffers reused) until the next call.
+  const RaycastResult& raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
+                               const Pose& T_wc, RaycastStats* stats = nullptr);
+  const RaycastResult& result() const { return result_; }
+
+ private:
+  RaycastParams params_;
+  RaycastResult result_;
+  std::vector<float> tile_min_, tile_max_;
+};
+
+}  // namespace hivox

@@ -1,0 +1,31 @@
+#pragma once
+/// @file
+/// Turning raycast outputs into pictures for people: colour-mapped depth, normals, Phong
+/// shading, fused colour and the refinement level of each surface point (paper Fig. 4).
+
+#include "hivox/core/image.h"
+#include "hivox/raycast/raycaster.h"
+
+namespace hivox {
+
+/// Depth colour-mapped from near (dark blue) to far (red); no hit is black.
+/// `min_m`/`max_m` <= 0 pick the range of the image's valid depths.
+ColorImage render_depth(const DepthImage& depth_m, float min_m = 0.0f, float max_m = 0.0f);
+
+/// Camera-frame normals as RGB ((n + 1) / 2); no hit is black.
+ColorImage render_normals(const RaycastResult& result);
+
+/// Grey Phong shading with a light at the camera; no hit is black.
+ColorImage render_shaded(const RaycastResult& result);
+
+/// Fused surface colour, lightly shaded so that geometry stays visible; no hit is black.
+ColorImage render_colors(const RaycastResult& result);
+
+/// Refinement level of each surface point, shaded: finest red, then orange, green, blue for
+/// coarser levels (as in the paper's Fig. 4). No hit is black.
+ColorImage render_levels(const RaycastResult& result);
+
+/// The colour used for `level` in `render_levels` (for legends).
+Rgb8 level_color(int level);
+
+}  // namespace hivox

@@ -1,0 +1,328 @@
+#pragma once
+// Ray marching through the TSDF, written once for the CPU and CUDA drivers.
+
+#include <cfloat>
+
+#include "hivox/core/atomic.h"
+#include "hivox/core/camera.h"
+#include "hivox/core/hd.h"
+#include "hivox/core/math.h"
+#include "hivox/map/map_view.h"
+
+namespace hivox::kernels {
+
+/// Direct-mapped cache of block look-ups (absent blocks included). Consecutive samples of a ray,
+/// and neighbouring rays, mostly need the same few blocks; the CPU driver keeps one cache per
+/// thread across the rays of its rows, a GPU thread one per ray. Valid while the map's layout
+/// does not change (one raycast).
+struct RayBlockCache {
+  static constexpr int kSlots = 64;
+  struct Slot {
+    Vec3i pos;
+    int32_t level = -1;
+    int32_t ptr = kPtrEmpty;
+  };
+  Slot slots[kSlots];
+
+  HIVOX_HD void reset() {
+    for (int i = 0; i < kSlots; ++i) slots[i].level = -1;
+  }
+  /// `ptr` of block `p` at `lvl` (kPtrEmpty when absent), from the cache or the hash table.
+  HIVOX_HD int32_t find(const MapView& map, int lvl, const Vec3i& p) {
+    Slot& s = slots[(block_hash(p, kSlots - 1) + static_cast<uint32_t>(lvl) * 17u) & (kSlots - 1)];
+    if (s.level == lvl && s.pos == p) return s.ptr;
+    s.pos = p;
+    s.level = lvl;
+    s.ptr = find_block_ptr(map.level[lvl], p);
+    return s.ptr;
+  }
+};
+
+/// The block storing world point `p_w`: starts at the coarsest level and descends through Split
+/// entries. Returns the block's ptr, or kPtrEmpty when nothing is stored there; `level` and
+/// `pos` receive the level and block where the search ended.
+HIVOX_HD inline int32_t locate_block(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
+                                     int* level, Vec3i* pos) {
+  for (int l = map.levels - 1; l >= 0; --l) {
+    const Vec3i b = block_of_point(p_w, map.level[l].block_size_m);
+    const int32_t ptr = cache.find(map, l, b);
+    *level = l;
+    *pos = b;
+    if (ptr != kPtrSplit) return ptr;
+  }
+  return kPtrEmpty;
+}
+
+/// Ray parameter where ray o + z d leaves the axis-aligned block `b` of side `block_m`.
+HIVOX_HD inline float block_exit(const Vec3f& o, const Vec3f& d, const Vec3i& b, float block_m) {
+  float t = FLT_MAX;
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] > 0.0f) {
+      const float tk = (static_cast<float>(b[k] + 1) * block_m - o[k]) / d[k];
+      t = tk < t ? tk : t;
+    } else if (d[k] < 0.0f) {
+      const float tk = (static_cast<float>(b[k]) * block_m - o[k]) / d[k];
+      t = tk < t ? tk : t;
+    }
+  }
+  return t;
+}
+
+/// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
+struct TsdfSample {
+  float f = 1.0f;
+  Vec3f gradient;  ///< dF / d(voxel) of the interpolant at the point
+  int32_t nearest_ptr = kPtrEmpty;
+  int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
+};
+
+/// Trilinear interpolation of the TSDF at `p_w` from the 8 voxels of `level` around it.
+/// Fails (returns false) when a neighbouring block is missing at that level or a voxel has
+/// fewer than `min_weight` observations: unknown space must never look like surface.
+HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, int level,
+                                      const Vec3f& p_w, int min_weight, TsdfSample* out) {
+  const float inv_s = 1.0f / map.level[level].voxel_size_m;
+  const Vec3f q = p_w * inv_s;
+  const Vec3i base = floor_to_int(q);
+  const Vec3f t = q - to_float(base);
+  float v[8];
+  int32_t ptrs[8];
+  int indices[8];
+  // The 8 voxels span 1, 2, 4 or 8 blocks: look each distinct block up once.
+  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
+  const Vec3i block = block_of_voxel(base);
+  const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
+  int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
+  for (int d = 0; d < 8; ++d) {
+    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+    if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
+    blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
+    if (blocks[d] < 0) return false;
+  }
+  for (int c = 0; c < 8; ++c) {
+    const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
+    const int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
+    const int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
+    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
+    if (vox.weight < min_weight) return false;
+    v[c] = tsdf_to_float(vox.tsdf);
+    ptrs[c] = ptr;
+    indices[c] = i;
+  }
+  // Corner c = (c & 1, (c >> 1) & 1, c >> 2).
+  const float x0 = v[0] + (v[1] - v[0]) * t.x, x1 = v[2] + (v[3] - v[2]) * t.x;
+  const float x2 = v[4] + (v[5] - v[4]) * t.x, x3 = v[6] + (v[7] - v[6]) * t.x;
+  const float y0 = x0 + (x1 - x0) * t.y, y1 = x2 + (x3 - x2) * t.y;
+  out->f = y0 + (y1 - y0) * t.z;
+  // Analytic gradient of the trilinear interpolant.
+  const float dx0 = v[1] - v[0], dx1 = v[3] - v[2], dx2 = v[5] - v[4], dx3 = v[7] - v[6];
+  const float dxy0 = dx0 + (dx1 - dx0) * t.y, dxy1 = dx2 + (dx3 - dx2) * t.y;
+  out->gradient.x = dxy0 + (dxy1 - dxy0) * t.z;
+  out->gradient.y = (x1 - x0) + ((x3 - x2) - (x1 - x0)) * t.z;
+  out->gradient.z = y1 - y0;
+  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+  out->nearest_ptr = ptrs[nearest];
+  out->nearest_index = indices[nearest];
+  return true;
+}
+
+/// The TSDF at `p_w`, at whatever level stores it.
+HIVOX_HD inline bool sample_tsdf(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
+                                 int min_weight, TsdfSample* out, int* level) {
+  Vec3i pos;
+  const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
+  if (ptr < 0) return false;
+  return sample_trilinear(map, cache, *level, p_w, min_weight, out);
+}
+
+/// Surface normal at a surface point `p_w` (unit, pointing to free space) from differences of
+/// the interpolated TSDF one voxel apart. At a surface point F = 0, so forward differences need
+/// only 3 samples; spanning a voxel they are smoother than the gradient of a single
+/// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
+/// unknown.
+HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
+                                  float f_at_p, int level, int min_weight, const Vec3f& fallback) {
+  const float h = map.level[level].voxel_size_m;
+  Vec3f g;
+  for (int k = 0; k < 3; ++k) {
+    Vec3f a = p_w;
+    a[k] += h;
+    TsdfSample sa;
+    int la;
+    if (!sample_tsdf(map, cache, a, min_weight, &sa, &la)) return normalized(fallback);
+    g[k] = sa.f - f_at_p;
+  }
+  return normalized(g);
+}
+
+struct RayMarchConstants {
+  float mu_m = 0;           ///< truncation band
+  float step_fraction = 0;  ///< of the TSDF distance per step
+  int min_weight = 1;
+};
+
+struct RayHit {
+  float depth_m = 0;  ///< ray parameter (depth along the optical axis for camera rays)
+  Vec3f p_w;
+  Vec3f normal_w;
+  int level = 0;
+  int32_t color_ptr = kPtrEmpty;
+  int color_index = 0;
+};
+
+/// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with one secant step and
+/// fills the hit. `fallback` is the sample at z_hi (used if the refinement sample fails).
+HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, const Vec3f& o,
+                                     const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
+                                     const TsdfSample& fallback, int fallback_level,
+                                     const RayMarchConstants& k, RayHit* hit) {
+  TsdfSample best = fallback;
+  int hit_level = fallback_level;
+  // One secant step, then linear interpolation inside the narrowed bracket: the TSDF is close to
+  // linear across the short bracket, and each extra step costs a full interpolation.
+  const float zm = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
+  TsdfSample sm;
+  int lm;
+  if (sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) {
+    best = sm;
+    hit_level = lm;
+    if (sm.f > 0.0f) {
+      z_lo = zm;
+      f_lo = sm.f;
+    } else {
+      z_hi = zm;
+      f_hi = sm.f;
+    }
+  }
+  const float z_hit = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
+  hit->depth_m = z_hit;
+  hit->p_w = o + d * z_hit;
+  hit->normal_w = tsdf_normal(map, cache, hit->p_w, 0.0f, hit_level, k.min_weight, best.gradient);
+  hit->level = hit_level;
+  hit->color_ptr = best.nearest_ptr;
+  hit->color_index = best.nearest_index;
+}
+
+/// Marches ray `o + z d` for z in [z_start, z_end] to the first crossing of the TSDF from
+/// positive (free space) to negative. Through unallocated space it jumps from block to block;
+/// through known space it steps by the TSDF distance, through unknown voxels by the band; the
+/// crossing is refined by the secant method.
+HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const Vec3f& o,
+                               const Vec3f& d, float z_start, float z_end,
+                               const RayMarchConstants& k, RayHit* hit) {
+  const float inv_len = 1.0f / norm(d);
+  const float band_step_m = k.mu_m * k.step_fraction;
+  float z = z_start;
+  float prev_z = z, prev_f = 0.0f;
+  bool prev_valid = false;
+  TsdfSample s;
+  while (z <= z_end) {
+    const Vec3f p = o + d * z;
+    int level;
+    Vec3i pos;
+    const int32_t ptr = locate_block(map, cache, p, &level, &pos);
+    if (ptr < 0) {  // nothing stored here: skip to where the ray leaves this block
+      const float exit = block_exit(o, d, pos, map.level[level].block_size_m);
+      const float min_step = 1e-3f * map.level[level].voxel_size_m * inv_len;
+      z = exit > z + min_step ? exit + min_step : z + min_step;
+      prev_valid = false;
+      continue;
+    }
+    const float voxel_m = map.level[level].voxel_size_m;
+    if (!sample_trilinear(map, cache, level, p, k.min_weight, &s)) {
+      // Unobserved voxels: no surface can be here; move on as through free space.
+      z += (band_step_m > voxel_m ? band_step_m : voxel_m) * inv_len;
+      prev_valid = false;
+      continue;
+    }
+    if (s.f <= 0.0f) {
+      if (prev_valid && prev_f > 0.0f) {
+        refine_crossing(map, cache, o, d, prev_z, prev_f, z, s.f, s, level, k, hit);
+        return true;
+      }
+      if (!prev_valid && s.f > -1.0f) {
+        // Came from unknown space straight into the band behind a surface: look back by the
+        // distance the TSDF gives (with margin) for the positive side of the crossing.
+        const float z_back = z + 1.5f * s.f * k.mu_m * inv_len;
+        TsdfSample sb;
+        int lb;
+        if (z_back >= z_start && sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb) &&
+            sb.f > 0.0f) {
+          refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
+          return true;
+        }
+      }
+    }
+    prev_valid = true;
+    prev_f = s.f;
+    prev_z = z;
+    // Step by the distance the TSDF promises (scaled down: projective distances overestimate),
+    // but at least a voxel (the crossing is refined afterwards); behind a surface, by a voxel.
+    const float dist_m = s.f > 0.0f ? s.f * band_step_m : voxel_m;
+    z += (dist_m > voxel_m ? dist_m : voxel_m) * inv_len;
+  }
+  return false;
+}
+
+// ---- range image ----------------------------------------------------------------------------
+
+struct RangeTiles {
+  float* z_min = nullptr;  ///< per tile, initialised to +large
+  float* z_max = nullptr;  ///< per tile, initialised to 0
+  int tiles_x = 0, tiles_y = 0, tile_px = 8;
+};
+
+/// Projects one block's bounding box into the range tiles (atomic min/max of depth per tile).
+/// Returns false when the block is outside the view or the depth range.
+HIVOX_HD inline bool project_block_to_tiles(const Rigid3f& T_cw, const PinholeCamera& cam,
+                                            const Vec3i& pos, float block_m, float min_depth_m,
+                                            float max_depth_m, const RangeTiles& tiles) {
+  const Vec3f origin = to_float(pos) * block_m;
+  float u_lo = FLT_MAX, u_hi = -FLT_MAX, v_lo = FLT_MAX, v_hi = -FLT_MAX;
+  float z_lo = FLT_MAX, z_hi = -FLT_MAX;
+  bool crosses_camera_plane = false;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3f corner{origin.x + ((c & 1) ? block_m : 0.0f),
+                       origin.y + (((c >> 1) & 1) ? block_m : 0.0f),
+                       origin.z + ((c >> 2) ? block_m : 0.0f)};
+    const Vec3f p = T_cw * corner;
+    z_lo = p.z < z_lo ? p.z : z_lo;
+    z_hi = p.z > z_hi ? p.z : z_hi;
+    if (p.z <= 1e-4f) {
+      crosses_camera_plane = true;
+      continue;
+    }
+    const Vec2f uv = cam.project(p);
+    u_lo = uv.x < u_lo ? uv.x : u_lo;
+    u_hi = uv.x > u_hi ? uv.x : u_hi;
+    v_lo = uv.y < v_lo ? uv.y : v_lo;
+    v_hi = uv.y > v_hi ? uv.y : v_hi;
+  }
+  if (z_hi < min_depth_m || z_lo > max_depth_m) return false;
+  if (crosses_camera_plane) {  // the box surrounds the camera plane: it may cover any pixel
+    u_lo = v_lo = 0.0f;
+    u_hi = static_cast<float>(cam.width);
+    v_hi = static_cast<float>(cam.height);
+  }
+  if (u_hi < -0.5f || v_hi < -0.5f || u_lo > static_cast<float>(cam.width) - 0.5f ||
+      v_lo > static_cast<float>(cam.height) - 0.5f)
+    return false;
+  z_lo = z_lo > min_depth_m ? z_lo : min_depth_m;
+  z_hi = z_hi < max_depth_m ? z_hi : max_depth_m;
+  const float inv_tile = 1.0f / static_cast<float>(tiles.tile_px);
+  auto tile_index = [inv_tile](float px, int count) {
+    const int t = static_cast<int>(floorf((px + 0.5f) * inv_tile));
+    return t < 0 ? 0 : (t >= count ? count - 1 : t);
+  };
+  const int tx0 = tile_index(u_lo, tiles.tiles_x), tx1 = tile_index(u_hi, tiles.tiles_x);
+  const int ty0 = tile_index(v_lo, tiles.tiles_y), ty1 = tile_index(v_hi, tiles.tiles_y);
+  for (int ty = ty0; ty <= ty1; ++ty)
+    for (int tx = tx0; tx <= tx1; ++tx) {
+      const int t = ty * tiles.tiles_x + tx;
+      atomic_min_positive(&tiles.z_min[t], z_lo);
+      atomic_max_positive(&tiles.z_max[t], z_hi);
+    }
+  return true;
+}
+
+}  // namespace hivox::kernels

@@ -1,0 +1,163 @@
+#include "hivox/raycast/raycaster.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "analytic_scene.h"
+#include "hivox/core/error.h"
+#include "hivox/fusion/integrator.h"
+
+namespace hivox {
+namespace {
+
+PinholeCamera small_camera() {
+  return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
+}
+
+MapParams fixed_grid(float voxel_m) {
+  MapParams p;
+  p.voxel_size_m = voxel_m;
+  p.levels = 1;
+  p.max_blocks = 1 << 16;
+  p.buckets_per_level = 1 << 16;
+  p.excess_per_level = 1 << 14;
+  return p;
+}
+
+struct Scene {
+  test::SphereOnPlane shape;
+  std::unique_ptr<VoxelBlockMap> map;
+  float voxel = 0.01f, mu = 0.04f;
+};
+
+Scene fused_scene(float voxel) {
+  Scene s;
+  s.voxel = voxel;
+  s.mu = 4 * voxel;
+  s.map = std::make_unique<VoxelBlockMap>(fixed_grid(voxel));
+  FusionParams fp;
+  fp.truncation_m = s.mu;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = small_camera();
+  for (const Pose& T_wc : test::orbit(s.shape.centre, 0.9, 0.5, 24)) {
+    const DepthImage depth = s.shape.render(cam, T_wc);
+    FusionInput in{.depth_m = &depth, .depth_camera = cam, .T_wc = T_wc};
+    integrator.fuse(*s.map, in);
+  }
+  return s;
+}
+
+Eigen::Vector3d exact_normal(const test::SphereOnPlane& shape, const Eigen::Vector3d& p) {
+  const double e = 1e-5;
+  Eigen::Vector3d g;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[k] = e;
+    g[k] = shape.sdf(p + d) - shape.sdf(p - d);
+  }
+  return g.normalized();
+}
+
+TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  Raycaster raycaster(rp);
+  const PinholeCamera cam = small_camera();
+  // A viewpoint between two fused views.
+  const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 48)[5];
+  const DepthImage truth = s.shape.render(cam, T_wc);
+  RaycastStats stats;
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, &stats);
+  int surface_pixels = 0, missed = 0, hits = 0, normals = 0, spurious = 0;
+  double sum_dist = 0, max_dist = 0, sum_angle = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const bool expected = truth(x, y) > 0.0f && truth(x, y) <= rp.max_depth_m;
+      surface_pixels += expected;
+      if (!r.hit(x, y)) {
+        missed += expected;
+        continue;
+      }
+      spurious += !expected;
+      ++hits;
+      const Vec3f pw = r.points_w(x, y);
+      const Eigen::Vector3d p(pw.x, pw.y, pw.z);
+      // Where the hit is, not how deep: at grazing angles depth errors grow as 1/cos.
+      const double dist = std::abs(s.shape.sdf(p));
+      sum_dist += dist;
+      max_dist = std::max(max_dist, dist);
+      // Depth along the optical axis agrees with the hit point.
+      EXPECT_NEAR(r.depth_m(x, y), r.point_c(x, y).z, 1e-4f);
+      // Normals on smooth parts: the upper sphere and the floor near it (the crease below the
+      // sphere is thinner than the truncation band and cannot be represented).
+      const bool upper_sphere = p.z() > s.shape.centre.z();
+      const double r_floor = (p - s.shape.centre).head<2>().norm();
+      const bool near_floor = p.z() < 0.01 && r_floor > 0.3 && r_floor < 0.7;
+      if (upper_sphere || near_floor) {
+        const Eigen::Vector3d n = exact_normal(s.shape, p);
+        const Vec3f nr = r.normals_w(x, y);
+        EXPECT_NEAR(norm(nr), 1.0f, 1e-4f);
+        sum_angle += std::acos(std::clamp(n.dot(Eigen::Vector3d(nr.x, nr.y, nr.z)), -1.0, 1.0)) *
+                     180.0 / M_PI;
+        ++normals;
+      }
+    }
+  ASSERT_GT(surface_pixels, 15000);
+  EXPECT_LT(missed, surface_pixels / 100) << "surface pixels without a hit";
+  EXPECT_EQ(spurious, 0) << "hits where there is no surface";
+  EXPECT_EQ(stats.hits, hits);
+  EXPECT_LT(sum_dist / hits, 0.1 * s.voxel) << "mean distance of hits to the true surface";
+  EXPECT_LT(max_dist, 0.5 * s.voxel);
+  ASSERT_GT(normals, 4000);
+  EXPECT_LT(sum_angle / normals, 5.0) << "mean normal error, degrees";
+}
+
+TEST(Raycaster, NoSurfaceWhereNothingWasObserved) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  Raycaster raycaster(rp);
+  // Looking away from everything that was fused.
+  const Pose T_wc = look_at({0, 0, 3}, {0, 0, 10}, Eigen::Vector3d::UnitY());
+  RaycastStats stats;
+  const RaycastResult& r = raycaster.raycast(*s.map, small_camera(), T_wc, &stats);
+  EXPECT_EQ(stats.hits, 0);
+  EXPECT_EQ(r.levels(10, 10), -1);
+}
+
+TEST(Raycaster, PointsAndNormalsInCameraFrame) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  Raycaster raycaster(rp);
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[3];
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc);
+  int checked = 0;
+  for (int y = 0; y < cam.height; y += 7)
+    for (int x = 0; x < cam.width; x += 7) {
+      if (!r.hit(x, y)) continue;
+      const Vec3f pc = r.point_c(x, y);
+      EXPECT_NEAR(pc.z, r.depth_m(x, y), 1e-4f);
+      const Vec2f uv = cam.project(pc);
+      EXPECT_NEAR(uv.x, x, 1e-2f);
+      EXPECT_NEAR(uv.y, y, 1e-2f);
+      EXPECT_LT(r.normal_c(x, y).z, 0.05f);  // facing the camera
+      ++checked;
+    }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(Raycaster, ParamsAreValidated) {
+  RaycastParams p;
+  p.max_depth_m = 0.1f;
+  EXPECT_THROW(Raycaster{p}, Error);
+  p = RaycastParams{};
+  p.step_fraction = 0;
+  EXPECT_THROW(p.validate(), Error);
+}
+
+}  // namespace
+}  // namespace hivox
