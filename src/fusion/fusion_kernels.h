@@ -101,11 +101,29 @@ HIVOX_HD void walk_segment_level(const MapView& map, int level, const Vec3f& a_w
   }
 }
 
-/// Walks the segment from the coarsest level down.
+/// Walks the segment from the coarsest level down. Most band segments start and end in the
+/// same block or in two blocks sharing a face; those are visited directly (same blocks, same
+/// order as the DDA would give, without its set-up), everything else takes the DDA.
 template <typename Visitor>
 HIVOX_HD void walk_segment(const MapView& map, const Vec3f& a_w, const Vec3f& b_w,
                            Visitor& visitor) {
-  walk_segment_level(map, map.levels - 1, a_w, b_w, BlockBounds{}, visitor);
+  const int top = map.levels - 1;
+  const float block_m = map.level[top].block_size_m;
+  const Vec3i cell_a = block_of_point(a_w, block_m);
+  const Vec3i cell_b = block_of_point(b_w, block_m);
+  const Vec3i diff{cell_b.x - cell_a.x, cell_b.y - cell_a.y, cell_b.z - cell_a.z};
+  const int changed = (diff.x != 0) + (diff.y != 0) + (diff.z != 0);
+  const bool neighbours = abs(diff.x) + abs(diff.y) + abs(diff.z) == 1;
+  if (changed != 0 && !neighbours) {
+    walk_segment_level(map, top, a_w, b_w, BlockBounds{}, visitor);
+    return;
+  }
+  // The segment lies inside the box of the one or two cells (a convex set): visit them in
+  // order, descending into split ones over the part of the segment inside them.
+  if (visitor.block(top, cell_a) == kPtrSplit && top > 0)
+    walk_segment_level(map, top, a_w, b_w, BlockBounds{cell_a, cell_a}, visitor);
+  if (changed != 0 && visitor.block(top, cell_b) == kPtrSplit && top > 0)
+    walk_segment_level(map, top, a_w, b_w, BlockBounds{cell_b, cell_b}, visitor);
 }
 
 /// The truncation-band segment of pixel (x, y) in world coordinates: depths [d - mu, d + mu]

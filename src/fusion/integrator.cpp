@@ -15,7 +15,7 @@ namespace {
 /// cross the same blocks, so most hash look-ups are skipped.
 class BlockCache {
  public:
-  static constexpr int kSlots = 1024;
+  static constexpr int kSlots = 4096;  // ~80 KB: stays in L2
   struct Slot {
     Vec3i pos;
     int32_t level = -1;
@@ -54,7 +54,8 @@ struct AllocationVisitor {
     const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
     if (ptr == kPtrEmpty) {
       state.missing.push_back({pos, level});
-    } else if (ptr >= 0 && atomic_exchange(&stamps[ptr], frame) != frame) {
+    } else if (ptr >= 0 && atomic_load(&stamps[ptr]) != frame &&
+               atomic_exchange(&stamps[ptr], frame) != frame) {  // load first: no lock if seen
       state.found.push_back({pos, level, entry, ptr});
     }
     slot = {pos, level, ptr};
@@ -134,7 +135,7 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
     ts.found.clear();
     ts.valid_pixels = 0;
     AllocationVisitor visitor{view, ts, s.stamps.data(), frame};
-#pragma omp for schedule(dynamic, 4) nowait
+#pragma omp for schedule(dynamic, 16) nowait
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
         Vec3f a, b;

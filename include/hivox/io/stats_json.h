@@ -1,0 +1,28 @@
+#pragma once
+/// @file
+/// `stats.json` of a reconstruction run: what was done, how fast, how big.
+
+#include <filesystem>
+#include <string>
+
+#include "hivox/pipeline/reconstruction.h"
+
+namespace hivox {
+
+/// Run-level facts the façade does not know.
+struct RunInfo {
+  std::string dataset;      ///< source (directory or synthetic:NAME)
+  std::string pose_source;  ///< "gt", a file name, "icp"
+  double wall_s = 0;        ///< the whole loop, reading included
+  int threads = 0;
+  std::string parameters;  ///< effective parameters, as printed at start
+};
+
+/// Writes `stats.json` with: frames, fps (processing, reading excluded), fps_wall (everything),
+/// timing_ms (mean per stage: read, track, allocate, integrate, refine, raycast, total),
+/// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
+/// bytes_per_voxel, memory_bytes, and per_frame (block counts per level and stage times).
+void write_stats_json(const std::filesystem::path& path, const Reconstruction& reconstruction,
+                      const RunInfo& run);
+
+}  // namespace hivox

@@ -1,0 +1,91 @@
+#pragma once
+/// @file
+/// The reconstruction façade: per frame, allocate -> integrate -> (refine) -> raycast, with
+/// per-stage timings and block counts. The stages stay callable on their own (fusion, raycast
+/// modules) for tests and benchmarks.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hivox/core/camera.h"
+#include "hivox/core/dataset.h"
+#include "hivox/core/pose.h"
+#include "hivox/fusion/integrator.h"
+#include "hivox/map/voxel_block_map.h"
+#include "hivox/raycast/raycaster.h"
+
+namespace hivox {
+
+struct ReconstructionParams {
+  MapParams map;
+  FusionParams fusion;
+  RaycastParams raycast;
+  /// Raycast the model from each frame's pose after integrating it (tracking needs it; with
+  /// given poses it only feeds renders and can be switched off for speed).
+  bool raycast_every_frame = true;
+
+  /// Validates every part; the raycast's truncation and depth range follow the fusion's.
+  void validate() const;
+  std::string to_string() const;
+};
+
+/// What happened to one frame. Times are wall-clock milliseconds.
+struct FrameStats {
+  std::size_t index = 0;
+  double timestamp_s = 0;
+  double read_ms = 0;  ///< decoding the frame (measured by the caller)
+  double track_ms = 0;
+  double allocate_ms = 0;
+  double integrate_ms = 0;
+  double refine_ms = 0;
+  double raycast_ms = 0;
+  double total_ms = 0;  ///< processing, reading excluded
+  int64_t valid_pixels = 0;
+  int64_t visible_blocks = 0;
+  int64_t new_blocks = 0;
+  int64_t dropped_blocks = 0;
+  int64_t blocks_total = 0;
+  std::vector<int64_t> blocks_per_level;  ///< finest first
+  int64_t splits = 0;
+  int64_t merges = 0;
+  int64_t raycast_hits = 0;
+};
+
+class Reconstruction {
+ public:
+  /// `info` gives the cameras (depth and colour) and their relative pose.
+  Reconstruction(const ReconstructionParams& params, const DatasetInfo& info);
+
+  const ReconstructionParams& params() const { return params_; }
+  const DatasetInfo& info() const { return info_; }
+
+  /// Fuses `frame` at camera-to-world pose `T_wc`. `read_ms` is recorded in the statistics.
+  const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc, double read_ms = 0.0);
+
+  const VoxelBlockMap& map() const { return *map_; }
+  VoxelBlockMap& map() { return *map_; }
+  /// The raycast of the last frame (empty before the first, or without raycast_every_frame).
+  const RaycastResult& last_raycast() const { return raycaster_.result(); }
+  /// Raycasts the model from any pose with any camera (renders, overviews).
+  const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
+                              float max_depth_m = 0.0f);
+
+  const std::vector<FrameStats>& frame_stats() const { return frames_; }
+  const std::vector<StampedPose>& trajectory() const { return trajectory_; }
+  int64_t peak_blocks() const { return peak_blocks_; }
+
+ private:
+  ReconstructionParams params_;
+  DatasetInfo info_;
+  std::unique_ptr<VoxelBlockMap> map_;
+  TsdfIntegrator integrator_;
+  Raycaster raycaster_;
+  RaycastResult render_result_;
+  std::vector<FrameStats> frames_;
+  std::vector<StampedPose> trajectory_;
+  int64_t peak_blocks_ = 0;
+};
+
+}  // namespace hivox

@@ -1,0 +1,75 @@
+#include "hivox/io/stats_json.h"
+
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "hivox/core/error.h"
+
+namespace hivox {
+
+void write_stats_json(const std::filesystem::path& path, const Reconstruction& rec,
+                      const RunInfo& run) {
+  using nlohmann::json;
+  const auto& frames = rec.frame_stats();
+  const double n = frames.empty() ? 1.0 : static_cast<double>(frames.size());
+  double read = 0, track = 0, allocate = 0, integrate = 0, refine = 0, raycast = 0, total = 0;
+  json per_frame = json::array();
+  for (const FrameStats& f : frames) {
+    read += f.read_ms;
+    track += f.track_ms;
+    allocate += f.allocate_ms;
+    integrate += f.integrate_ms;
+    refine += f.refine_ms;
+    raycast += f.raycast_ms;
+    total += f.total_ms;
+    per_frame.push_back({{"index", f.index},
+                         {"timestamp", f.timestamp_s},
+                         {"blocks_total", f.blocks_total},
+                         {"blocks_per_level", f.blocks_per_level},
+                         {"visible_blocks", f.visible_blocks},
+                         {"new_blocks", f.new_blocks},
+                         {"dropped_blocks", f.dropped_blocks},
+                         {"splits", f.splits},
+                         {"merges", f.merges},
+                         {"valid_pixels", f.valid_pixels},
+                         {"raycast_hits", f.raycast_hits},
+                         {"timing_ms",
+                          {{"read", f.read_ms},
+                           {"track", f.track_ms},
+                           {"allocate", f.allocate_ms},
+                           {"integrate", f.integrate_ms},
+                           {"refine", f.refine_ms},
+                           {"raycast", f.raycast_ms},
+                           {"total", f.total_ms}}}});
+  }
+  const VoxelBlockMap& map = rec.map();
+  json j;
+  j["dataset"] = run.dataset;
+  j["poses"] = run.pose_source;
+  j["threads"] = run.threads;
+  j["parameters"] = run.parameters;
+  j["frames"] = frames.size();
+  j["fps"] = total > 0 ? 1000.0 * n / total : 0.0;
+  j["fps_wall"] = run.wall_s > 0 ? static_cast<double>(frames.size()) / run.wall_s : 0.0;
+  j["timing_ms"] = {{"read", read / n},         {"track", track / n},
+                    {"allocate", allocate / n}, {"integrate", integrate / n},
+                    {"refine", refine / n},     {"raycast", raycast / n},
+                    {"total", total / n}};
+  j["blocks_total"] = map.blocks_in_use();
+  j["blocks_per_level"] = map.blocks_per_level();
+  j["peak_blocks_total"] = rec.peak_blocks();
+  j["dropped_blocks"] = map.dropped_blocks();
+  j["bytes_per_voxel"] = map.params().bytes_per_voxel();
+  j["memory_bytes"] = map.memory_bytes();
+  j["voxel_size_m"] = map.params().voxel_size_m;
+  j["levels"] = map.params().levels;
+  j["truncation_m"] = rec.params().fusion.truncation_m;
+  j["per_frame"] = std::move(per_frame);
+  std::ofstream out(path);
+  if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
+  out << j.dump(1) << "\n";
+  if (!out) fail(ErrorCode::Io, "{}: write failed", path.string());
+}
+
+}  // namespace hivox

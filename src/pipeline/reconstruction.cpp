@@ -1,0 +1,101 @@
+#include "hivox/pipeline/reconstruction.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "hivox/core/error.h"
+#include "hivox/core/timer.h"
+
+namespace hivox {
+
+namespace {
+
+RaycastParams raycast_params_for(const ReconstructionParams& p) {
+  RaycastParams r = p.raycast;
+  r.truncation_m = p.fusion.truncation_m;
+  r.min_depth_m = p.fusion.min_depth_m > 0.0f ? p.fusion.min_depth_m : r.min_depth_m;
+  r.max_depth_m = p.fusion.max_depth_m;
+  return r;
+}
+
+}  // namespace
+
+void ReconstructionParams::validate() const {
+  map.validate();
+  fusion.validate();
+  raycast_params_for(*this).validate();
+}
+
+std::string ReconstructionParams::to_string() const {
+  return fmt::format("map: {}\nfusion: {}\nraycast: {}{}", map.to_string(), fusion.to_string(),
+                     raycast_params_for(*this).to_string(),
+                     raycast_every_frame ? " (every frame)" : " (renders only)");
+}
+
+Reconstruction::Reconstruction(const ReconstructionParams& params, const DatasetInfo& info)
+    : params_(params),
+      info_(info),
+      integrator_(params.fusion),
+      raycaster_(raycast_params_for(params)) {
+  params_.validate();
+  params_.fusion.check_against(params_.map);
+  info_.depth_camera.validate("depth camera");
+  map_ = std::make_unique<VoxelBlockMap>(params_.map);
+}
+
+const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc,
+                                            double read_ms) {
+  FrameStats s;
+  s.index = frame.index;
+  s.timestamp_s = frame.timestamp_s;
+  s.read_ms = read_ms;
+  Stopwatch total;
+  Stopwatch stage;
+
+  FusionInput in;
+  in.depth_m = &frame.depth_m;
+  in.depth_camera = info_.depth_camera;
+  if (!frame.color.empty()) {
+    in.color = &frame.color;
+    in.color_camera = info_.color_camera;
+    in.T_color_depth = info_.T_color_depth;
+  }
+  in.T_wc = T_wc;
+  const AllocationStats a = integrator_.allocate(*map_, in);
+  s.allocate_ms = stage.lap_ms();
+  integrator_.integrate(*map_, in);
+  s.integrate_ms = stage.lap_ms();
+  s.valid_pixels = a.valid_pixels;
+  s.visible_blocks = a.visible_blocks;
+  s.new_blocks = a.new_blocks;
+  s.dropped_blocks = a.dropped_blocks;
+
+  if (params_.raycast_every_frame) {
+    stage.restart();
+    RaycastStats rs;
+    raycaster_.raycast(*map_, info_.depth_camera, T_wc, &rs);
+    s.raycast_ms = stage.lap_ms();
+    s.raycast_hits = rs.hits;
+  }
+  s.total_ms = total.elapsed_ms();
+  s.blocks_total = map_->blocks_in_use();
+  s.blocks_per_level = map_->blocks_per_level();
+  peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
+  trajectory_.push_back({frame.timestamp_s, T_wc});
+  frames_.push_back(std::move(s));
+  return frames_.back();
+}
+
+const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const Pose& T_wc,
+                                            float max_depth_m) {
+  RaycastParams p = raycast_params_for(params_);
+  if (max_depth_m > 0.0f) p.max_depth_m = max_depth_m;
+  Raycaster raycaster(p);
+  raycaster.raycast(*map_, camera, T_wc);
+  // Keep the per-frame raycast intact: copy the render out of the temporary raycaster.
+  render_result_ = raycaster.result();
+  return render_result_;
+}
+
+}  // namespace hivox
