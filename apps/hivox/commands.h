@@ -6,6 +6,7 @@
 
 namespace hivox::cli {
 
-// (commands are added here as they are implemented)
+/// `hivox info DATASET`: what hivox finds in a dataset folder (cmd_info.cpp).
+void add_info_command(CLI::App& app);
 
 }  // namespace hivox::cli

@@ -1,5 +1,8 @@
+#include <exception>
+
 #include <CLI/CLI.hpp>
 
+#include "commands.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
 
@@ -7,12 +10,16 @@ int main(int argc, char** argv) {
   CLI::App app{
       "hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
   app.require_subcommand(1);
+  hivox::cli::add_info_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const hivox::Error& e) {
     hivox::log::error("{}", e.what());
+    return 1;
+  } catch (const std::exception& e) {  // a bug or the system (e.g. out of memory), not bad input
+    hivox::log::error("unexpected failure: {}", e.what());
     return 1;
   }
   return 0;

@@ -32,6 +32,9 @@ struct DatasetInfo {
   std::string depth_scale_source;  ///< file, preset or override that set `depth_scale`
   bool has_color = false;
   bool has_ground_truth = false;
+  /// Frames that have a ground-truth pose; 0 when there is none or the source cannot count them
+  /// without reading every frame.
+  std::size_t ground_truth_count = 0;
   double first_timestamp_s = 0;
   std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
 };

@@ -1,0 +1,117 @@
+#pragma once
+// Private to the io module: the one reader class behind every file layout, and the per-layout
+// builders that fill it (tum_dataset.cpp, seven_scenes_dataset.cpp, infinitam_dataset.cpp).
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <numeric>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "hivox/core/dataset.h"
+#include "hivox/io/dataset.h"
+
+namespace hivox::detail {
+
+/// The files of one frame.
+struct FrameFiles {
+  std::filesystem::path depth;
+  std::filesystem::path color;  ///< empty when the dataset has no colour
+  double timestamp_s = 0;
+  std::optional<Pose> T_wc_gt;      ///< known when the dataset was opened (TUM)
+  std::filesystem::path pose_file;  ///< read by `read()` (7-Scenes); empty when none
+};
+
+/// How raw depth becomes metres: `raw / scale + offset_m`; 0 and `invalid_raw` are invalid, and
+/// so is any result <= 0.
+struct DepthDecoding {
+  double scale = 0;
+  uint16_t invalid_raw = 0;
+  double offset_m = 0;
+};
+
+/// A dataset of image files on disk. Decodes one frame per `read()`; keeps only file names.
+class FileDataset final : public DatasetReader {
+ public:
+  FileDataset(DatasetInfo info, std::vector<FrameFiles> frames, DepthDecoding decoding);
+
+  const DatasetInfo& info() const override { return info_; }
+  RgbdFrame read(std::size_t index) override;
+
+  /// Depth of frame `index` in metres (no colour, no pose): what the scale check needs.
+  DepthImage read_depth(std::size_t index) const;
+  DatasetInfo& mutable_info() { return info_; }
+  /// Keeps the first `max_frames` frames (0 = all).
+  void truncate(std::size_t max_frames);
+
+ private:
+  const FrameFiles& frame(std::size_t index) const;
+
+  DatasetInfo info_;
+  std::vector<FrameFiles> frames_;
+  DepthDecoding decoding_;
+};
+
+/// Stable sort of `items` by `key(item)`. Sorts indices and moves the items once: std::stable_sort
+/// gets its scratch buffer from an allocator that ignores over-alignment (GCC 12), which
+/// crashes on Eigen members (poses) when vectorisation needs 32-byte alignment.
+template <typename T, typename Key>
+void stable_sort_by(std::vector<T>& items, Key key) {
+  if (std::is_sorted(items.begin(), items.end(),
+                     [&](const T& a, const T& b) { return key(a) < key(b); }))
+    return;
+  std::vector<std::size_t> order(items.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return key(items[a]) < key(items[b]); });
+  std::vector<T> sorted;
+  sorted.reserve(items.size());
+  for (std::size_t i : order) sorted.push_back(std::move(items[i]));
+  items = std::move(sorted);
+}
+
+/// Intrinsics and depth scale of a registered camera, with where each came from.
+struct Calibration {
+  PinholeCamera camera;
+  std::string intrinsics_source;
+  double depth_scale = 0;
+  std::string depth_scale_source;
+};
+
+/// What a layout falls back to when the user and the folder say nothing.
+struct LayoutDefaults {
+  const char* layout_name = "";
+  const CameraPreset* preset = nullptr;  ///< camera of the layout (7-Scenes), or none
+  bool guess_from_folder_name = false;   ///< TUM: `freiburg1` / `fr1` in the name -> `tum_fr1`
+  double depth_scale = 0;                ///< used when nothing above gives a depth scale
+  const char* depth_scale_source = "";
+};
+
+/// Picks intrinsics and depth scale by priority: `params` (override file, preset, depth scale),
+/// then `dir/intrinsics.json`, then the layout's defaults. Throws `Error(InvalidArgument)`
+/// asking for a preset or an intrinsics file when nothing gives intrinsics.
+Calibration resolve_calibration(const std::filesystem::path& dir, const DatasetParams& params,
+                                const LayoutDefaults& defaults);
+
+/// Reads a 4x4 row-major camera-to-world matrix (7-Scenes `frame-NNNNNN.pose.txt`). Errors
+/// name the file (and line for a non-number); the rotation is re-orthonormalised.
+Pose read_pose_matrix(const std::filesystem::path& path);
+
+/// True when `path` is a PNG with one 16-bit grey channel (reads the header only).
+bool is_depth16_png(const std::filesystem::path& path);
+
+/// Folders of 7-Scenes frames below `dir`: `dir` itself when it holds
+/// `frame-NNNNNN.depth.png` files, else its `seq-NN` subfolders that do, sorted by number.
+std::vector<std::filesystem::path> seven_scenes_sequences(const std::filesystem::path& dir);
+
+std::unique_ptr<FileDataset> open_tum(const std::filesystem::path& dir,
+                                      const DatasetParams& params);
+std::unique_ptr<FileDataset> open_seven_scenes(const std::filesystem::path& dir,
+                                               const DatasetParams& params);
+std::unique_ptr<FileDataset> open_infinitam(const std::filesystem::path& dir,
+                                            const DatasetParams& params);
+
+}  // namespace hivox::detail

@@ -1,0 +1,86 @@
+// The `hivox` program as a user meets it: help text, `info` output, one-line errors, exit codes.
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <string>
+
+#include "../io/dataset_test_util.h"
+
+namespace hivox {
+namespace {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+CliRun run_hivox(const std::string& args) {
+  const std::string command = std::string(HIVOX_BINARY_DIR) + "/hivox " + args + " 2>&1";
+  CliRun run;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return run;
+  std::array<char, 4096> buffer{};
+  for (std::size_t n; (n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0;)
+    run.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+std::size_t line_count(const std::string& s) {
+  return static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n'));
+}
+
+TEST(Cli, InfoHelpIsUsefulToANewcomer) {
+  const CliRun r = run_hivox("info --help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* part : {"DATASET", "--preset", "--depth-scale", "--intrinsics", "TUM",
+                           "7-Scenes", "InfiniTAM", "tum_fr1", "icl_nuim", "Examples"})
+    EXPECT_NE(r.output.find(part), std::string::npos) << part << " missing in:\n" << r.output;
+  const CliRun top = run_hivox("--help");
+  EXPECT_EQ(top.exit_code, 0);
+  EXPECT_NE(top.output.find("info"), std::string::npos) << top.output;
+}
+
+TEST(Cli, InfoDescribesADataset) {
+  test::TempDir dir;
+  test::write_small_tum(dir.path());
+  const CliRun r = run_hivox("info " + dir.path().string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("frames:         3"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ground truth:   yes, 2 of 3"), std::string::npos) << r.output;
+
+  const CliRun scaled = run_hivox("info " + dir.path().string() + " --depth-scale 1000");
+  EXPECT_EQ(scaled.exit_code, 0) << scaled.output;
+  EXPECT_NE(scaled.output.find("depth scale:    1000 raw units per metre  [given]"),
+            std::string::npos)
+      << scaled.output;
+}
+
+TEST(Cli, BadInputIsOneLineAndExitCodeOne) {
+  test::TempDir dir;
+  test::write_small_tum(dir.path());
+  const std::string missing = (dir / "missing").string();
+  for (const std::string& args :
+       {"info " + missing, "info " + dir.path().string() + " --depth-scale 0",
+        "info " + dir.path().string() + " --depth-scale -5",
+        "info " + dir.path().string() + " --preset nope",
+        "info " + dir.path().string() + " --intrinsics " + missing}) {
+    const CliRun r = run_hivox(args);
+    EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.output;
+    EXPECT_EQ(line_count(r.output), 1u) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("[error]"), std::string::npos) << r.output;
+  }
+  EXPECT_NE(run_hivox("info " + missing).output.find("does not exist"), std::string::npos);
+  EXPECT_NE(
+      run_hivox("info " + dir.path().string() + " --depth-scale 0").output.find("--depth-scale"),
+      std::string::npos);
+}
+
+}  // namespace
+}  // namespace hivox
