@@ -55,24 +55,6 @@ class FileDataset final : public DatasetReader {
   DepthDecoding decoding_;
 };
 
-/// Stable sort of `items` by `key(item)`. Sorts indices and moves the items once: std::stable_sort
-/// gets its scratch buffer from an allocator that ignores over-alignment (GCC 12), which
-/// crashes on Eigen members (poses) when vectorisation needs 32-byte alignment.
-template <typename T, typename Key>
-void stable_sort_by(std::vector<T>& items, Key key) {
-  if (std::is_sorted(items.begin(), items.end(),
-                     [&](const T& a, const T& b) { return key(a) < key(b); }))
-    return;
-  std::vector<std::size_t> order(items.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return key(items[a]) < key(items[b]); });
-  std::vector<T> sorted;
-  sorted.reserve(items.size());
-  for (std::size_t i : order) sorted.push_back(std::move(items[i]));
-  items = std::move(sorted);
-}
-
 /// Intrinsics and depth scale of a registered camera, with where each came from.
 struct Calibration {
   PinholeCamera camera;

@@ -100,7 +100,9 @@ std::vector<FrameFiles> read_rgb_depth_lists(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_regular_file(rgb_txt, ec)) {  // depth only
     for (const Stamped& s : depth) frames.push_back({dir / s.file, {}, s.timestamp_s, {}, {}});
-    stable_sort_by(frames, [](const FrameFiles& f) { return f.timestamp_s; });
+    std::stable_sort(frames.begin(), frames.end(), [](const FrameFiles& a, const FrameFiles& b) {
+      return a.timestamp_s < b.timestamp_s;
+    });
     return frames;
   }
   const std::vector<Stamped> rgb = read_stamped_list(rgb_txt);
@@ -129,7 +131,9 @@ std::unique_ptr<FileDataset> open_tum(const fs::path& dir, const DatasetParams& 
   const fs::path groundtruth = dir / "groundtruth.txt";
   if (fs::is_regular_file(groundtruth, ec)) {
     std::vector<StampedPose> gt = read_tum_trajectory(groundtruth);
-    stable_sort_by(gt, [](const StampedPose& p) { return p.timestamp_s; });
+    std::stable_sort(gt.begin(), gt.end(), [](const StampedPose& a, const StampedPose& b) {
+      return a.timestamp_s < b.timestamp_s;
+    });
     std::size_t matched = 0;
     for (FrameFiles& f : frames) {
       const long i = find_nearest_pose(gt, f.timestamp_s, kMaxAssociationDtS);
