@@ -5,90 +5,30 @@
 #include <memory>
 #include <string>
 
-#include <fmt/format.h>
-
 #include "commands.h"
-#include "hivox/core/error.h"
+#include "dataset_options.h"
 #include "hivox/io/dataset.h"
 
 namespace hivox::cli {
 
-namespace {
-
-struct InfoOptions {
-  std::string dataset;
-  DatasetParams params;
-  std::string intrinsics;
-  CLI::Option* depth_scale_option = nullptr;
-};
-
-std::string preset_help() {
-  std::string text;
-  for (const CameraPreset& p : camera_presets())
-    text += fmt::format("  {:<13} {} (fx={:g} fy={:g} cx={:g} cy={:g}, depth scale {:g})\n", p.name,
-                        p.description, p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy,
-                        p.depth_scale);
-  return text;
-}
-
-void run_info(const InfoOptions& options) {
-  DatasetParams params = options.params;
-  // 0 means "from the dataset" in DatasetParams, but typed on the command line it is a mistake.
-  if (options.depth_scale_option->count() > 0 && !(params.depth_scale > 0))
-    fail(ErrorCode::InvalidArgument,
-         "--depth-scale must be > 0 raw units per metre (e.g. 5000 for TUM, 1000 for mm), got {}",
-         params.depth_scale);
-  params.intrinsics_path = options.intrinsics;
-  const std::unique_ptr<DatasetReader> reader = open_dataset(options.dataset, params);
-  const std::string text = describe_dataset(*reader);
-  std::fputs(text.c_str(), stdout);
-}
-
-}  // namespace
-
 void add_info_command(CLI::App& app) {
-  auto options = std::make_shared<InfoOptions>();
+  auto options = std::make_shared<DatasetOptions>();
   CLI::App* cmd = app.add_subcommand(
       "info",
       "Show what hivox finds in a dataset folder: layout, frame count, resolution, intrinsics, "
       "depth scale and depth range, colour, ground-truth poses and warnings.");
-  cmd->add_option("DATASET", options->dataset,
-                  "dataset folder (TUM, 7-Scenes or InfiniTAM layout; detected automatically)")
-      ->required()
-      ->type_name("");
-  cmd->add_option("--preset", options->params.preset,
-                  "camera preset to use instead of the folder's intrinsics (list below)")
-      ->type_name("NAME");
-  options->depth_scale_option =
-      cmd->add_option(
-             "--depth-scale", options->params.depth_scale,
-             "raw depth units per metre, e.g. 5000 (TUM, ICL-NUIM) or 1000 (millimetres: 7-Scenes, "
-             "Redwood, RealSense); overrides the file and preset")
-          ->type_name("S");
-  cmd->add_option("--intrinsics", options->intrinsics,
-                  "intrinsics.json to use instead of the folder's own "
-                  "({\"fx\",\"fy\",\"cx\",\"cy\",\"width\",\"height\",\"depth_scale\"})")
-      ->type_name("FILE");
-  cmd->add_option("--max-frames", options->params.max_frames,
-                  "look at the first N frames only (0 = all)")
-      ->type_name("N");
-  cmd->footer(
-      "Layouts (detected from the folder):\n"
-      "  TUM        associations.txt (t_rgb rgb/F t_depth depth/F) or rgb.txt + depth.txt,\n"
-      "             optional groundtruth.txt (matched within 20 ms) and intrinsics.json\n"
-      "  7-Scenes   seq-NN/frame-NNNNNN.{color.png,depth.png,pose.txt}, depth in mm\n"
-      "  InfiniTAM  calib.txt ('affine a b' depth line) + 0000.pgm/0000.ppm frames\n"
-      "             (or PNG), in the folder or in Frames/\n"
-      "Intrinsics come from --intrinsics, --preset, the folder's intrinsics.json, the layout's\n"
-      "default or a guess from the folder name (fr1/freiburg1 -> tum_fr1), in that order.\n"
-      "Camera presets (all 640x480):\n" +
-      preset_help() +
-      "Examples:\n"
-      "  hivox info ../shared/data/tum_fr1_rpy\n"
-      "  hivox info ~/data/rgbd_dataset_freiburg2_desk --preset tum_fr2\n"
-      "  hivox info ~/data/chess --depth-scale 1000\n"
-      "A median depth outside 0.1-10 m is reported as a warning with the likely depth scale.");
-  cmd->callback([options] { run_info(*options); });
+  add_dataset_options(cmd, *options);
+  cmd->footer(dataset_help() +
+              "Examples:\n"
+              "  hivox info ../shared/data/tum_fr1_rpy\n"
+              "  hivox info ~/data/rgbd_dataset_freiburg2_desk --preset tum_fr2\n"
+              "  hivox info ~/data/chess --depth-scale 1000\n"
+              "A median depth outside 0.1-10 m is reported as a warning with the likely depth "
+              "scale.");
+  cmd->callback([options] {
+    const std::unique_ptr<DatasetReader> reader = open_dataset(*options);
+    std::fputs(describe_dataset(*reader).c_str(), stdout);
+  });
 }
 
 }  // namespace hivox::cli

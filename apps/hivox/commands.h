@@ -9,4 +9,8 @@ namespace hivox::cli {
 /// `hivox info DATASET`: what hivox finds in a dataset folder (cmd_info.cpp).
 void add_info_command(CLI::App& app);
 
+/// `hivox reconstruct DATASET`: fuse a sequence, write mesh, trajectory, stats, renders
+/// (cmd_reconstruct.cpp).
+void add_reconstruct_command(CLI::App& app);
+
 }  // namespace hivox::cli

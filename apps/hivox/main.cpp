@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
       "hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
   app.require_subcommand(1);
   hivox::cli::add_info_command(app);
+  hivox::cli::add_reconstruct_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -50,6 +50,7 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["threads"] = run.threads;
   j["parameters"] = run.parameters;
   j["frames"] = frames.size();
+  j["skipped_frames"] = run.skipped_frames;
   j["fps"] = total > 0 ? 1000.0 * n / total : 0.0;
   j["fps_wall"] = run.wall_s > 0 ? static_cast<double>(frames.size()) / run.wall_s : 0.0;
   j["timing_ms"] = {{"read", read / n},         {"track", track / n},

@@ -1,0 +1,247 @@
+// `hivox reconstruct DATASET`: the whole reconstruction of a sequence, writing a mesh, the
+// trajectory, statistics and renders. `hivox demo` runs it on a built-in synthetic scene.
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "commands.h"
+#include "dataset_options.h"
+#include "hivox/core/error.h"
+#include "hivox/core/log.h"
+#include "hivox/core/parallel.h"
+#include "hivox/core/timer.h"
+#include "hivox/io/image_io.h"
+#include "hivox/io/ply.h"
+#include "hivox/io/stats_json.h"
+#include "hivox/io/trajectory_io.h"
+#include "hivox/mesh/extract_mesh.h"
+#include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/render.h"
+
+namespace hivox::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReconstructOptions {
+  DatasetOptions data;
+  std::string poses = "gt";
+  std::string out;
+  ReconstructionParams params;
+  MeshParams mesh;
+  std::size_t frames = 0;
+  int threads = 0;
+  int render_every = 0;
+  bool no_color = false;
+  bool quiet = false;
+};
+
+/// Poses from a TUM trajectory file, matched to frames by nearest timestamp (20 ms).
+class PoseFile {
+ public:
+  explicit PoseFile(const fs::path& path) : path_(path), poses_(read_tum_trajectory(path)) {
+    if (poses_.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", path.string());
+    std::stable_sort(poses_.begin(), poses_.end(), [](const StampedPose& a, const StampedPose& b) {
+      return a.timestamp_s < b.timestamp_s;
+    });
+  }
+  std::optional<Pose> at(double t_s) const {
+    const long i = find_nearest_pose(poses_, t_s, 0.02);
+    return i < 0 ? std::nullopt : std::optional<Pose>(poses_[static_cast<std::size_t>(i)].T_wc);
+  }
+
+ private:
+  fs::path path_;
+  std::vector<StampedPose> poses_;
+};
+
+void write_renders(const RaycastResult& r, const fs::path& dir, const std::string& prefix) {
+  write_png(dir / (prefix + "depth.png"), render_depth(r.depth_m));
+  write_png(dir / (prefix + "normals.png"), render_normals(r));
+  write_png(dir / (prefix + "shaded.png"), render_shaded(r));
+  write_png(dir / (prefix + "color.png"), render_colors(r));
+  write_png(dir / (prefix + "levels.png"), render_levels(r));
+}
+
+std::string default_out_dir(const std::string& dataset) {
+  std::string name = fs::path(dataset).filename().string();
+  if (name.empty()) name = fs::path(dataset).parent_path().filename().string();
+  std::replace(name.begin(), name.end(), ':', '_');
+  return (fs::path("out") / (name.empty() ? "run" : name)).string();
+}
+
+void run_reconstruct(ReconstructOptions options) {
+  if (options.threads > 0) set_thread_count(options.threads);
+  if (options.no_color) {
+    options.params.map.store_color = false;
+    options.params.fusion.integrate_color = false;
+  }
+  options.params.validate();
+  options.mesh.validate();
+  if (options.render_every < 0)
+    fail(ErrorCode::InvalidArgument, "--render-every must be >= 0, got {}", options.render_every);
+
+  const std::unique_ptr<DatasetReader> reader = open_dataset(options.data);
+  const DatasetInfo& info = reader->info();
+  for (const std::string& w : info.warnings) log::warn("{}", w);
+  std::unique_ptr<PoseFile> pose_file;
+  if (options.poses != "gt") pose_file = std::make_unique<PoseFile>(options.poses);
+  else if (!info.has_ground_truth)
+    fail(ErrorCode::InvalidArgument,
+         "{}: --poses gt, but the dataset has no ground-truth poses; pass --poses FILE (a TUM "
+         "trajectory)",
+         info.source);
+
+  const fs::path out = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) fail(ErrorCode::Io, "{}: cannot create output directory ({})", out.string(), ec.message());
+
+  const std::size_t total =
+      options.frames > 0 ? std::min(options.frames, reader->size()) : reader->size();
+  const std::string params_text = options.params.to_string();
+  if (!options.quiet) {
+    fmt::print("hivox reconstruct {}\n", info.source);
+    fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", total, reader->size(),
+               info.depth_camera.width, info.depth_camera.height, options.poses, thread_count());
+    fmt::print("{}\noutput: {}\n", params_text, out.string());
+  }
+
+  Reconstruction rec(options.params, info);
+  const bool tty = isatty(fileno(stdout)) != 0;
+  std::size_t skipped = 0;
+  Stopwatch wall;
+  for (std::size_t i = 0; i < total; ++i) {
+    Stopwatch read_watch;
+    RgbdFrame frame = reader->read(i);
+    const double read_ms = read_watch.elapsed_ms();
+    const std::optional<Pose> T_wc = pose_file ? pose_file->at(frame.timestamp_s) : frame.T_wc_gt;
+    if (!T_wc) {
+      ++skipped;
+      log::warn_once("reconstruct.no_pose",
+                     "frame {} (t = {:.6f} s) has no pose within 20 ms: skipped (counted in "
+                     "stats.json as skipped_frames)",
+                     i, frame.timestamp_s);
+      continue;
+    }
+    const FrameStats& s = rec.integrate(frame, *T_wc, read_ms);
+    if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
+      write_renders(rec.render(info.depth_camera, *T_wc), out, fmt::format("frame{:06d}_", i));
+    if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
+      const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
+      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {}  dropped {}{}", tty ? "\r" : "", i + 1,
+                 total, fps, s.blocks_total, rec.map().dropped_blocks(), tty ? "   " : "\n");
+      std::fflush(stdout);
+    }
+  }
+  const double wall_s = wall.elapsed_ms() / 1e3;
+  if (!options.quiet && tty) fmt::print("\n");
+  if (rec.frame_stats().empty())
+    fail(ErrorCode::InvalidData, "{}: no frame could be integrated", info.source);
+
+  // Results.
+  write_tum_trajectory(out / "trajectory.txt", rec.trajectory(),
+                       fmt::format("hivox reconstruct {} (poses: {})", info.source, options.poses));
+  const Pose last_pose = rec.trajectory().back().T_wc;
+  write_renders(rec.render(info.depth_camera, last_pose), out, "");
+  Stopwatch mesh_watch;
+  const TriangleMesh mesh = extract_mesh(rec.map(), options.mesh);
+  write_ply(out / "mesh.ply", mesh);
+  const double mesh_s = mesh_watch.elapsed_ms() / 1e3;
+  RunInfo run;
+  run.dataset = info.source;
+  run.pose_source = options.poses;
+  run.wall_s = wall_s;
+  run.threads = thread_count();
+  run.parameters = params_text;
+  run.skipped_frames = static_cast<int64_t>(skipped);
+  write_stats_json(out / "stats.json", rec, run);
+
+  if (!options.quiet) {
+    const auto& frames = rec.frame_stats();
+    double total_ms = 0;
+    for (const FrameStats& f : frames) total_ms += f.total_ms;
+    fmt::print("integrated {} frames ({} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
+               "with reading\n",
+               frames.size(), skipped, 1000.0 * static_cast<double>(frames.size()) / total_ms,
+               static_cast<double>(frames.size()) / wall_s);
+    fmt::print("blocks: {} (peak {}), dropped {}, memory {:.1f} MiB\n", rec.map().blocks_in_use(),
+               rec.peak_blocks(), rec.map().dropped_blocks(),
+               static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
+    fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
+               mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
+    fmt::print("wrote {}/{{trajectory.txt, stats.json, depth/normals/shaded/color/levels.png}}\n",
+               out.string());
+  }
+}
+
+void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
+  auto& p = o.params;
+  cmd->add_option("--poses", o.poses,
+                  "where camera poses come from: 'gt' (the dataset's ground truth) or a TUM "
+                  "trajectory file (camera-to-world)")
+      ->capture_default_str();
+  cmd->add_option("--levels", p.map.levels, "resolution levels (1 = fixed grid)")
+      ->capture_default_str();
+  cmd->add_option("--voxel-size", p.map.voxel_size_m, "finest voxel size, metres")
+      ->capture_default_str();
+  cmd->add_option("--truncation", p.fusion.truncation_m, "truncation band mu, metres")
+      ->capture_default_str();
+  cmd->add_option("--min-depth", p.fusion.min_depth_m, "ignore depth nearer than this, metres")
+      ->capture_default_str();
+  cmd->add_option("--max-depth", p.fusion.max_depth_m, "ignore depth farther than this, metres")
+      ->capture_default_str();
+  cmd->add_option("--max-weight", p.fusion.max_weight, "cap of the per-voxel observation count")
+      ->capture_default_str();
+  cmd->add_option("--max-blocks", p.map.max_blocks,
+                  "voxel-block pool size (all levels); memory is used as blocks are allocated")
+      ->capture_default_str();
+  cmd->add_option("--hash-buckets", p.map.buckets_per_level, "hash buckets per level (power of 2)")
+      ->capture_default_str();
+  cmd->add_option("--hash-excess", p.map.excess_per_level, "hash overflow entries per level")
+      ->capture_default_str();
+  cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");
+  cmd->add_flag("!--no-raycast", p.raycast_every_frame,
+                "skip the per-frame raycast (renders are still made at the end)");
+  cmd->add_option("--frames", o.frames, "process the first N frames (0 = all)")
+      ->capture_default_str();
+  cmd->add_option("--render-every", o.render_every,
+                  "also write the renders of every N-th frame (0 = only at the end)")
+      ->capture_default_str();
+  cmd->add_option("--mesh-min-weight", o.mesh.min_weight,
+                  "voxels observed fewer times do not make surface")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.threads, "CPU threads (0 = all cores)")->capture_default_str();
+  cmd->add_flag("--quiet", o.quiet, "print nothing but warnings and errors");
+}
+
+}  // namespace
+
+void add_reconstruct_command(CLI::App& app) {
+  auto options = std::make_shared<ReconstructOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "reconstruct",
+      "Fuse an RGB-D sequence into a TSDF map and write the mesh (mesh.ply), the trajectory "
+      "(trajectory.txt, TUM format), statistics (stats.json) and renders of the model (PNG).");
+  add_dataset_options(cmd, options->data);
+  add_fusion_options(cmd, *options);
+  cmd->add_option("--out", options->out, "output folder (default out/<dataset name>)")
+      ->type_name("DIR");
+  cmd->footer(dataset_help() +
+              "Examples:\n"
+              "  hivox reconstruct ../shared/data/tum_fr1_rpy --levels 1 --voxel-size 0.005 "
+              "--truncation 0.02\n"
+              "  hivox reconstruct ~/data/fr2_desk --preset tum_fr2 --poses my_trajectory.txt\n");
+  cmd->callback([options] { run_reconstruct(*options); });
+}
+
+}  // namespace hivox::cli
