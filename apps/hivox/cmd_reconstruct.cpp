@@ -94,7 +94,8 @@ void run_reconstruct(ReconstructOptions options) {
   const DatasetInfo& info = reader->info();
   for (const std::string& w : info.warnings) log::warn("{}", w);
   std::unique_ptr<PoseFile> pose_file;
-  if (options.poses != "gt") pose_file = std::make_unique<PoseFile>(options.poses);
+  if (options.poses != "gt")
+    pose_file = std::make_unique<PoseFile>(options.poses);
   else if (!info.has_ground_truth)
     fail(ErrorCode::InvalidArgument,
          "{}: --poses gt, but the dataset has no ground-truth poses; pass --poses FILE (a TUM "
@@ -104,7 +105,8 @@ void run_reconstruct(ReconstructOptions options) {
   const fs::path out = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
   std::error_code ec;
   fs::create_directories(out, ec);
-  if (ec) fail(ErrorCode::Io, "{}: cannot create output directory ({})", out.string(), ec.message());
+  if (ec)
+    fail(ErrorCode::Io, "{}: cannot create output directory ({})", out.string(), ec.message());
 
   const std::size_t total =
       options.frames > 0 ? std::min(options.frames, reader->size()) : reader->size();
@@ -170,10 +172,11 @@ void run_reconstruct(ReconstructOptions options) {
     const auto& frames = rec.frame_stats();
     double total_ms = 0;
     for (const FrameStats& f : frames) total_ms += f.total_ms;
-    fmt::print("integrated {} frames ({} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
-               "with reading\n",
-               frames.size(), skipped, 1000.0 * static_cast<double>(frames.size()) / total_ms,
-               static_cast<double>(frames.size()) / wall_s);
+    fmt::print(
+        "integrated {} frames ({} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
+        "with reading\n",
+        frames.size(), skipped, 1000.0 * static_cast<double>(frames.size()) / total_ms,
+        static_cast<double>(frames.size()) / wall_s);
     fmt::print("blocks: {} (peak {}), dropped {}, memory {:.1f} MiB\n", rec.map().blocks_in_use(),
                rec.peak_blocks(), rec.map().dropped_blocks(),
                static_cast<double>(rec.map().memory_bytes()) / (1 << 20));

@@ -15,7 +15,8 @@ struct RunInfo {
   std::string pose_source;  ///< "gt", a file name, "icp"
   double wall_s = 0;        ///< the whole loop, reading included
   int threads = 0;
-  std::string parameters;  ///< effective parameters, as printed at start
+  std::string parameters;      ///< effective parameters, as printed at start
+  int64_t skipped_frames = 0;  ///< frames not integrated (e.g. without a pose)
 };
 
 /// Writes `stats.json` with: frames, fps (processing, reading excluded), fps_wall (everything),

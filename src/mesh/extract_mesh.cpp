@@ -1,0 +1,172 @@
+#include "hivox/mesh/extract_mesh.h"
+
+#include <algorithm>
+#include <atomic>
+#include <limits>
+#include <memory>
+
+#include "hivox/core/error.h"
+#include "hivox/core/parallel.h"
+#include "mesh/mesh_kernels.h"
+
+namespace hivox {
+
+namespace {
+
+/// A triangle corner before global vertex indices exist: the vertex on edge `edge` (local edge
+/// id) of block `block` (index in the sorted block list). When the edge belongs to the block
+/// that made the triangle, it is resolved at once and `edge` holds kResolved | its rank there.
+struct EdgeRef {
+  int32_t block;
+  uint16_t edge;
+};
+constexpr uint16_t kResolved = 0x8000;
+static_assert(kernels::kEdgesPerBlock < kResolved);
+
+/// What one block contributes: the vertices on the edges it owns (ascending local edge id)
+/// and its triangles (3 corners each).
+struct BlockMesh {
+  std::vector<uint16_t> edges;
+  std::vector<kernels::EdgeVertex> vertices;
+  std::vector<EdgeRef> corners;
+};
+
+struct BlockScratch {
+  kernels::PaddedBlock padded;
+  int16_t rank[kernels::kEdgesPerBlock];  ///< own edge id -> index in BlockMesh::edges, or -1
+};
+
+/// Marching cubes over one block: vertices on its owned edges, triangles of its owned cells.
+void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
+                const std::vector<int32_t>& index_of_ptr, const MeshParams& params, bool with_color,
+                BlockScratch& scratch, BlockMesh& out) {
+  kernels::PaddedBlock& pb = scratch.padded;
+  kernels::gather_padded_block(view, b.level, b.pos, b.ptr, params.min_weight, with_color, pb);
+  const float voxel_m = view.level[b.level].voxel_size_m;
+  std::fill(std::begin(scratch.rank), std::end(scratch.rank), int16_t{-1});
+  for (int z = 0; z < kBlockSide; ++z)
+    for (int y = 0; y < kBlockSide; ++y)
+      for (int x = 0; x < kBlockSide; ++x)
+        for (int axis = 0; axis < 3; ++axis) {
+          if (!kernels::edge_has_vertex(pb, x, y, z, axis)) continue;
+          const int id = voxel_index(x, y, z) * 3 + axis;
+          scratch.rank[id] = static_cast<int16_t>(out.edges.size());
+          out.edges.push_back(static_cast<uint16_t>(id));
+          out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, x, y, z, axis,
+                                                      params.compute_normals, with_color));
+        }
+  for (int z = 0; z < kBlockSide; ++z)
+    for (int y = 0; y < kBlockSide; ++y)
+      for (int x = 0; x < kBlockSide; ++x) {
+        if (!pb.cell_valid[kernels::pad_index(x, y, z)]) continue;
+        const int c = kernels::cell_case(pb, x, y, z);
+        if (c == 0 || c == 255) continue;
+        const mc::McCase& mcase = mc::kMcTable.cases[c];
+        for (int t = 0; t < mcase.triangle_count; ++t)
+          for (int k = 0; k < 3; ++k) {
+            const int e = mcase.triangles[t][k];
+            const Vec3i p = Vec3i{x, y, z} + kernels::corner_offset(mc::mc_edge_corner(e, 0));
+            const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + mc::mc_edge_axis(e);
+            if (((p.x | p.y | p.z) >> 3) == 0) {
+              out.corners.push_back({self, static_cast<uint16_t>(kResolved | scratch.rank[id])});
+            } else {
+              // The edge starts in a +x/+y/+z neighbour, which owns it. The cell is valid, so
+              // that block is allocated at this level and in the block list.
+              const int32_t nb =
+                  pb.neighbour_ptr[kernels::neighbour_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
+              out.corners.push_back(
+                  {index_of_ptr[static_cast<std::size_t>(nb)], static_cast<uint16_t>(id)});
+            }
+          }
+      }
+}
+
+}  // namespace
+
+TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
+  params.validate();
+  const MapView view = map.view();
+  const bool with_color = params.with_color && view.color != nullptr;
+
+  // Blocks in key order (level, z, y, x): the output must not depend on pool positions.
+  std::vector<BlockRef> blocks = map.allocated_blocks();
+  std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
+    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+  });
+  const int64_t n = static_cast<int64_t>(blocks.size());
+  std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
+  for (int64_t i = 0; i < n; ++i)
+    index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = static_cast<int32_t>(i);
+
+  // Pass 1: per block, its vertices and its triangles with corners as edge references.
+  std::vector<BlockMesh> parts(static_cast<std::size_t>(n));
+  parallel_threads([&](int, int) {
+    const auto scratch = std::make_unique<BlockScratch>();
+#pragma omp for schedule(dynamic, 16) nowait
+    for (int64_t i = 0; i < n; ++i)
+      mesh_block(view, blocks[i], static_cast<int32_t>(i), index_of_ptr, params, with_color,
+                 *scratch, parts[static_cast<std::size_t>(i)]);
+  });
+
+  // Pass 2: global numbering, block by block.
+  std::vector<int64_t> vertex_offset(static_cast<std::size_t>(n) + 1, 0);
+  std::vector<int64_t> triangle_offset(static_cast<std::size_t>(n) + 1, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    const BlockMesh& p = parts[static_cast<std::size_t>(i)];
+    vertex_offset[i + 1] = vertex_offset[i] + static_cast<int64_t>(p.vertices.size());
+    triangle_offset[i + 1] = triangle_offset[i] + static_cast<int64_t>(p.corners.size() / 3);
+  }
+  const int64_t vertices = vertex_offset[n], triangles = triangle_offset[n];
+  if (vertices > std::numeric_limits<int32_t>::max())
+    fail(ErrorCode::OutOfCapacity, "mesh: {} vertices exceed the int32 index range", vertices);
+
+  TriangleMesh mesh;
+  mesh.positions_w.resize(static_cast<std::size_t>(vertices));
+  if (params.compute_normals) mesh.normals_w.resize(static_cast<std::size_t>(vertices));
+  if (with_color) mesh.colors.resize(static_cast<std::size_t>(vertices));
+  mesh.levels.resize(static_cast<std::size_t>(vertices));
+  mesh.triangles.resize(static_cast<std::size_t>(triangles));
+
+  // Pass 3: copy vertices and resolve triangle corners (binary search in the owner's edges).
+  std::atomic<int64_t> unresolved{0};
+  parallel_for_dynamic(n, 64, [&](int64_t i) {
+    BlockMesh& p = parts[static_cast<std::size_t>(i)];
+    const int64_t v0 = vertex_offset[i];
+    for (std::size_t k = 0; k < p.vertices.size(); ++k) {
+      const kernels::EdgeVertex& v = p.vertices[k];
+      const std::size_t dst = static_cast<std::size_t>(v0) + k;
+      mesh.positions_w[dst] = v.position_w;
+      if (params.compute_normals) mesh.normals_w[dst] = v.normal_w;
+      if (with_color) mesh.colors[dst] = v.color;
+      mesh.levels[dst] = static_cast<uint8_t>(blocks[i].level);
+    }
+    int64_t missing = 0;
+    std::array<int32_t, 3>* out = mesh.triangles.data() + triangle_offset[i];
+    for (std::size_t k = 0; k < p.corners.size(); ++k) {
+      const EdgeRef r = p.corners[k];
+      int64_t index;
+      if (r.edge & kResolved) {
+        index = vertex_offset[r.block] + (r.edge & ~kResolved);
+      } else {
+        const std::vector<uint16_t>& owner = parts[static_cast<std::size_t>(r.block)].edges;
+        const auto it = std::lower_bound(owner.begin(), owner.end(), r.edge);
+        if (it == owner.end() || *it != r.edge) {
+          ++missing;
+          index = 0;
+        } else {
+          index = vertex_offset[r.block] + (it - owner.begin());
+        }
+      }
+      out[k / 3][k % 3] = static_cast<int32_t>(index);
+    }
+    if (missing) unresolved += missing;
+  });
+  // Owners decide about their edges from the same voxels and blocks as the cells that use them,
+  // so every reference resolves; anything else is a bug, reported rather than meshed wrongly.
+  if (unresolved.load() != 0)
+    fail(ErrorCode::InvalidData, "mesh: {} triangle corners found no vertex (internal error)",
+         unresolved.load());
+  return mesh;
+}
+
+}  // namespace hivox

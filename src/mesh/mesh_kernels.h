@@ -1,0 +1,208 @@
+#pragma once
+// Marching-cubes math written once for the CPU and CUDA drivers: gathering a block with a
+// one-to-two-voxel apron from its same-level neighbours, the per-cell case, and the per-edge
+// vertex (position, normal, colour).
+//
+// A block's cells are its 8x8x8 voxels taken as lower corners; a cell reaches one voxel into
+// the +x/+y/+z neighbours. A block owns the 3 edges leaving each of its voxels in +x, +y, +z
+// (local edge id = voxel_index * 3 + axis), so every edge of the grid has exactly one owner
+// and a vertex on it is computed once.
+
+#include <cstdint>
+
+#include "hivox/core/hd.h"
+#include "hivox/core/image.h"
+#include "hivox/core/math.h"
+#include "hivox/map/map_view.h"
+#include "mesh/mc_table.h"
+
+namespace hivox::kernels {
+
+/// Local coordinates covered by a padded block: [-1, 9] on each axis. Cells with lower corners
+/// in [-1, 7] (the owned ones plus the -1 layer that shares owned edges) need [-1, 8]; central
+/// differences at edge ends in [0, 8] need [-1, 9].
+inline constexpr int kPadLo = -1;
+inline constexpr int kPadSide = 11;
+inline constexpr int kPadVoxels = kPadSide * kPadSide * kPadSide;
+inline constexpr int kEdgesPerBlock = kBlockVoxels * 3;
+
+/// Normalised TSDF used in place of an exact 0: half an int16 unit on the outside. A zero
+/// counts as outside (the case index tests F < 0), and nudging it keeps every vertex strictly
+/// inside its edge, so vertices of different edges never coincide.
+inline constexpr float kZeroTsdf = 0.5f / kTsdfScale;
+
+HIVOX_HD inline int pad_index(int x, int y, int z) {
+  return (x - kPadLo) + kPadSide * ((y - kPadLo) + kPadSide * (z - kPadLo));
+}
+
+/// Index of neighbour block (dx, dy, dz), each in [-1, 1], in `PaddedBlock::neighbour_ptr`.
+HIVOX_HD inline int neighbour_slot(int dx, int dy, int dz) {
+  return (dx + 1) + 3 * ((dy + 1) + 3 * (dz + 1));
+}
+
+/// A block's voxels with an apron from its neighbours, as the cells and edges read them.
+struct PaddedBlock {
+  float tsdf[kPadVoxels];          ///< normalised TSDF (0 replaced by kZeroTsdf)
+  uint8_t valid[kPadVoxels];       ///< 1: allocated at this level and weight >= min_weight
+  ColorVoxel color[kPadVoxels];    ///< filled only when colour is gathered
+  int32_t neighbour_ptr[27];       ///< pool index of each neighbour block, or < 0 when unusable
+  uint8_t cell_valid[kPadVoxels];  ///< 1: all 8 corners of the cell with this lower corner valid
+};
+
+/// Pool index of the block whose voxels a cell of a level-`level` block may read at block
+/// `pos`, or a negative value when there is none.
+///
+/// Only blocks of the same level are used. Where the neighbouring region is stored at another
+/// level (a Split entry, or a region held by a coarser parent) the lookup fails, the cells that
+/// reach into it are skipped, and the surface has a gap of up to one cell along the level
+/// boundary. This function is the single place that decides what a cell may sample: a
+/// crack-free scheme (transition cells, or the cross-level interpolation of DESIGN §5) resolves
+/// such voxels on the other level here and marks them as sampled from there.
+HIVOX_HD inline int32_t same_level_neighbour(const MapView& map, int level, const Vec3i& pos) {
+  const int32_t ptr = find_block_ptr(map.level[level], pos);
+  return ptr >= 0 ? ptr : -1;
+}
+
+/// Fills `out` for the level-`level` block at `pos` stored in pool block `ptr`. A voxel is
+/// valid when its block is allocated at this level and its weight is at least `min_weight`.
+HIVOX_HD inline void gather_padded_block(const MapView& map, int level, const Vec3i& pos,
+                                         int32_t ptr, float min_weight, bool with_color,
+                                         PaddedBlock& out) {
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int slot = neighbour_slot(dx, dy, dz);
+        out.neighbour_ptr[slot] =
+            (dx | dy | dz) == 0 ? ptr : same_level_neighbour(map, level, pos + Vec3i{dx, dy, dz});
+      }
+  for (int z = kPadLo; z < kPadLo + kPadSide; ++z)
+    for (int y = kPadLo; y < kPadLo + kPadSide; ++y)
+      for (int x = kPadLo; x < kPadLo + kPadSide; ++x) {
+        const int i = pad_index(x, y, z);
+        // x >> 3 is -1, 0 or 1 here (floor division); x & 7 the voxel inside that block.
+        const int32_t nb = out.neighbour_ptr[neighbour_slot(x >> 3, y >> 3, z >> 3)];
+        if (nb < 0) {
+          out.tsdf[i] = 1.0f;
+          out.valid[i] = 0;
+          if (with_color) out.color[i] = ColorVoxel{};
+          continue;
+        }
+        const int64_t v =
+            static_cast<int64_t>(nb) * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7);
+        const TsdfVoxel t = map.tsdf[v];
+        out.tsdf[i] = t.tsdf == 0 ? kZeroTsdf : tsdf_to_float(t.tsdf);
+        out.valid[i] = static_cast<float>(t.weight) >= min_weight ? 1 : 0;
+        if (with_color) out.color[i] = map.color[v];
+      }
+  // A cell is valid when its 8 corners are: AND over x, then y, then z neighbours.
+  for (int i = 0; i < kPadVoxels; ++i) out.cell_valid[i] = out.valid[i];
+  const int step[3] = {1, kPadSide, kPadSide * kPadSide};
+  for (int axis = 0; axis < 3; ++axis)
+    for (int z = kPadLo; z < kPadLo + kPadSide - (axis == 2); ++z)
+      for (int y = kPadLo; y < kPadLo + kPadSide - (axis == 1); ++y)
+        for (int x = kPadLo; x < kPadLo + kPadSide - (axis == 0); ++x) {
+          const int i = pad_index(x, y, z);
+          out.cell_valid[i] &= out.cell_valid[i + step[axis]];
+        }
+}
+
+/// Offset of corner c (numbering of mc_table.h) from the cell's lower corner.
+HIVOX_HD inline Vec3i corner_offset(int c) {
+  return {c & 1, (c >> 1) & 1, (c >> 2) & 1};
+}
+
+/// Case index of the cell with lower corner (x, y, z): bit c set when corner c is inside.
+HIVOX_HD inline int cell_case(const PaddedBlock& b, int x, int y, int z) {
+  const int i = pad_index(x, y, z);
+  const int d[8] = {0,
+                    1,
+                    kPadSide,
+                    kPadSide + 1,
+                    kPadSide * kPadSide,
+                    kPadSide * kPadSide + 1,
+                    kPadSide * kPadSide + kPadSide,
+                    kPadSide * kPadSide + kPadSide + 1};
+  int c = 0;
+  for (int k = 0; k < 8; ++k) c |= (b.tsdf[i + d[k]] < 0.0f ? 1 : 0) << k;
+  return c;
+}
+
+/// Whether owned edge (x, y, z, axis) — all coordinates in [0, 7] — carries a vertex: its ends
+/// differ in sign and at least one of the 4 cells around it is valid (then both ends are).
+HIVOX_HD inline bool edge_has_vertex(const PaddedBlock& b, int x, int y, int z, int axis) {
+  const int step[3] = {1, kPadSide, kPadSide * kPadSide};
+  const int i = pad_index(x, y, z);
+  if ((b.tsdf[i] < 0.0f) == (b.tsdf[i + step[axis]] < 0.0f)) return false;
+  const int u = step[mc::other_axis(axis, 0)], v = step[mc::other_axis(axis, 1)];
+  return (b.cell_valid[i] | b.cell_valid[i - u] | b.cell_valid[i - v] | b.cell_valid[i - u - v]) !=
+         0;
+}
+
+/// TSDF gradient (per voxel) at padded point i: central differences where both neighbours are
+/// valid, one-sided where one is, 0 along an axis where none is.
+HIVOX_HD inline Vec3f tsdf_gradient(const PaddedBlock& b, int i) {
+  const int step[3] = {1, kPadSide, kPadSide * kPadSide};
+  Vec3f g;
+  for (int k = 0; k < 3; ++k) {
+    const int lo = i - step[k], hi = i + step[k];
+    if (b.valid[lo] && b.valid[hi])
+      g[k] = 0.5f * (b.tsdf[hi] - b.tsdf[lo]);
+    else if (b.valid[hi])
+      g[k] = b.tsdf[hi] - b.tsdf[i];
+    else if (b.valid[lo])
+      g[k] = b.tsdf[i] - b.tsdf[lo];
+    else
+      g[k] = 0.0f;
+  }
+  return g;
+}
+
+HIVOX_HD inline uint8_t lerp_channel(uint8_t a, uint8_t b, float t) {
+  return static_cast<uint8_t>(static_cast<float>(a) + (static_cast<float>(b) - a) * t + 0.5f);
+}
+
+/// Colour of an edge vertex: linear between the ends; an end without colour observations is
+/// ignored, and mid-grey stands in when neither has any.
+HIVOX_HD inline Rgb8 edge_color(const ColorVoxel& a, const ColorVoxel& b, float t) {
+  if (a.weight > 0 && b.weight > 0)
+    return {lerp_channel(a.r, b.r, t), lerp_channel(a.g, b.g, t), lerp_channel(a.b, b.b, t)};
+  if (a.weight > 0) return {a.r, a.g, a.b};
+  if (b.weight > 0) return {b.r, b.g, b.b};
+  return {128, 128, 128};
+}
+
+struct EdgeVertex {
+  Vec3f position_w;
+  Vec3f normal_w;
+  Rgb8 color;
+};
+
+/// The vertex on owned edge (x, y, z, axis) of the block at `block_pos` (voxel size
+/// `voxel_size_m`), assuming `edge_has_vertex`. Position by linear interpolation of the TSDF;
+/// normal from the gradients at the two ends, interpolated the same way and normalised (it
+/// points to increasing TSDF, i.e. free space; along the edge towards the outside end when the
+/// gradient vanishes).
+HIVOX_HD inline EdgeVertex edge_vertex(const PaddedBlock& b, const Vec3i& block_pos,
+                                       float voxel_size_m, int x, int y, int z, int axis,
+                                       bool with_normal, bool with_color) {
+  const int step[3] = {1, kPadSide, kPadSide * kPadSide};
+  const int i0 = pad_index(x, y, z), i1 = i0 + step[axis];
+  const float f0 = b.tsdf[i0], f1 = b.tsdf[i1];
+  const float t = f0 / (f0 - f1);  // f0 and f1 differ in sign and neither is 0
+  EdgeVertex v;
+  Vec3f p{static_cast<float>(block_pos.x * kBlockSide + x),
+          static_cast<float>(block_pos.y * kBlockSide + y),
+          static_cast<float>(block_pos.z * kBlockSide + z)};
+  p[axis] += t;
+  v.position_w = p * voxel_size_m;
+  if (with_normal) {
+    const Vec3f g0 = tsdf_gradient(b, i0), g1 = tsdf_gradient(b, i1);
+    Vec3f n = normalized(g0 * (1.0f - t) + g1 * t);
+    if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n[axis] = f1 > f0 ? 1.0f : -1.0f;
+    v.normal_w = n;
+  }
+  if (with_color) v.color = edge_color(b.color[i0], b.color[i1], t);
+  return v;
+}
+
+}  // namespace hivox::kernels

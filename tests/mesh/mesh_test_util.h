@@ -1,0 +1,121 @@
+#pragma once
+// Maps for mesh tests: written directly from an exact signed distance function, or fused from
+// depth images of the analytic scene.
+
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "analytic_scene.h"
+#include "hivox/fusion/integrator.h"
+#include "hivox/map/voxel_block_map.h"
+
+namespace hivox::test {
+
+inline MapParams mesh_map_params(float voxel_m, int levels = 1, bool color = true) {
+  MapParams p;
+  p.voxel_size_m = voxel_m;
+  p.levels = levels;
+  p.max_blocks = 1 << 17;
+  p.buckets_per_level = 1 << 16;
+  p.excess_per_level = 1 << 15;
+  p.store_color = color;
+  return p;
+}
+
+using Sdf = std::function<double(const Eigen::Vector3d&)>;
+
+/// Writes F = clamp(sdf / mu) with weight `weight` into every voxel of the level-`level`
+/// blocks in [lo, hi] (block coordinates) that `keep(block)` accepts.
+inline void write_sdf_blocks(VoxelBlockMap& map, int level, const Vec3i& lo, const Vec3i& hi,
+                             double mu_m, const Sdf& sdf, uint16_t weight = 1,
+                             const std::function<bool(const Vec3i&)>& keep = {}) {
+  const double s = map.params().voxel_size_at(level);
+  std::vector<BlockKey> keys;
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x)
+        if (!keep || keep({x, y, z})) keys.push_back({{x, y, z}, level});
+  std::vector<BlockRef> inserted;
+  map.insert_blocks(keys, &inserted);
+  for (const BlockRef& b : inserted) {
+    TsdfVoxel* vox = map.block_tsdf(b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      const Vec3i c = voxel_coords(i);
+      const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
+      vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
+      vox[i].weight = weight;
+    }
+  }
+}
+
+/// Writes `sdf` into every block within `band_m` (plus the block's half diagonal) of its zero
+/// set inside the box [lo_m, hi_m].
+inline void write_sdf_band(VoxelBlockMap& map, int level, const Eigen::Vector3d& lo_m,
+                           const Eigen::Vector3d& hi_m, double mu_m, double band_m,
+                           const Sdf& sdf) {
+  const double block = map.params().block_size_at(level);
+  const double half_diag = std::sqrt(3.0) * block / 2;
+  auto to_block = [&](double v) { return static_cast<int>(std::floor(v / block)); };
+  write_sdf_blocks(map, level, {to_block(lo_m.x()), to_block(lo_m.y()), to_block(lo_m.z())},
+                   {to_block(hi_m.x()), to_block(hi_m.y()), to_block(hi_m.z())}, mu_m, sdf, 1,
+                   [&](const Vec3i& b) {
+                     const Eigen::Vector3d centre =
+                         (Eigen::Vector3d(b.x, b.y, b.z) + Eigen::Vector3d::Constant(0.5)) * block;
+                     return std::abs(sdf(centre)) < band_m + half_diag;
+                   });
+}
+
+inline PinholeCamera small_camera() {
+  return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
+}
+
+/// Fuses noise-free renders of `scene` from orbits around it (one per entry of `heights_m`,
+/// `views` poses each, 0.9 m from the centre) into a fresh fixed-grid map. With `color`, every
+/// frame carries a constant colour image. Depth beyond `max_depth_m` is ignored: the floor far
+/// away is seen at grazing angles with pixels larger than a voxel.
+inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, float voxel_m,
+                                                 float mu_m, int views,
+                                                 const std::vector<double>& heights_m,
+                                                 const Rgb8* color = nullptr,
+                                                 float max_depth_m = 1.5f) {
+  auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m));
+  FusionParams fp;
+  fp.truncation_m = mu_m;
+  fp.max_depth_m = max_depth_m;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = small_camera();
+  const ColorImage image(cam.width, cam.height, color ? *color : Rgb8{});
+  for (const double h : heights_m)
+    for (const Pose& T_wc : orbit(scene.centre, 0.9, h, views, 0.3)) {
+      const DepthImage depth = scene.render(cam, T_wc);
+      FusionInput in;
+      in.depth_m = &depth;
+      in.depth_camera = cam;
+      if (color) {
+        in.color = &image;
+        in.color_camera = cam;
+      }
+      in.T_wc = T_wc;
+      integrator.fuse(*map, in);
+    }
+  return map;
+}
+
+inline Eigen::Vector3d to_eigen(const Vec3f& v) {
+  return {v.x, v.y, v.z};
+}
+
+/// Gradient of an SDF by central differences.
+inline Eigen::Vector3d sdf_gradient(const Sdf& sdf, const Eigen::Vector3d& p, double h = 1e-5) {
+  Eigen::Vector3d g;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[k] = h;
+    g[k] = (sdf(p + d) - sdf(p - d)) / (2 * h);
+  }
+  return g;
+}
+
+}  // namespace hivox::test
