@@ -6,6 +6,7 @@
 
 namespace hivox::cli {
 
-// (commands are added here as they are implemented)
+/// `hivox synth`: renders a built-in synthetic scene and writes it as a TUM RGB-D sequence.
+void add_synth_command(CLI::App& app);
 
 }  // namespace hivox::cli

@@ -1,5 +1,6 @@
 #include <CLI/CLI.hpp>
 
+#include "commands.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
 
@@ -7,6 +8,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
   app.require_subcommand(1);
+  hivox::cli::add_synth_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
