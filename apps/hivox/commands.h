@@ -13,4 +13,7 @@ void add_info_command(CLI::App& app);
 /// (cmd_reconstruct.cpp).
 void add_reconstruct_command(CLI::App& app);
 
+/// `hivox synth`: renders a built-in synthetic scene and writes it as a TUM RGB-D sequence.
+void add_synth_command(CLI::App& app);
+
 }  // namespace hivox::cli

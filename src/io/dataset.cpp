@@ -1,4 +1,5 @@
 #include "hivox/io/dataset.h"
+#include "hivox/synth/synthetic_dataset.h"
 
 #include <algorithm>
 #include <array>
@@ -167,11 +168,17 @@ DatasetLayout detect_layout(const fs::path& dir) {
 }
 
 std::unique_ptr<DatasetReader> open_dataset(const std::string& spec, const DatasetParams& params) {
-  // `synthetic:NAME` scenes live in the synth module, which comes after io in the dependency
-  // order; the integration wires them in here (or one level up). Until then, say so clearly.
-  if (spec.starts_with("synthetic:"))
-    fail(ErrorCode::Unsupported, "'{}': built-in synthetic scenes are not available here yet",
-         spec);
+  if (is_synthetic_spec(spec)) {
+    // Built-in scenes are rendered, not read: calibration options do not apply.
+    if (!params.preset.empty() || params.depth_scale != 0 || !params.intrinsics_path.empty())
+      fail(ErrorCode::InvalidArgument,
+           "'{}': --preset, --depth-scale and --intrinsics do not apply to synthetic scenes; set "
+           "the camera in the spec (e.g. synthetic:desk?width=320&height=240)",
+           spec);
+    SyntheticParams synthetic = parse_synthetic_spec(spec);
+    if (params.max_frames > 0) synthetic.frames = std::min(synthetic.frames, params.max_frames);
+    return std::make_unique<SyntheticDataset>(synthetic);
+  }
   if (spec.empty()) fail(ErrorCode::InvalidArgument, "no dataset given (empty path)");
   params.validate();
   const fs::path dir(spec);

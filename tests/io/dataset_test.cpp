@@ -540,7 +540,24 @@ TEST(DatasetBadInput, MissingOrWrongDirectory) {
   expect_error([&] { open_dataset(dir.path().string()); }, ErrorCode::InvalidData,
                {dir.path().string(), "associations.txt", "calib.txt", "frame-NNNNNN.depth.png"});
   expect_error([&] { open_dataset(""); }, ErrorCode::InvalidArgument, {"empty"});
-  expect_error([&] { open_dataset("synthetic:desk"); }, ErrorCode::Unsupported, {"synthetic:desk"});
+  expect_error([&] { open_dataset("synthetic:nosuchscene"); }, ErrorCode::InvalidArgument,
+               {"nosuchscene"});
+  DatasetParams with_preset;
+  with_preset.preset = "tum_fr1";
+  expect_error([&] { open_dataset("synthetic:desk", with_preset); }, ErrorCode::InvalidArgument,
+               {"synthetic:desk", "--preset"});
+}
+
+TEST(Dataset, SyntheticSpecsOpenBuiltInScenes) {
+  DatasetParams params;
+  params.max_frames = 7;
+  const auto reader = open_dataset("synthetic:box?frames=20&width=80&height=60&noise=none", params);
+  EXPECT_EQ(reader->info().layout, DatasetLayout::Synthetic);
+  EXPECT_EQ(reader->size(), 7u);
+  EXPECT_EQ(reader->info().depth_camera.width, 80);
+  const RgbdFrame f = reader->read(3);
+  EXPECT_TRUE(f.T_wc_gt.has_value());
+  EXPECT_EQ(f.depth_m.width(), 80);
 }
 
 TEST(DatasetBadInput, MissingImages) {
