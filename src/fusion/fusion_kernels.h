@@ -220,6 +220,7 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
                            : nullptr;
   const float* depth_m = depth.depth_m.data;
   const float min_d = depth.min_depth_m, max_d = depth.max_depth_m;
+  int min_tsdf = static_cast<int>(kTsdfScale);  // over observed voxels, for the block summary
   for (int z = 0; z < kBlockSide; ++z) {
     for (int y = 0; y < kBlockSide; ++y) {
       const Vec3f row = origin_c + step_y * static_cast<float>(y) + step_z * static_cast<float>(z);
@@ -240,8 +241,12 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
         // Selects written as bit operations: a ternary lets the compiler sink the update into
         // a branch, which blocks vectorization.
         const uint32_t keep = static_cast<uint32_t>(observed) - 1u;  // all ones when unobserved
-        out[x] = (fused & ~keep) | (word & keep);
+        const uint32_t result = (fused & ~keep) | (word & keep);
+        out[x] = result;
         pixel[x] = px | static_cast<int>(keep);
+        const int t = (result >> 16) != 0u ? static_cast<int16_t>(result & 0xFFFFu)
+                                           : static_cast<int>(kTsdfScale);
+        min_tsdf = t < min_tsdf ? t : min_tsdf;
       }
       if (colors == nullptr) continue;
       for (int x = 0; x < kBlockSide; ++x) {
@@ -256,6 +261,7 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
       }
     }
   }
+  map.meta[ptr].min_tsdf = static_cast<int16_t>(min_tsdf);
 }
 
 }  // namespace hivox::kernels

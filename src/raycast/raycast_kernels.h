@@ -16,7 +16,7 @@ namespace hivox::kernels {
 /// thread across the rays of its rows, a GPU thread one per ray. Valid while the map's layout
 /// does not change (one raycast).
 struct RayBlockCache {
-  static constexpr int kSlots = 64;
+  static constexpr int kSlots = 4096;  // 80 KB: a row of rays crosses ~100 blocks
   struct Slot {
     Vec3i pos;
     int32_t level = -1;
@@ -86,28 +86,48 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, 
   const Vec3i base = floor_to_int(q);
   const Vec3f t = q - to_float(base);
   float v[8];
-  int32_t ptrs[8];
-  int indices[8];
-  // The 8 voxels span 1, 2, 4 or 8 blocks: look each distinct block up once.
   const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
   const Vec3i block = block_of_voxel(base);
-  const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
-  int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
-  for (int d = 0; d < 8; ++d) {
-    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-    if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
-    blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
-    if (blocks[d] < 0) return false;
-  }
-  for (int c = 0; c < 8; ++c) {
-    const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
-    const int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
-    const int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
-    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
-    if (vox.weight < min_weight) return false;
-    v[c] = tsdf_to_float(vox.tsdf);
-    ptrs[c] = ptr;
-    indices[c] = i;
+  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
+    // Fast path (most samples): the 8 voxels lie in one block.
+    const int32_t ptr = cache.find(map, level, block);
+    if (ptr < 0) return false;
+    const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
+    const int i0 = voxel_index(local.x, local.y, local.z);
+    constexpr int kY = kBlockSide, kZ = kBlockSide * kBlockSide;
+    const int offsets[8] = {0, 1, kY, kY + 1, kZ, kZ + 1, kZ + kY, kZ + kY + 1};
+    int min_w = 65535;
+    for (int c = 0; c < 8; ++c) {
+      const TsdfVoxel vox = b[i0 + offsets[c]];
+      min_w = vox.weight < min_w ? vox.weight : min_w;
+      v[c] = tsdf_to_float(vox.tsdf);
+    }
+    if (min_w < min_weight) return false;
+    out->nearest_ptr = ptr;
+    out->nearest_index = i0 + offsets[nearest];
+  } else {
+    // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
+    const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
+    int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
+    for (int d = 0; d < 8; ++d) {
+      const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+      if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
+      blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
+      if (blocks[d] < 0) return false;
+    }
+    for (int c = 0; c < 8; ++c) {
+      const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
+      const int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
+      const int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
+      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
+      if (vox.weight < min_weight) return false;
+      v[c] = tsdf_to_float(vox.tsdf);
+      if (c == nearest) {
+        out->nearest_ptr = ptr;
+        out->nearest_index = i;
+      }
+    }
   }
   // Corner c = (c & 1, (c >> 1) & 1, c >> 2).
   const float x0 = v[0] + (v[1] - v[0]) * t.x, x1 = v[2] + (v[3] - v[2]) * t.x;
@@ -120,9 +140,6 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, 
   out->gradient.x = dxy0 + (dxy1 - dxy0) * t.z;
   out->gradient.y = (x1 - x0) + ((x3 - x2) - (x1 - x0)) * t.z;
   out->gradient.z = y1 - y0;
-  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
-  out->nearest_ptr = ptrs[nearest];
-  out->nearest_index = indices[nearest];
   return true;
 }
 
@@ -156,8 +173,9 @@ HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, RayBlockCache& cache, cons
 }
 
 struct RayMarchConstants {
-  float mu_m = 0;           ///< truncation band
-  float step_fraction = 0;  ///< of the TSDF distance per step
+  float mu_m = 0;             ///< truncation band
+  float step_fraction = 0;    ///< of the TSDF distance per step
+  float min_step_voxels = 2;  ///< smallest step in front of a surface, voxels of its level
   int min_weight = 1;
 };
 
@@ -221,7 +239,10 @@ HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const V
     int level;
     Vec3i pos;
     const int32_t ptr = locate_block(map, cache, p, &level, &pos);
-    if (ptr < 0) {  // nothing stored here: skip to where the ray leaves this block
+    // Nothing stored here, or no observed voxel of this block at or behind a surface (all
+    // positive: no crossing inside): skip to where the ray leaves the block. A surface just
+    // beyond the exit is caught by the look-back below.
+    if (ptr < 0 || map.meta[ptr].min_tsdf > 0) {
       const float exit = block_exit(o, d, pos, map.level[level].block_size_m);
       const float min_step = 1e-3f * map.level[level].voxel_size_m * inv_len;
       z = exit > z + min_step ? exit + min_step : z + min_step;
@@ -257,9 +278,12 @@ HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const V
     prev_f = s.f;
     prev_z = z;
     // Step by the distance the TSDF promises (scaled down: projective distances overestimate),
-    // but at least a voxel (the crossing is refined afterwards); behind a surface, by a voxel.
+    // but at least `min_step_voxels` (the crossing is bracketed and refined afterwards; the
+    // negative band behind a surface is mu deep, so no crossing is stepped over); behind a
+    // surface, by a voxel.
+    const float min_step_m = k.min_step_voxels * voxel_m;
     const float dist_m = s.f > 0.0f ? s.f * band_step_m : voxel_m;
-    z += (dist_m > voxel_m ? dist_m : voxel_m) * inv_len;
+    z += (dist_m > min_step_m ? dist_m : min_step_m) * inv_len;
   }
   return false;
 }

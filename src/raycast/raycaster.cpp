@@ -68,6 +68,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   k.mu_m = params_.truncation_m;
   k.step_fraction = params_.step_fraction;
   k.min_weight = params_.min_weight;
+  k.min_step_voxels = std::min(
+      2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
   int64_t hits = 0;
 #pragma omp parallel reduction(+ : hits)
   {

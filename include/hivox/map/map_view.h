@@ -55,12 +55,16 @@ struct FreeListView {
   int32_t capacity = 0;
 };
 
-/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free).
+/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free), and
+/// a summary for raycasting: the smallest normalised TSDF (int16 units) over its observed voxels.
+/// A block whose observed voxels are all positive holds no surface, so rays cross it in one step.
 struct BlockMeta {
   Vec3i pos;
-  int32_t level = -1;
+  int16_t level = -1;
+  int16_t min_tsdf = static_cast<int16_t>(kTsdfScale);
   int32_t entry = kNoEntry;
 };
+static_assert(sizeof(BlockMeta) == 20);
 
 struct LevelView {
   HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries

@@ -11,7 +11,7 @@ namespace hivox {
 inline constexpr int kMaxLevels = 4;
 
 struct MapParams {
-  float voxel_size_m = 0.002f;   ///< finest voxel size s; level l has s * 2^l
+  float voxel_size_m = 0.002f;  ///< finest voxel size s; level l has s * 2^l
   /// Number of resolution levels, 1 (fixed grid) to kMaxLevels. The paper's default is 3; it
   /// stays 1 until blocks can move between levels (split/merge), since without refinement
   /// every block would stay at the coarsest level.
