@@ -57,7 +57,7 @@ struct BlockBounds {
 template <typename Visitor>
 HIVOX_HD void walk_segment_level(const MapView& map, int level, const Vec3f& a_w, const Vec3f& b_w,
                                  const BlockBounds& bounds, Visitor& visitor) {
-  const float inv_block = 1.0f / map.level[level].block_size_m;
+  const float inv_block = map.level[level].inv_block_size;
   const Vec3f p = a_w * inv_block;
   const Vec3f d = (b_w - a_w) * inv_block;
   Vec3i cell = bounds.clamp(floor_to_int(p));
@@ -108,9 +108,8 @@ template <typename Visitor>
 HIVOX_HD void walk_segment(const MapView& map, const Vec3f& a_w, const Vec3f& b_w,
                            Visitor& visitor) {
   const int top = map.levels - 1;
-  const float block_m = map.level[top].block_size_m;
-  const Vec3i cell_a = block_of_point(a_w, block_m);
-  const Vec3i cell_b = block_of_point(b_w, block_m);
+  const Vec3i cell_a = block_of_point(map.level[top], a_w);
+  const Vec3i cell_b = block_of_point(map.level[top], b_w);
   const Vec3i diff{cell_b.x - cell_a.x, cell_b.y - cell_a.y, cell_b.z - cell_a.z};
   const int changed = (diff.x != 0) + (diff.y != 0) + (diff.z != 0);
   const bool neighbours = abs(diff.x) + abs(diff.y) + abs(diff.z) == 1;

@@ -103,6 +103,8 @@ VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
                  static_cast<int32_t>(params_.excess_per_level)};
     lv.voxel_size_m = params_.voxel_size_at(l);
     lv.block_size_m = params_.block_size_at(l);
+    lv.inv_voxel_size = 1.0f / lv.voxel_size_m;
+    lv.inv_block_size = 1.0f / lv.block_size_m;
   }
   clear();
 }

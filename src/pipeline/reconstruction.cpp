@@ -74,7 +74,8 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   if (params_.raycast_every_frame) {
     stage.restart();
     RaycastStats rs;
-    raycaster_.raycast(*map_, info_.depth_camera, T_wc, &rs);
+    // The frame was just fused from this pose: its depth tells each ray where to start.
+    raycaster_.raycast(*map_, info_.depth_camera, T_wc, &rs, &frame.depth_m);
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
   }

@@ -2,6 +2,7 @@
 // Ray marching through the TSDF, written once for the CPU and CUDA drivers.
 
 #include <cfloat>
+#include <climits>
 
 #include "hivox/core/atomic.h"
 #include "hivox/core/camera.h"
@@ -44,7 +45,7 @@ struct RayBlockCache {
 HIVOX_HD inline int32_t locate_block(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
                                      int* level, Vec3i* pos) {
   for (int l = map.levels - 1; l >= 0; --l) {
-    const Vec3i b = block_of_point(p_w, map.level[l].block_size_m);
+    const Vec3i b = block_of_point(map.level[l], p_w);
     const int32_t ptr = cache.find(map, l, b);
     *level = l;
     *pos = b;
@@ -68,6 +69,18 @@ HIVOX_HD inline float block_exit(const Vec3f& o, const Vec3f& d, const Vec3i& b,
   return t;
 }
 
+/// Ray parameter where ray o + z d leaves the box [lo, hi), given 1 / d per axis.
+HIVOX_HD inline float box_exit(const Vec3f& o, const Vec3f& d, const Vec3f& inv_d, const Vec3f& lo,
+                               const Vec3f& hi) {
+  float t = FLT_MAX;
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] == 0.0f) continue;
+    const float tk = ((d[k] > 0.0f ? hi[k] : lo[k]) - o[k]) * inv_d[k];
+    t = tk < t ? tk : t;
+  }
+  return t;
+}
+
 /// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
 struct TsdfSample {
   float f = 1.0f;
@@ -80,8 +93,10 @@ struct TsdfSample {
 /// Fails (returns false) when a neighbouring block is missing at that level or a voxel has
 /// fewer than `min_weight` observations: unknown space must never look like surface.
 HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, int level,
-                                      const Vec3f& p_w, int min_weight, TsdfSample* out) {
-  const float inv_s = 1.0f / map.level[level].voxel_size_m;
+                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
+                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
+                                      int32_t known_ptr = kPtrEmpty) {
+  const float inv_s = map.level[level].inv_voxel_size;
   const Vec3f q = p_w * inv_s;
   const Vec3i base = floor_to_int(q);
   const Vec3f t = q - to_float(base);
@@ -90,8 +105,8 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, 
   const Vec3i block = block_of_voxel(base);
   const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
   if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
-    // Fast path (most samples): the 8 voxels lie in one block.
-    const int32_t ptr = cache.find(map, level, block);
+    // Fast path (most samples): the 8 voxels lie in one block (often the caller's).
+    const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
     if (ptr < 0) return false;
     const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
     const int i0 = voxel_index(local.x, local.y, local.z);
@@ -225,37 +240,54 @@ HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, c
 /// positive (free space) to negative. Through unallocated space it jumps from block to block;
 /// through known space it steps by the TSDF distance, through unknown voxels by the band; the
 /// crossing is refined by the secant method.
+/// `started_behind` (optional) is set when the first known sample already lies behind a surface
+/// (and no crossing was found right before it): a surface in front of z_start is likely.
 HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const Vec3f& o,
                                const Vec3f& d, float z_start, float z_end,
-                               const RayMarchConstants& k, RayHit* hit) {
+                               const RayMarchConstants& k, RayHit* hit,
+                               bool* started_behind = nullptr) {
+  bool seen_known = false;
   const float inv_len = 1.0f / norm(d);
+  const Vec3f inv_d{d.x != 0.0f ? 1.0f / d.x : 0.0f, d.y != 0.0f ? 1.0f / d.y : 0.0f,
+                    d.z != 0.0f ? 1.0f / d.z : 0.0f};
   const float band_step_m = k.mu_m * k.step_fraction;
   float z = z_start;
   float prev_z = z, prev_f = 0.0f;
   bool prev_valid = false;
   TsdfSample s;
+  // The block the ray is in; looked up again only when the ray leaves its bounds.
+  int level = 0;
+  Vec3i pos;
+  int32_t ptr = kPtrEmpty;
+  Vec3f lo{1.0f, 1.0f, 1.0f}, hi{0.0f, 0.0f, 0.0f};  // empty: forces the first look-up
   while (z <= z_end) {
     const Vec3f p = o + d * z;
-    int level;
-    Vec3i pos;
-    const int32_t ptr = locate_block(map, cache, p, &level, &pos);
+    if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
+          (p.z < hi.z))) {
+      ptr = locate_block(map, cache, p, &level, &pos);
+      const float block_m = map.level[level].block_size_m;
+      lo = to_float(pos) * block_m;
+      hi = Vec3f{lo.x + block_m, lo.y + block_m, lo.z + block_m};
+    }
     // Nothing stored here, or no observed voxel of this block at or behind a surface (all
     // positive: no crossing inside): skip to where the ray leaves the block. A surface just
     // beyond the exit is caught by the look-back below.
     if (ptr < 0 || map.meta[ptr].min_tsdf > 0) {
-      const float exit = block_exit(o, d, pos, map.level[level].block_size_m);
+      const float exit = box_exit(o, d, inv_d, lo, hi);
       const float min_step = 1e-3f * map.level[level].voxel_size_m * inv_len;
       z = exit > z + min_step ? exit + min_step : z + min_step;
       prev_valid = false;
       continue;
     }
     const float voxel_m = map.level[level].voxel_size_m;
-    if (!sample_trilinear(map, cache, level, p, k.min_weight, &s)) {
+    if (!sample_trilinear(map, cache, level, p, k.min_weight, &s, pos, ptr)) {
       // Unobserved voxels: no surface can be here; move on as through free space.
       z += (band_step_m > voxel_m ? band_step_m : voxel_m) * inv_len;
       prev_valid = false;
       continue;
     }
+    if (s.f <= 0.0f && !seen_known && started_behind != nullptr) *started_behind = true;
+    seen_known = true;
     if (s.f <= 0.0f) {
       if (prev_valid && prev_f > 0.0f) {
         refine_crossing(map, cache, o, d, prev_z, prev_f, z, s.f, s, level, k, hit);

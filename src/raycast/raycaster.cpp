@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cfloat>
 
+#include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 #include "hivox/core/timer.h"
 #include "raycast/raycast_kernels.h"
@@ -22,8 +23,13 @@ Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
 }
 
 const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
-                                        const Pose& T_wc, RaycastStats* stats) {
+                                        const Pose& T_wc, RaycastStats* stats,
+                                        const DepthImage* start_hint_m) {
   camera.validate("raycast camera");
+  if (start_hint_m != nullptr &&
+      (start_hint_m->width() != camera.width || start_hint_m->height() != camera.height))
+    fail(ErrorCode::InvalidArgument, "raycast start hint is {}x{} but the camera is {}x{}",
+         start_hint_m->width(), start_hint_m->height(), camera.width, camera.height);
   Stopwatch watch;
   RaycastResult& r = result_;
   const int w = camera.width, h = camera.height;
@@ -68,44 +74,64 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   k.mu_m = params_.truncation_m;
   k.step_fraction = params_.step_fraction;
   k.min_weight = params_.min_weight;
+  const float hint_margin = params_.hint_margin_mu * params_.truncation_m;
   k.min_step_voxels = std::min(
       2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
   int64_t hits = 0;
 #pragma omp parallel reduction(+ : hits)
   {
-    kernels::RayBlockCache cache;  // per thread, across the rays of its rows
-#pragma omp for schedule(dynamic, 4)
-    for (int y = 0; y < h; ++y) {
-      const int ty = y / tiles.tile_px;
-      for (int x = 0; x < w; ++x) {
-        const int t = ty * tiles.tiles_x + x / tiles.tile_px;
-        kernels::RayHit hit;
-        const bool found =
-            tile_max_[t] > 0.0f &&
-            kernels::march_ray(view, cache, T.t,
-                               T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y))),
-                               tile_min_[t], tile_max_[t], k, &hit);
-        if (!found) {
-          r.depth_m(x, y) = 0.0f;
-          r.points_w(x, y) = {};
-          r.normals_w(x, y) = {};
-          r.colors(x, y) = {};
-          r.levels(x, y) = -1;
-          continue;
+    kernels::RayBlockCache cache;  // per thread, across the rays of its tiles
+    // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
+#pragma omp for schedule(dynamic, 8)
+    for (int t = 0; t < static_cast<int>(tile_count); ++t) {
+      const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
+      const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
+      for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+          const Vec3f dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
+          float z_hint = 0.0f;
+          if (start_hint_m != nullptr) {
+            const float hint = (*start_hint_m)(x, y);
+            if (hint > 0.0f && hint - hint_margin > tile_min_[t]) z_hint = hint - hint_margin;
+          }
+          kernels::RayHit hit;
+          bool found = false;
+          if (tile_max_[t] > 0.0f) {
+            bool behind = false;
+            found = kernels::march_ray(view, cache, T.t, dir, z_hint > 0.0f ? z_hint : tile_min_[t],
+                                       tile_max_[t], k, &hit, &behind);
+            // The hint is wrong here (a model surface in front of it, e.g. at a depth edge, or
+            // none behind it): search the part in front of the hint as well.
+            if (z_hint > 0.0f && (!found || behind)) {
+              kernels::RayHit front;
+              if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], z_hint + hint_margin, k,
+                                     &front)) {
+                hit = front;
+                found = true;
+              }
+            }
+          }
+          if (!found) {
+            r.depth_m(x, y) = 0.0f;
+            r.points_w(x, y) = {};
+            r.normals_w(x, y) = {};
+            r.colors(x, y) = {};
+            r.levels(x, y) = -1;
+            continue;
+          }
+          ++hits;
+          r.depth_m(x, y) = hit.depth_m;
+          r.points_w(x, y) = hit.p_w;
+          r.normals_w(x, y) = hit.normal_w;
+          r.levels(x, y) = static_cast<int8_t>(hit.level);
+          if (view.color != nullptr && hit.color_ptr >= 0) {
+            const ColorVoxel c =
+                view.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
+            r.colors(x, y) = {c.r, c.g, c.b};
+          } else {
+            r.colors(x, y) = {};
+          }
         }
-        ++hits;
-        r.depth_m(x, y) = hit.depth_m;
-        r.points_w(x, y) = hit.p_w;
-        r.normals_w(x, y) = hit.normal_w;
-        r.levels(x, y) = static_cast<int8_t>(hit.level);
-        if (view.color != nullptr && hit.color_ptr >= 0) {
-          const ColorVoxel c =
-              view.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
-          r.colors(x, y) = {c.r, c.g, c.b};
-        } else {
-          r.colors(x, y) = {};
-        }
-      }
     }
   }
   if (stats != nullptr) {

@@ -73,6 +73,8 @@ struct LevelView {
   FreeListView excess;           ///< free excess entry indices (absolute indices in `entries`)
   float voxel_size_m = 0;
   float block_size_m = 0;
+  float inv_voxel_size = 0;  ///< 1 / voxel_size_m (kernels multiply, never divide)
+  float inv_block_size = 0;  ///< 1 / block_size_m
 };
 
 struct MapView {
@@ -104,9 +106,9 @@ HIVOX_HD inline int32_t find_block_ptr(const LevelView& lv, const Vec3i& pos) {
   return i == kNoEntry ? kPtrEmpty : lv.entries[i].ptr;
 }
 
-/// Block containing world point `p_w` at a level with block size `block_size_m`.
-HIVOX_HD inline Vec3i block_of_point(const Vec3f& p_w, float block_size_m) {
-  return floor_to_int(p_w / block_size_m);
+/// Block of `level` containing world point `p_w`.
+HIVOX_HD inline Vec3i block_of_point(const LevelView& lv, const Vec3f& p_w) {
+  return floor_to_int(p_w * lv.inv_block_size);
 }
 
 /// Splits a global voxel coordinate into block coordinates and the voxel index inside it.

@@ -15,6 +15,8 @@ struct RaycastParams {
   /// the projective TSDF overestimates distances seen at an angle).
   float step_fraction = 0.8f;
   int min_weight = 1;  ///< voxels observed fewer times count as unknown
+  /// With a start hint, rays begin this many truncation bands in front of the hinted depth.
+  float hint_margin_mu = 2.0f;
 
   void validate() const;
   std::string to_string() const;
