@@ -203,20 +203,23 @@ struct RayHit {
   int color_index = 0;
 };
 
-/// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with one secant step and
-/// fills the hit. `fallback` is the sample at z_hi (used if the refinement sample fails).
+/// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
+/// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
+/// refinement samples fail).
 HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, const Vec3f& o,
                                      const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
                                      const TsdfSample& fallback, int fallback_level,
                                      const RayMarchConstants& k, RayHit* hit) {
   TsdfSample best = fallback;
   int hit_level = fallback_level;
-  // One secant step, then linear interpolation inside the narrowed bracket: the TSDF is close to
-  // linear across the short bracket, and each extra step costs a full interpolation.
-  const float zm = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
-  TsdfSample sm;
-  int lm;
-  if (sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) {
+  const float voxel_z = map.level[fallback_level].voxel_size_m / norm(d);
+  // One secant step for the usual short bracket (the TSDF is close to linear across it and each
+  // step costs a full interpolation); more when the bracket is long.
+  for (int it = 0; it < 4; ++it) {
+    const float zm = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
+    TsdfSample sm;
+    int lm;
+    if (!sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) break;
     best = sm;
     hit_level = lm;
     if (sm.f > 0.0f) {
@@ -226,6 +229,7 @@ HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, c
       z_hi = zm;
       f_hi = sm.f;
     }
+    if (z_hi - z_lo <= voxel_z) break;
   }
   const float z_hit = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
   hit->depth_m = z_hit;
@@ -281,6 +285,26 @@ HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const V
     }
     const float voxel_m = map.level[level].voxel_size_m;
     if (!sample_trilinear(map, cache, level, p, k.min_weight, &s, pos, ptr)) {
+      if (prev_valid && prev_f > 0.0f) {
+        // The step left known space: the negative band behind a surface can be thinner than a
+        // step where the back is unobserved. Bisect back towards the last positive sample.
+        float z_lo = prev_z, f_lo = prev_f, z_hi = z;
+        for (int i = 0; i < 3; ++i) {
+          const float zm = 0.5f * (z_lo + z_hi);
+          TsdfSample sm;
+          int lm;
+          if (!sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) {
+            z_hi = zm;  // still unknown: the crossing, if any, is nearer
+            continue;
+          }
+          if (sm.f <= 0.0f) {
+            refine_crossing(map, cache, o, d, z_lo, f_lo, zm, sm.f, sm, lm, k, hit);
+            return hit->depth_m <= z_end;
+          }
+          z_lo = zm;
+          f_lo = sm.f;
+        }
+      }
       // Unobserved voxels: no surface can be here; move on as through free space.
       z += (band_step_m > voxel_m ? band_step_m : voxel_m) * inv_len;
       prev_valid = false;
@@ -291,18 +315,23 @@ HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const V
     if (s.f <= 0.0f) {
       if (prev_valid && prev_f > 0.0f) {
         refine_crossing(map, cache, o, d, prev_z, prev_f, z, s.f, s, level, k, hit);
-        return true;
+        return hit->depth_m <= z_end;
       }
       if (!prev_valid && s.f > -1.0f) {
-        // Came from unknown space straight into the band behind a surface: look back by the
-        // distance the TSDF gives (with margin) for the positive side of the crossing.
-        const float z_back = z + 1.5f * s.f * k.mu_m * inv_len;
-        TsdfSample sb;
-        int lb;
-        if (z_back >= z_start && sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb) &&
-            sb.f > 0.0f) {
-          refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
-          return true;
+        // Came from skipped or unknown space straight into the band behind a surface: search
+        // back for the positive side, doubling the distance (along a ray at a grazing angle the
+        // positive side can lie several voxels back).
+        float back_m = voxel_m;
+        for (int i = 0; i < 4; ++i, back_m *= 2.0f) {
+          const float z_back = z - back_m * inv_len;
+          if (z_back < z_start) break;
+          TsdfSample sb;
+          int lb;
+          if (!sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb)) continue;
+          if (sb.f > 0.0f) {
+            refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
+            return hit->depth_m <= z_end;
+          }
         }
       }
     }

@@ -92,7 +92,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           float z_hint = 0.0f;
           if (start_hint_m != nullptr) {
             const float hint = (*start_hint_m)(x, y);
-            if (hint > 0.0f && hint - hint_margin > tile_min_[t]) z_hint = hint - hint_margin;
+            if (hint > 0.0f && hint - hint_margin > tile_min_[t] &&
+                hint - hint_margin < tile_max_[t])
+              z_hint = hint - hint_margin;
           }
           kernels::RayHit hit;
           bool found = false;

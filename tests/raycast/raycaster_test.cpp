@@ -11,6 +11,21 @@
 namespace hivox {
 namespace {
 
+// Beyond this, the test scene's floor is seen only at grazing angles (see the tests).
+constexpr float kWellObservedDepth = 2.0f;
+
+// True when the surface seen at depth `d` along the pixel's ray is more than `gap_m` from the
+// scene's other surface: in the gap under the sphere (thinner than the truncation band) the
+// fused TSDF of the two surfaces overlaps and no raycast is well defined.
+bool well_separated(const test::SphereOnPlane& shape, const PinholeCamera& cam, const Pose& T_wc,
+                    int x, int y, float d, double gap_m) {
+  const Eigen::Vector3d p =
+      T_wc * Eigen::Vector3d((x - cam.cx) / cam.fx * d, (y - cam.cy) / cam.fy * d, d);
+  const double to_sphere = (p - shape.centre).norm() - shape.radius;
+  const double to_floor = p.z() - shape.floor_z;
+  return std::max(to_sphere, to_floor) > gap_m;
+}
+
 PinholeCamera small_camera() {
   return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
 }
@@ -70,10 +85,14 @@ TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
   const DepthImage truth = s.shape.render(cam, T_wc);
   RaycastStats stats;
   const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, &stats);
-  int surface_pixels = 0, missed = 0, hits = 0, normals = 0, spurious = 0;
+  int surface_pixels = 0, missed = 0, hits = 0, normals = 0, spurious = 0, all_hits = 0;
   double sum_dist = 0, max_dist = 0, sum_angle = 0;
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
+      all_hits += r.hit(x, y);
+      // The infinite floor is seen from the orbit only at grazing angles beyond ~2 m, and near
+      // the 3 m depth limit its band is cut off: judge the well-observed part.
+      if (truth(x, y) > kWellObservedDepth) continue;
       const bool expected = truth(x, y) > 0.0f && truth(x, y) <= rp.max_depth_m;
       surface_pixels += expected;
       if (!r.hit(x, y)) {
@@ -104,10 +123,10 @@ TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
         ++normals;
       }
     }
-  ASSERT_GT(surface_pixels, 15000);
+  ASSERT_GT(surface_pixels, 12000);
   EXPECT_LT(missed, surface_pixels / 100) << "surface pixels without a hit";
   EXPECT_EQ(spurious, 0) << "hits where there is no surface";
-  EXPECT_EQ(stats.hits, hits);
+  EXPECT_EQ(stats.hits, all_hits);
   EXPECT_LT(sum_dist / hits, 0.1 * s.voxel) << "mean distance of hits to the true surface";
   EXPECT_LT(max_dist, 0.5 * s.voxel);
   ASSERT_GT(normals, 4000);
@@ -148,6 +167,44 @@ TEST(Raycaster, PointsAndNormalsInCameraFrame) {
       ++checked;
     }
   EXPECT_GT(checked, 100);
+}
+
+TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];
+  Raycaster plain(rp), hinted(rp), misled(rp);
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
+  // The true depth as hint: same surface everywhere.
+  const DepthImage truth = s.shape.render(cam, T_wc);
+  const RaycastResult& b = hinted.raycast(*s.map, cam, T_wc, nullptr, &truth);
+  // A hint far behind every surface (and one on unobserved pixels): the fallback must search
+  // in front of it and find the same surface.
+  DepthImage wrong = truth;
+  for (std::size_t i = 0; i < wrong.size(); ++i)
+    wrong.data()[i] = wrong.data()[i] > 0 ? 2.9f : 0.0f;
+  const RaycastResult& c = misled.raycast(*s.map, cam, T_wc, nullptr, &wrong);
+  int both = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      if (truth(x, y) > kWellObservedDepth) continue;  // see above
+      if (truth(x, y) > 0 && !well_separated(s.shape, cam, T_wc, x, y, truth(x, y), 2 * s.mu))
+        continue;
+      EXPECT_EQ(a.hit(x, y), b.hit(x, y)) << x << "," << y;
+      EXPECT_EQ(a.hit(x, y), c.hit(x, y)) << x << "," << y;
+      if (!a.hit(x, y) || !b.hit(x, y) || !c.hit(x, y)) continue;
+      ++both;
+      // Same surface: all three points lie on it (samples differ, so depths differ slightly).
+      for (const RaycastResult* r : {&a, &b, &c}) {
+        const Vec3f p = r->points_w(x, y);
+        EXPECT_LT(std::abs(s.shape.sdf(Eigen::Vector3d(p.x, p.y, p.z))), 0.5 * s.voxel);
+      }
+    }
+  EXPECT_GT(both, 12000);
+  const DepthImage small(10, 10);
+  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &small), Error);
 }
 
 TEST(Raycaster, ParamsAreValidated) {
