@@ -13,6 +13,9 @@ void add_info_command(CLI::App& app);
 /// (cmd_reconstruct.cpp).
 void add_reconstruct_command(CLI::App& app);
 
+/// `hivox demo`: `reconstruct` on a built-in synthetic scene (cmd_reconstruct.cpp).
+void add_demo_command(CLI::App& app);
+
 /// `hivox synth`: renders a built-in synthetic scene and writes it as a TUM RGB-D sequence.
 void add_synth_command(CLI::App& app);
 

@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   hivox::cli::add_info_command(app);
   hivox::cli::add_reconstruct_command(app);
+  hivox::cli::add_demo_command(app);
   hivox::cli::add_synth_command(app);
   try {
     app.parse(argc, argv);
