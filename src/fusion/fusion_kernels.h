@@ -31,7 +31,16 @@ struct ColorFrameView {
   PinholeCamera camera;
   Rigid3f T_color_depth;   ///< depth-camera point -> colour-camera point
   bool registered = true;  ///< colour pixel (u, v) = depth pixel (u, v)
+  /// When registered: the image as 32-bit words (r | g << 8 | b << 16), so that a row of voxels
+  /// gathers colour like depth and vectorizes. Null otherwise.
+  const uint32_t* packed = nullptr;
 };
+
+/// Packs an RGB pixel the way `ColorFrameView::packed` holds it.
+HIVOX_HD inline uint32_t pack_rgb(const Rgb8& c) {
+  return static_cast<uint32_t>(c.r) | (static_cast<uint32_t>(c.g) << 8) |
+         (static_cast<uint32_t>(c.b) << 16);
+}
 
 // ---- allocation: blocks crossed by the truncation band of each ray ---------------------------
 
@@ -164,14 +173,34 @@ HIVOX_HD inline void fuse_tsdf(TsdfVoxel& v, float eta_m, float inv_mu, int max_
   v.weight = static_cast<uint16_t>(fused >> 16);
 }
 
-HIVOX_HD inline void fuse_color(ColorVoxel& c, const Rgb8& rgb, int max_weight) {
-  const float w = static_cast<float>(c.weight);
-  const float inv = 1.0f / (w + 1.0f);
-  c.r = static_cast<uint8_t>((c.r * w + rgb.r) * inv + 0.5f);
-  c.g = static_cast<uint8_t>((c.g * w + rgb.g) * inv + 0.5f);
-  c.b = static_cast<uint8_t>((c.b * w + rgb.b) * inv + 0.5f);
+/// Running average of colour with its own weight (capped at min(W_max, 255)), on the voxel's
+/// 32-bit word (r | g << 8 | b << 16 | weight << 24) so that a row of voxels vectorizes.
+HIVOX_HD inline uint32_t fuse_color_word(uint32_t word, uint32_t rgb, int max_weight) {
+  const int w = static_cast<int>(word >> 24);
+  const float wf = static_cast<float>(w);
+  const float inv = 1.0f / (wf + 1.0f);
+  const uint32_t r = static_cast<uint32_t>(
+      (static_cast<float>(word & 0xFFu) * wf + static_cast<float>(rgb & 0xFFu)) * inv + 0.5f);
+  const uint32_t g = static_cast<uint32_t>(
+      (static_cast<float>((word >> 8) & 0xFFu) * wf + static_cast<float>((rgb >> 8) & 0xFFu)) *
+          inv +
+      0.5f);
+  const uint32_t b = static_cast<uint32_t>(
+      (static_cast<float>((word >> 16) & 0xFFu) * wf + static_cast<float>((rgb >> 16) & 0xFFu)) *
+          inv +
+      0.5f);
   const int cap = max_weight < 255 ? max_weight : 255;
-  c.weight = static_cast<uint8_t>(c.weight + 1 < cap ? c.weight + 1 : cap);
+  const uint32_t new_w = static_cast<uint32_t>(w + 1 < cap ? w + 1 : cap);
+  return r | (g << 8) | (b << 16) | (new_w << 24);
+}
+
+HIVOX_HD inline void fuse_color(ColorVoxel& c, const Rgb8& rgb, int max_weight) {
+  const uint32_t word = static_cast<uint32_t>(c.r) | (static_cast<uint32_t>(c.g) << 8) |
+                        (static_cast<uint32_t>(c.b) << 16) |
+                        (static_cast<uint32_t>(c.weight) << 24);
+  const uint32_t fused = fuse_color_word(word, pack_rgb(rgb), max_weight);
+  c = {static_cast<uint8_t>(fused & 0xFFu), static_cast<uint8_t>((fused >> 8) & 0xFFu),
+       static_cast<uint8_t>((fused >> 16) & 0xFFu), static_cast<uint8_t>(fused >> 24)};
 }
 
 struct IntegrationConstants {
@@ -225,8 +254,13 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
       const Vec3f row = origin_c + step_y * static_cast<float>(y) + step_z * static_cast<float>(z);
       // The voxel's TSDF and weight as one 32-bit word (layout checked in voxel.h).
       uint32_t* out = reinterpret_cast<uint32_t*>(voxels + voxel_index(0, y, z));
-      int pixel[kBlockSide];
+      int pixel[kBlockSide];           // depth pixel of observed voxels, -1 otherwise
+      int any_pixel[kBlockSide];       // always a valid pixel index (branch-free gathers)
+      uint32_t near_mask[kBlockSide];  // all ones where colour is fused (observed, near surface)
       float eta[kBlockSide];
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
       for (int x = 0; x < kBlockSide; ++x) {
         const float xf = static_cast<float>(x);
         const Vec3f p{row.x + step_x.x * xf, row.y + step_x.y * xf, row.z + step_x.z * xf};
@@ -243,11 +277,27 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
         const uint32_t result = (fused & ~keep) | (word & keep);
         out[x] = result;
         pixel[x] = px | static_cast<int>(keep);
+        any_pixel[x] = px;
+        near_mask[x] = 0u - static_cast<uint32_t>(observed & (eta[x] < k.mu_m));
         const int t = (result >> 16) != 0u ? static_cast<int16_t>(result & 0xFFFFu)
                                            : static_cast<int>(kTsdfScale);
         min_tsdf = t < min_tsdf ? t : min_tsdf;
       }
       if (colors == nullptr) continue;
+      if (color.packed != nullptr) {  // registered colour: the same pixel, vectorized
+        uint32_t* out_c = reinterpret_cast<uint32_t*>(colors + voxel_index(0, y, z));
+        const uint32_t* packed = color.packed;
+        // Voxels and image never overlap: say so, or the gather blocks vectorization.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
+        for (int x = 0; x < kBlockSide; ++x) {
+          const uint32_t word = out_c[x];
+          const uint32_t fused = fuse_color_word(word, packed[any_pixel[x]], k.max_weight);
+          out_c[x] = (fused & near_mask[x]) | (word & ~near_mask[x]);
+        }
+        continue;
+      }
       for (int x = 0; x < kBlockSide; ++x) {
         if (pixel[x] < 0 || eta[x] >= k.mu_m) continue;  // colour only near the surface
         int c = pixel[x];

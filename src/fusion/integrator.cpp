@@ -76,7 +76,8 @@ kernels::DepthFrameView depth_view(const FusionInput& in, const FusionParams& p)
 
 struct TsdfIntegrator::Scratch {
   std::vector<ThreadState> threads;
-  std::vector<int32_t> stamps;  // per pool block: frame counter of the last visit
+  std::vector<uint32_t> packed_color;  // registered colour as 32-bit words, per frame
+  std::vector<int32_t> stamps;         // per pool block: frame counter of the last visit
   int32_t frame = 0;
 };
 
@@ -166,7 +167,7 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
   return stats;
 }
 
-void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) const {
+void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
   validate_input(in);
   const MapView view = map.view();
   const kernels::DepthFrameView depth = depth_view(in, params_);
@@ -180,6 +181,14 @@ void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) const 
     color.registered = in.T_color_depth.isApprox(Pose::Identity()) && a.fx == b.fx &&
                        a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
                        a.height == b.height;
+    if (color.registered) {
+      std::vector<uint32_t>& packed = scratch_->packed_color;
+      packed.resize(in.color->size());
+      const Rgb8* src = in.color->data();
+      parallel_for(static_cast<int64_t>(packed.size()),
+                   [&](int64_t i) { packed[i] = kernels::pack_rgb(src[i]); });
+      color.packed = packed.data();
+    }
   }
   kernels::IntegrationConstants k;
   k.T_cw = to_rigid3f(in.T_wc.inverse());

@@ -47,7 +47,7 @@ class TsdfIntegrator {
   AllocationStats allocate(VoxelBlockMap& map, const FusionInput& input);
 
   /// Updates every voxel of the visible blocks (from the last `allocate`).
-  void integrate(VoxelBlockMap& map, const FusionInput& input) const;
+  void integrate(VoxelBlockMap& map, const FusionInput& input);
 
   /// `allocate` then `integrate`.
   AllocationStats fuse(VoxelBlockMap& map, const FusionInput& input);

@@ -1,0 +1,123 @@
+// Per-stage benchmarks on a fixed workload: the first frames of TUM fr1/rpy (ground-truth poses)
+// when ../shared/data is present, else the synthetic desk. The map is first filled with
+// `kWarmupFrames` frames; each benchmark then repeats one stage on the next frame.
+//
+// Workload knobs (environment): HIVOX_BENCH_VOXEL (m, default 0.005), HIVOX_BENCH_TRUNC (m,
+// default 0.02), HIVOX_BENCH_LEVELS (default 1), HIVOX_BENCH_WARMUP (frames, default 100).
+
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "hivox/fusion/integrator.h"
+#include "hivox/io/dataset.h"
+#include "hivox/map/voxel_block_map.h"
+#include "hivox/mesh/extract_mesh.h"
+#include "hivox/raycast/raycaster.h"
+
+namespace hivox {
+namespace {
+
+double env_or(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  return v ? std::atof(v) : fallback;
+}
+
+struct Workload {
+  std::unique_ptr<DatasetReader> reader;
+  std::unique_ptr<VoxelBlockMap> map;
+  FusionParams fusion;
+  RgbdFrame frame;  // the frame each benchmark processes
+  FusionInput input;
+  std::string name;
+
+  Workload() {
+    const std::filesystem::path tum = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "tum_fr1_rpy";
+    name = std::filesystem::is_directory(tum) ? tum.string() : "synthetic:desk?frames=200";
+    reader = open_dataset(name);
+    MapParams mp;
+    mp.voxel_size_m = static_cast<float>(env_or("HIVOX_BENCH_VOXEL", 0.005));
+    mp.levels = static_cast<int>(env_or("HIVOX_BENCH_LEVELS", 1));
+    map = std::make_unique<VoxelBlockMap>(mp);
+    fusion.truncation_m = static_cast<float>(env_or("HIVOX_BENCH_TRUNC", 0.02));
+    TsdfIntegrator integrator(fusion);
+    const auto warmup = static_cast<std::size_t>(env_or("HIVOX_BENCH_WARMUP", 100));
+    for (std::size_t i = 0; i < warmup && i + 1 < reader->size(); ++i) {
+      const RgbdFrame f = reader->read(i);
+      if (!f.T_wc_gt) continue;
+      integrator.fuse(*map, make_input(f));
+    }
+    frame = reader->read(warmup);
+    input = make_input(frame);
+  }
+
+  FusionInput make_input(const RgbdFrame& f) const {
+    FusionInput in;
+    in.depth_m = &f.depth_m;
+    in.depth_camera = reader->info().depth_camera;
+    if (!f.color.empty()) {
+      in.color = &f.color;
+      in.color_camera = reader->info().color_camera;
+    }
+    in.T_wc = f.T_wc_gt.value_or(Pose::Identity());
+    return in;
+  }
+};
+
+Workload& workload() {
+  static Workload w;
+  return w;
+}
+
+void BM_Allocate(benchmark::State& state) {
+  Workload& w = workload();
+  TsdfIntegrator integrator(w.fusion);
+  AllocationStats s;
+  for (auto _ : state) s = integrator.allocate(*w.map, w.input);
+  state.counters["visible_blocks"] = static_cast<double>(s.visible_blocks);
+  state.SetLabel(w.name);
+}
+
+void BM_Integrate(benchmark::State& state) {
+  Workload& w = workload();
+  TsdfIntegrator integrator(w.fusion);
+  integrator.allocate(*w.map, w.input);
+  for (auto _ : state) integrator.integrate(*w.map, w.input);
+  state.counters["visible_blocks"] = static_cast<double>(integrator.visible_blocks().size());
+}
+
+void raycast(benchmark::State& state, bool hinted) {
+  Workload& w = workload();
+  RaycastParams rp;
+  rp.truncation_m = w.fusion.truncation_m;
+  Raycaster raycaster(rp);
+  RaycastStats s;
+  for (auto _ : state)
+    raycaster.raycast(*w.map, w.input.depth_camera, w.input.T_wc, &s,
+                      hinted ? &w.frame.depth_m : nullptr);
+  state.counters["hits"] = static_cast<double>(s.hits);
+  state.counters["blocks"] = static_cast<double>(w.map->blocks_in_use());
+}
+void BM_Raycast(benchmark::State& state) { raycast(state, false); }
+void BM_RaycastHinted(benchmark::State& state) { raycast(state, true); }
+
+void BM_ExtractMesh(benchmark::State& state) {
+  Workload& w = workload();
+  TriangleMesh mesh;
+  for (auto _ : state) mesh = extract_mesh(*w.map);
+  state.counters["triangles"] = static_cast<double>(mesh.triangle_count());
+}
+
+BENCHMARK(BM_Allocate)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Integrate)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RaycastHinted)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+}  // namespace
+}  // namespace hivox
+
+BENCHMARK_MAIN();
