@@ -8,7 +8,8 @@ namespace hivox::cli {
 
 void add_dataset_options(CLI::App* cmd, DatasetOptions& options) {
   cmd->add_option("DATASET", options.dataset,
-                  "dataset folder (TUM, 7-Scenes or InfiniTAM layout; detected automatically)")
+                  "dataset folder (TUM, 7-Scenes or InfiniTAM layout; detected automatically) or a "
+                  "built-in scene: synthetic:NAME[?frames=N&noise=kinect|none&width=W&height=H]")
       ->required()
       ->type_name("");
   cmd->add_option("--preset", options.params.preset,
