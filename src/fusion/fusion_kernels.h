@@ -310,7 +310,9 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
       }
     }
   }
-  map.meta[ptr].min_tsdf = static_cast<int16_t>(min_tsdf);
+  BlockMeta& meta = map.meta[ptr];
+  meta.min_tsdf = static_cast<int16_t>(min_tsdf);
+  if (meta.updates < 65535) ++meta.updates;
 }
 
 }  // namespace hivox::kernels

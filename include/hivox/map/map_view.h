@@ -55,16 +55,20 @@ struct FreeListView {
   int32_t capacity = 0;
 };
 
-/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free), and
-/// a summary for raycasting: the smallest normalised TSDF (int16 units) over its observed voxels.
-/// A block whose observed voxels are all positive holds no surface, so rays cross it in one step.
+/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free); a
+/// summary for raycasting, the smallest normalised TSDF (int16 units) over its observed voxels
+/// (a block whose observed voxels are all positive holds no surface, so rays cross it in one
+/// step); and how many frames were integrated into it since its content was created (by
+/// allocation, split or merge), which refinement uses to judge only settled blocks.
 struct BlockMeta {
   Vec3i pos;
+  int32_t entry = kNoEntry;
   int16_t level = -1;
   int16_t min_tsdf = static_cast<int16_t>(kTsdfScale);
-  int32_t entry = kNoEntry;
+  uint16_t updates = 0;
+  uint16_t reserved = 0;
 };
-static_assert(sizeof(BlockMeta) == 20);
+static_assert(sizeof(BlockMeta) == 24);
 
 struct LevelView {
   HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries

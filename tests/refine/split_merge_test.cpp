@@ -1,0 +1,247 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+#include <tuple>
+
+#include "hivox/core/parallel.h"
+#include "hivox/refine/refiner.h"
+#include "map/map_invariants.h"
+
+namespace hivox {
+namespace {
+
+MapParams three_levels(int64_t blocks = 1 << 14) {
+  MapParams p;
+  p.voxel_size_m = 0.002f;
+  p.levels = 3;
+  p.max_blocks = blocks;
+  p.buckets_per_level = 1 << 10;  // small tables: chains and excess entries get exercised
+  p.excess_per_level = 1 << 13;
+  return p;
+}
+
+// A smooth, non-linear field to store in voxels: F at world point p (metres).
+float field(double x, double y, double z) {
+  return static_cast<float>(0.6 * std::sin(7.0 * x + 1.0) * std::cos(5.0 * y) +
+                            0.3 * std::sin(9.0 * z));
+}
+
+// Fills a block with `field` sampled at its voxel positions, random weights (0 = unobserved now
+// and then) and colours.
+void fill_block(VoxelBlockMap& map, const BlockRef& b, std::mt19937& rng) {
+  const float s = map.params().voxel_size_at(b.level);
+  std::uniform_int_distribution<int> w(0, 40), col(0, 255);
+  TsdfVoxel* v = map.block_tsdf(b.ptr);
+  ColorVoxel* c = map.block_color(b.ptr);
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    const Vec3i q = voxel_coords(i);
+    const double x = (8 * b.pos.x + q.x) * s, y = (8 * b.pos.y + q.y) * s,
+                 z = (8 * b.pos.z + q.z) * s;
+    v[i].tsdf = tsdf_from_float(field(x, y, z));
+    v[i].weight = static_cast<uint16_t>(w(rng) < 3 ? 0 : 1 + w(rng));
+    c[i] = {static_cast<uint8_t>(col(rng)), static_cast<uint8_t>(col(rng)),
+            static_cast<uint8_t>(col(rng)), static_cast<uint8_t>(v[i].weight ? 1 + w(rng) : 0)};
+  }
+}
+
+std::vector<BlockRef> allocate_cube(VoxelBlockMap& map, int level, int n, std::mt19937& rng) {
+  std::vector<BlockKey> keys;
+  for (int x = -n / 2; x < n - n / 2; ++x)
+    for (int y = -n / 2; y < n - n / 2; ++y)
+      for (int z = 0; z < n; ++z) keys.push_back({{x, y, z}, level});
+  std::vector<BlockRef> refs;
+  map.insert_blocks(keys, &refs);
+  for (const BlockRef& b : refs) fill_block(map, b, rng);
+  return refs;
+}
+
+// Parent-level value at parent voxel coordinate q (may be 8 = the +1 neighbour), as a test-side
+// reference: neighbour voxel if the neighbour block exists at that level, else the border voxel.
+TsdfVoxel parent_voxel(const VoxelBlockMap& map, const BlockRef& parent, Vec3i q) {
+  Vec3i g{8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z};
+  if (auto v = map.voxel(parent.level, g)) return *v;
+  for (int k = 0; k < 3; ++k) q[k] = std::min(q[k], 7);
+  return map.block_tsdf(parent.ptr)[voxel_index(q.x, q.y, q.z)];
+}
+
+TEST(Split, ChildrenAreTheParentInterpolated) {
+  std::mt19937 rng(1);
+  VoxelBlockMap map(three_levels());
+  const auto blocks = allocate_cube(map, 1, 3, rng);
+  const BlockRef parent = blocks[13];  // the middle block: all +x/+y/+z neighbours exist
+  // Expected child values, computed before the split from the parent and its neighbours.
+  std::map<std::tuple<int, int, int>, std::pair<float, float>> expected;  // global child voxel
+  for (int j = 0; j < 16 * 16 * 16; ++j) {
+    const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
+    float f = 0, fw = 0, w = 0;
+    for (int k = 0; k < 8; ++k) {
+      const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
+      if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
+      const float a =
+          ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
+      const TsdfVoxel v = parent_voxel(map, parent, {c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
+      w += a * v.weight;
+      if (v.weight) {
+        f += a * tsdf_to_float(v.tsdf);
+        fw += a;
+      }
+    }
+    expected[{16 * parent.pos.x + c.x, 16 * parent.pos.y + c.y, 16 * parent.pos.z + c.z}] = {
+        fw > 0 ? f / fw : 2.0f, w};
+  }
+  const SplitMergeResult r = split_blocks(map, std::span(&parent, 1), 0.5f);
+  ASSERT_EQ(r.done, 1);
+  EXPECT_EQ(map.find(1, parent.pos)->ptr, kPtrSplit);
+  test::expect_map_consistent(map);
+  int checked = 0;
+  for (const auto& [key, value] : expected) {
+    const auto v = map.voxel(0, {std::get<0>(key), std::get<1>(key), std::get<2>(key)});
+    ASSERT_TRUE(v.has_value());
+    if (value.first > 1.5f) {
+      EXPECT_EQ(v->weight, 0);  // nothing observed around it: stays unobserved
+      continue;
+    }
+    EXPECT_NEAR(tsdf_to_float(v->tsdf), value.first, 1.0f / 32767) << "exact interpolation";
+    EXPECT_NEAR(v->weight, std::max(1.0f, std::round(0.5f * value.second)), 0.5f);
+    ++checked;
+  }
+  EXPECT_GT(checked, 3500);
+}
+
+TEST(SplitMerge, RoundTripReproducesTheParent) {
+  std::mt19937 rng(2);
+  VoxelBlockMap map(three_levels());
+  const auto blocks = allocate_cube(map, 2, 2, rng);
+  std::vector<std::vector<TsdfVoxel>> before;
+  for (const BlockRef& b : blocks)
+    before.emplace_back(map.block_tsdf(b.ptr), map.block_tsdf(b.ptr) + kBlockVoxels);
+  ASSERT_EQ(split_blocks(map, blocks, 1.0f).done, static_cast<int64_t>(blocks.size()));
+  EXPECT_EQ(map.blocks_per_level(), (std::vector<int64_t>{0, 64, 0}));
+  std::vector<BlockKey> parents;
+  for (const BlockRef& b : blocks) parents.push_back({b.pos, b.level});
+  ASSERT_EQ(merge_blocks(map, parents).done, static_cast<int64_t>(blocks.size()));
+  EXPECT_EQ(map.blocks_per_level(), (std::vector<int64_t>{0, 0, 8}));
+  test::expect_map_consistent(map);
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const auto now = map.find(2, blocks[i].pos);
+    ASSERT_TRUE(now && now->ptr >= 0);
+    const TsdfVoxel* v = map.block_tsdf(now->ptr);
+    for (int k = 0; k < kBlockVoxels; ++k) {
+      ASSERT_EQ(v[k].weight, before[i][k].weight) << "weight scale 1: exact";
+      if (before[i][k].weight) {
+        ASSERT_EQ(v[k].tsdf, before[i][k].tsdf) << "voxel " << k;
+      }
+    }
+  }
+}
+
+// Every allocated block's ancestors are Split, it has no descendants, every Split entry has all
+// 8 children, and the covered volume (in finest-level blocks) is what it was.
+void expect_hierarchy_consistent(const VoxelBlockMap& map, int64_t covered_finest_blocks) {
+  test::expect_map_consistent(map);
+  const MapView v = map.view();
+  int64_t covered = 0;
+  for (const BlockRef& b : map.allocated_blocks()) {
+    covered += int64_t{1} << (3 * b.level);
+    Vec3i p = b.pos;
+    for (int l = b.level + 1; l < v.levels; ++l) {
+      p = {p.x >> 1, p.y >> 1, p.z >> 1};
+      const int32_t ptr = find_block_ptr(v.level[l], p);
+      ASSERT_EQ(ptr, kPtrSplit) << "ancestor of a level-" << b.level << " block at level " << l;
+    }
+    if (b.level > 0) {
+      for (int c = 0; c < 8; ++c)
+        ASSERT_EQ(find_block_ptr(v.level[b.level - 1],
+                                 {2 * b.pos.x + (c & 1), 2 * b.pos.y + ((c >> 1) & 1),
+                                  2 * b.pos.z + (c >> 2)}),
+                  kPtrEmpty)
+            << "region stored at two levels";
+    }
+  }
+  for (int l = 1; l < v.levels; ++l)
+    for (int32_t e = 0; e < v.level[l].entry_count; ++e) {
+      const HashEntry& h = v.level[l].entries[e];
+      if (h.ptr != kPtrSplit) continue;
+      for (int c = 0; c < 8; ++c) {
+        ASSERT_NE(
+            find_block_ptr(v.level[l - 1], {2 * h.pos.x + (c & 1), 2 * h.pos.y + ((c >> 1) & 1),
+                                            2 * h.pos.z + (c >> 2)}),
+            kPtrEmpty)
+            << "a split entry lacks a child (hole)";
+      }
+    }
+  EXPECT_EQ(covered, covered_finest_blocks) << "covered volume changed";
+}
+
+// Random split and merge sequence; returns a fingerprint of the final map.
+std::map<std::tuple<int, int, int, int>, std::vector<int16_t>> random_sequence(unsigned seed,
+                                                                               int threads) {
+  set_thread_count(threads);
+  std::mt19937 rng(seed);
+  VoxelBlockMap map(three_levels(1500));  // small pool: splits must wait now and then
+  std::mt19937 fill_rng(seed + 100);
+  allocate_cube(map, 2, 4, fill_rng);
+  const int64_t covered = 64 * 64;
+  int64_t waited = 0;
+  for (int round = 0; round < 12; ++round) {
+    // Choices in a fixed order (pool and entry positions differ with the thread count).
+    auto blocks = map.allocated_blocks();
+    std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
+      return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+    });
+    std::vector<BlockRef> split;
+    for (const BlockRef& b : blocks)
+      if (b.level > 0 && rng() % 3 == 0) split.push_back(b);
+    waited += split_blocks(map, split, 0.5f).waiting;
+    expect_hierarchy_consistent(map, covered);
+    std::vector<BlockKey> split_entries, merge;
+    for (int l = 1; l < 3; ++l)
+      for (int32_t e = 0; e < map.view().level[l].entry_count; ++e) {
+        const HashEntry& h = map.view().level[l].entries[e];
+        if (h.ptr == kPtrSplit) split_entries.push_back({h.pos, l});
+      }
+    std::sort(split_entries.begin(), split_entries.end());
+    for (const BlockKey& k : split_entries)
+      if (rng() % 2 == 0) merge.push_back(k);
+    merge_blocks(map, merge);
+    expect_hierarchy_consistent(map, covered);
+  }
+  EXPECT_GT(waited, 0) << "the pool never ran out: the waiting path was not exercised";
+  std::map<std::tuple<int, int, int, int>, std::vector<int16_t>> out;
+  for (const BlockRef& b : map.allocated_blocks()) {
+    std::vector<int16_t> t(kBlockVoxels);
+    for (int i = 0; i < kBlockVoxels; ++i) t[i] = map.block_tsdf(b.ptr)[i].tsdf;
+    out[{b.level, b.pos.x, b.pos.y, b.pos.z}] = t;
+  }
+  return out;
+}
+
+TEST(SplitMerge, RandomSequencesKeepTheHierarchyConsistent) {
+  for (unsigned seed : {3u, 4u}) random_sequence(seed, 2);
+  set_thread_count(0);
+}
+
+TEST(SplitMerge, ConcurrentEqualsSerial) {
+  const auto serial = random_sequence(5, 1);
+  const auto parallel = random_sequence(5, 4);
+  set_thread_count(0);
+  EXPECT_EQ(serial.size(), parallel.size());
+  EXPECT_TRUE(serial == parallel);
+}
+
+TEST(SplitMerge, InvalidRequestsAreCountedNotApplied) {
+  std::mt19937 rng(6);
+  VoxelBlockMap map(three_levels());
+  const auto blocks = allocate_cube(map, 0, 1, rng);  // finest level: cannot split
+  EXPECT_EQ(split_blocks(map, blocks).invalid, 1);
+  const std::vector<BlockKey> not_split = {{{0, 0, 0}, 1}};
+  EXPECT_EQ(merge_blocks(map, not_split).invalid, 1);
+  test::expect_map_consistent(map);
+}
+
+}  // namespace
+}  // namespace hivox
