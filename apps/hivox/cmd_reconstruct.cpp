@@ -11,6 +11,7 @@
 #include <string>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "commands.h"
 #include "dataset_options.h"
@@ -34,6 +35,7 @@ namespace fs = std::filesystem;
 
 struct ReconstructOptions {
   DatasetOptions data;
+  std::string refine_criterion = "detail";
   std::string poses = "gt";
   std::string out;
   ReconstructionParams params;
@@ -81,6 +83,7 @@ std::string default_out_dir(const std::string& dataset) {
 
 void run_reconstruct(ReconstructOptions options) {
   if (options.threads > 0) set_thread_count(options.threads);
+  options.params.refine.criterion = parse_refine_criterion(options.refine_criterion);
   if (options.no_color) {
     options.params.map.store_color = false;
     options.params.fusion.integrate_color = false;
@@ -140,8 +143,9 @@ void run_reconstruct(ReconstructOptions options) {
       write_renders(rec.render(info.depth_camera, *T_wc), out, fmt::format("frame{:06d}_", i));
     if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
       const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
-      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {}  dropped {}{}", tty ? "\r" : "", i + 1,
-                 total, fps, s.blocks_total, rec.map().dropped_blocks(), tty ? "   " : "\n");
+      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}", tty ? "\r" : "", i + 1,
+                 total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"),
+                 rec.map().dropped_blocks(), tty ? "   " : "\n");
       std::fflush(stdout);
     }
   }
@@ -177,8 +181,9 @@ void run_reconstruct(ReconstructOptions options) {
         "with reading\n",
         frames.size(), skipped, 1000.0 * static_cast<double>(frames.size()) / total_ms,
         static_cast<double>(frames.size()) / wall_s);
-    fmt::print("blocks: {} (peak {}), dropped {}, memory {:.1f} MiB\n", rec.map().blocks_in_use(),
-               rec.peak_blocks(), rec.map().dropped_blocks(),
+    fmt::print("blocks: {} (peak {}), per level {}, dropped {}, memory {:.1f} MiB\n",
+               rec.map().blocks_in_use(), rec.peak_blocks(),
+               fmt::join(rec.map().blocks_per_level(), "/"), rec.map().dropped_blocks(),
                static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
     fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
                mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
@@ -211,6 +216,25 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_option("--hash-buckets", p.map.buckets_per_level, "hash buckets per level (power of 2)")
       ->capture_default_str();
   cmd->add_option("--hash-excess", p.map.excess_per_level, "hash overflow entries per level")
+      ->capture_default_str();
+  cmd->add_option("--refine", o.refine_criterion,
+                  "complexity criterion that moves blocks between levels: 'detail' (how far the "
+                  "TSDF departs from linear near the surface, metres; noise-aware) or 'det-cov' "
+                  "(the paper's determinant of the normal covariance)")
+      ->capture_default_str();
+  cmd->add_option("--split-threshold", p.refine.split_threshold,
+                  "split a block whose complexity exceeds this (metres for detail)")
+      ->capture_default_str();
+  cmd->add_option("--merge-threshold", p.refine.merge_threshold,
+                  "merge 8 siblings whose complexity is below this (< split threshold)")
+      ->capture_default_str();
+  cmd->add_option("--refine-every", p.refine.every_n_frames, "split/merge after every N-th frame")
+      ->capture_default_str();
+  cmd->add_option("--refine-min-weight", p.refine.min_weight,
+                  "voxels observed fewer times do not count in the criterion")
+      ->capture_default_str();
+  cmd->add_option("--refine-min-updates", p.refine.min_updates,
+                  "frames a block must have been fused since it changed before it is judged")
       ->capture_default_str();
   cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");
   cmd->add_flag("!--no-raycast", p.raycast_every_frame,

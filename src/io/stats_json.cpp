@@ -32,6 +32,7 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
                          {"dropped_blocks", f.dropped_blocks},
                          {"splits", f.splits},
                          {"merges", f.merges},
+                         {"refine_waiting", f.refine_waiting},
                          {"valid_pixels", f.valid_pixels},
                          {"raycast_hits", f.raycast_hits},
                          {"timing_ms",
@@ -66,6 +67,14 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["voxel_size_m"] = map.params().voxel_size_m;
   j["levels"] = map.params().levels;
   j["truncation_m"] = rec.params().fusion.truncation_m;
+  int64_t splits = 0, merges = 0;
+  for (const FrameStats& f : frames) {
+    splits += f.splits;
+    merges += f.merges;
+  }
+  j["splits"] = splits;
+  j["merges"] = merges;
+  if (map.params().levels > 1) j["refine"] = rec.params().refine.to_string();
   j["per_frame"] = std::move(per_frame);
   std::ofstream out(path);
   if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());

@@ -24,11 +24,13 @@ RaycastParams raycast_params_for(const ReconstructionParams& p) {
 void ReconstructionParams::validate() const {
   map.validate();
   fusion.validate();
+  refine.validate();
   raycast_params_for(*this).validate();
 }
 
 std::string ReconstructionParams::to_string() const {
-  return fmt::format("map: {}\nfusion: {}\nraycast: {}{}", map.to_string(), fusion.to_string(),
+  return fmt::format("map: {}\nfusion: {}\n{}raycast: {}{}", map.to_string(), fusion.to_string(),
+                     map.levels > 1 ? "refine: " + refine.to_string() + "\n" : std::string(),
                      raycast_params_for(*this).to_string(),
                      raycast_every_frame ? " (every frame)" : " (renders only)");
 }
@@ -37,6 +39,7 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const Dataset
     : params_(params),
       info_(info),
       integrator_(params.fusion),
+      refiner_(params.refine),
       raycaster_(raycast_params_for(params)) {
   params_.validate();
   params_.fusion.check_against(params_.map);
@@ -70,6 +73,16 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   s.visible_blocks = a.visible_blocks;
   s.new_blocks = a.new_blocks;
   s.dropped_blocks = a.dropped_blocks;
+
+  if (map_->levels() > 1) {
+    stage.restart();
+    const RefineStats r =
+        refiner_.refine(*map_, integrator_.visible_blocks(), params_.fusion.truncation_m, T_wc);
+    s.refine_ms = stage.lap_ms();
+    s.splits = r.splits;
+    s.merges = r.merges;
+    s.refine_waiting = r.waiting;
+  }
 
   if (params_.raycast_every_frame) {
     stage.restart();

@@ -9,50 +9,9 @@
 #include "hivox/core/hd.h"
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
+#include "map/sample_kernels.h"
 
 namespace hivox::kernels {
-
-/// Direct-mapped cache of block look-ups (absent blocks included). Consecutive samples of a ray,
-/// and neighbouring rays, mostly need the same few blocks; the CPU driver keeps one cache per
-/// thread across the rays of its rows, a GPU thread one per ray. Valid while the map's layout
-/// does not change (one raycast).
-struct RayBlockCache {
-  static constexpr int kSlots = 4096;  // 80 KB: a row of rays crosses ~100 blocks
-  struct Slot {
-    Vec3i pos;
-    int32_t level = -1;
-    int32_t ptr = kPtrEmpty;
-  };
-  Slot slots[kSlots];
-
-  HIVOX_HD void reset() {
-    for (int i = 0; i < kSlots; ++i) slots[i].level = -1;
-  }
-  /// `ptr` of block `p` at `lvl` (kPtrEmpty when absent), from the cache or the hash table.
-  HIVOX_HD int32_t find(const MapView& map, int lvl, const Vec3i& p) {
-    Slot& s = slots[(block_hash(p, kSlots - 1) + static_cast<uint32_t>(lvl) * 17u) & (kSlots - 1)];
-    if (s.level == lvl && s.pos == p) return s.ptr;
-    s.pos = p;
-    s.level = lvl;
-    s.ptr = find_block_ptr(map.level[lvl], p);
-    return s.ptr;
-  }
-};
-
-/// The block storing world point `p_w`: starts at the coarsest level and descends through Split
-/// entries. Returns the block's ptr, or kPtrEmpty when nothing is stored there; `level` and
-/// `pos` receive the level and block where the search ended.
-HIVOX_HD inline int32_t locate_block(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
-                                     int* level, Vec3i* pos) {
-  for (int l = map.levels - 1; l >= 0; --l) {
-    const Vec3i b = block_of_point(map.level[l], p_w);
-    const int32_t ptr = cache.find(map, l, b);
-    *level = l;
-    *pos = b;
-    if (ptr != kPtrSplit) return ptr;
-  }
-  return kPtrEmpty;
-}
 
 /// Ray parameter where ray o + z d leaves the axis-aligned block `b` of side `block_m`.
 HIVOX_HD inline float block_exit(const Vec3f& o, const Vec3f& d, const Vec3i& b, float block_m) {
@@ -81,98 +40,12 @@ HIVOX_HD inline float box_exit(const Vec3f& o, const Vec3f& d, const Vec3f& inv_
   return t;
 }
 
-/// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
-struct TsdfSample {
-  float f = 1.0f;
-  Vec3f gradient;  ///< dF / d(voxel) of the interpolant at the point
-  int32_t nearest_ptr = kPtrEmpty;
-  int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
-};
-
-/// Trilinear interpolation of the TSDF at `p_w` from the 8 voxels of `level` around it.
-/// Fails (returns false) when a neighbouring block is missing at that level or a voxel has
-/// fewer than `min_weight` observations: unknown space must never look like surface.
-HIVOX_HD inline bool sample_trilinear(const MapView& map, RayBlockCache& cache, int level,
-                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
-                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
-                                      int32_t known_ptr = kPtrEmpty) {
-  const float inv_s = map.level[level].inv_voxel_size;
-  const Vec3f q = p_w * inv_s;
-  const Vec3i base = floor_to_int(q);
-  const Vec3f t = q - to_float(base);
-  float v[8];
-  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-  const Vec3i block = block_of_voxel(base);
-  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
-  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
-    // Fast path (most samples): the 8 voxels lie in one block (often the caller's).
-    const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
-    if (ptr < 0) return false;
-    const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
-    const int i0 = voxel_index(local.x, local.y, local.z);
-    constexpr int kY = kBlockSide, kZ = kBlockSide * kBlockSide;
-    const int offsets[8] = {0, 1, kY, kY + 1, kZ, kZ + 1, kZ + kY, kZ + kY + 1};
-    int min_w = 65535;
-    for (int c = 0; c < 8; ++c) {
-      const TsdfVoxel vox = b[i0 + offsets[c]];
-      min_w = vox.weight < min_w ? vox.weight : min_w;
-      v[c] = tsdf_to_float(vox.tsdf);
-    }
-    if (min_w < min_weight) return false;
-    out->nearest_ptr = ptr;
-    out->nearest_index = i0 + offsets[nearest];
-  } else {
-    // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
-    const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
-    int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
-    for (int d = 0; d < 8; ++d) {
-      const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-      if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
-      blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
-      if (blocks[d] < 0) return false;
-    }
-    for (int c = 0; c < 8; ++c) {
-      const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
-      const int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
-      const int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
-      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
-      if (vox.weight < min_weight) return false;
-      v[c] = tsdf_to_float(vox.tsdf);
-      if (c == nearest) {
-        out->nearest_ptr = ptr;
-        out->nearest_index = i;
-      }
-    }
-  }
-  // Corner c = (c & 1, (c >> 1) & 1, c >> 2).
-  const float x0 = v[0] + (v[1] - v[0]) * t.x, x1 = v[2] + (v[3] - v[2]) * t.x;
-  const float x2 = v[4] + (v[5] - v[4]) * t.x, x3 = v[6] + (v[7] - v[6]) * t.x;
-  const float y0 = x0 + (x1 - x0) * t.y, y1 = x2 + (x3 - x2) * t.y;
-  out->f = y0 + (y1 - y0) * t.z;
-  // Analytic gradient of the trilinear interpolant.
-  const float dx0 = v[1] - v[0], dx1 = v[3] - v[2], dx2 = v[5] - v[4], dx3 = v[7] - v[6];
-  const float dxy0 = dx0 + (dx1 - dx0) * t.y, dxy1 = dx2 + (dx3 - dx2) * t.y;
-  out->gradient.x = dxy0 + (dxy1 - dxy0) * t.z;
-  out->gradient.y = (x1 - x0) + ((x3 - x2) - (x1 - x0)) * t.z;
-  out->gradient.z = y1 - y0;
-  return true;
-}
-
-/// The TSDF at `p_w`, at whatever level stores it.
-HIVOX_HD inline bool sample_tsdf(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
-                                 int min_weight, TsdfSample* out, int* level) {
-  Vec3i pos;
-  const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
-  if (ptr < 0) return false;
-  return sample_trilinear(map, cache, *level, p_w, min_weight, out);
-}
-
 /// Surface normal at a surface point `p_w` (unit, pointing to free space) from differences of
 /// the interpolated TSDF one voxel apart. At a surface point F = 0, so forward differences need
 /// only 3 samples; spanning a voxel they are smoother than the gradient of a single
 /// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
 /// unknown.
-HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, RayBlockCache& cache, const Vec3f& p_w,
+HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
                                   float f_at_p, int level, int min_weight, const Vec3f& fallback) {
   const float h = map.level[level].voxel_size_m;
   Vec3f g;
@@ -206,7 +79,7 @@ struct RayHit {
 /// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
 /// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
 /// refinement samples fail).
-HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, const Vec3f& o,
+HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                      const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
                                      const TsdfSample& fallback, int fallback_level,
                                      const RayMarchConstants& k, RayHit* hit) {
@@ -246,7 +119,7 @@ HIVOX_HD inline void refine_crossing(const MapView& map, RayBlockCache& cache, c
 /// crossing is refined by the secant method.
 /// `started_behind` (optional) is set when the first known sample already lies behind a surface
 /// (and no crossing was found right before it): a surface in front of z_start is likely.
-HIVOX_HD inline bool march_ray(const MapView& map, RayBlockCache& cache, const Vec3f& o,
+HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                const Vec3f& d, float z_start, float z_end,
                                const RayMarchConstants& k, RayHit* hit,
                                bool* started_behind = nullptr) {

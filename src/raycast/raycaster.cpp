@@ -80,7 +80,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   int64_t hits = 0;
 #pragma omp parallel reduction(+ : hits)
   {
-    kernels::RayBlockCache cache;  // per thread, across the rays of its tiles
+    kernels::BlockLookupCache cache;  // per thread, across the rays of its tiles
     // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
 #pragma omp for schedule(dynamic, 8)
     for (int t = 0; t < static_cast<int>(tile_count); ++t) {

@@ -32,7 +32,20 @@ RefineParams RefineParams::paper() {
   p.merge_threshold = 1e-4f;
   p.min_weight = 1;
   p.min_updates = 1;
+  p.noise = SensorNoise::none();
   return p;
+}
+
+float RefineParams::split_level(float z_m) const {
+  if (criterion != RefineCriterion::Detail) return split_threshold;
+  const float n = split_noise_factor * noise.sigma_m(z_m);
+  return n > split_threshold ? n : split_threshold;
+}
+
+float RefineParams::merge_level(float z_m) const {
+  if (criterion != RefineCriterion::Detail) return merge_threshold;
+  const float n = merge_noise_factor * noise.sigma_m(z_m);
+  return n > merge_threshold ? n : merge_threshold;
 }
 
 void RefineParams::validate() const {
@@ -50,6 +63,15 @@ void RefineParams::validate() const {
   if (min_updates < 0 || min_updates > 65535)
     fail(ErrorCode::InvalidArgument, "refine min_updates must be in [0, 65535], got {}",
          min_updates);
+  if (!(noise.sigma_min_m >= 0.0f && noise.quadratic_per_m >= 0.0f && std::isfinite(noise.z0_m)))
+    fail(ErrorCode::InvalidArgument,
+         "refine sensor noise terms must be >= 0, got {} + {} (z - {})^2", noise.sigma_min_m,
+         noise.quadratic_per_m, noise.z0_m);
+  if (!(split_noise_factor >= 0.0f) || !(merge_noise_factor >= 0.0f) ||
+      merge_noise_factor > split_noise_factor)
+    fail(ErrorCode::InvalidArgument,
+         "refine noise factors must satisfy 0 <= merge ({}) <= split ({})", merge_noise_factor,
+         split_noise_factor);
   if (!(split_weight_scale > 0.0f && split_weight_scale <= 1.0f))
     fail(ErrorCode::InvalidArgument, "refine split_weight_scale must be in (0, 1], got {}",
          split_weight_scale);
@@ -57,11 +79,15 @@ void RefineParams::validate() const {
 
 std::string RefineParams::to_string() const {
   const bool metres = criterion == RefineCriterion::Detail;
+  const bool noisy = metres && (noise.sigma_min_m > 0.0f || noise.quadratic_per_m > 0.0f);
   return fmt::format(
-      "criterion {}, split > {}{}, merge < {}{}, every {} frame{}, min weight {}, min updates {}",
+      "criterion {}, split > {}{}{}, merge < {}{}{}, every {} frame{}, min weight {}, min "
+      "updates {}",
       hivox::to_string(criterion), metres ? split_threshold * 1000.0f : split_threshold,
-      metres ? " mm" : "", metres ? merge_threshold * 1000.0f : merge_threshold,
-      metres ? " mm" : "", every_n_frames, every_n_frames > 1 ? "s" : "", min_weight, min_updates);
+      metres ? " mm" : "", noisy ? fmt::format(" or {} sigma(z)", split_noise_factor) : "",
+      metres ? merge_threshold * 1000.0f : merge_threshold, metres ? " mm" : "",
+      noisy ? fmt::format(" or {} sigma(z)", merge_noise_factor) : "", every_n_frames,
+      every_n_frames > 1 ? "s" : "", min_weight, min_updates);
 }
 
 }  // namespace hivox

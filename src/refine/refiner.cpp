@@ -223,12 +223,19 @@ float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float truncatio
 }
 
 RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candidates,
-                            float truncation_m) {
+                            float truncation_m, const Pose& T_wc) {
   RefineStats stats;
   if (map.levels() < 2 || (calls_++ % params_.every_n_frames) != 0) return stats;
   const MapView view = map.view();
   const int top = view.levels - 1;
   auto settled = [&](int32_t ptr) { return view.meta[ptr].updates >= params_.min_updates; };
+  // Depth of a block's centre from the camera that just saw it (for the noise model).
+  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
+  auto depth_of = [&](const Vec3i& pos, int level) {
+    const float b = view.level[level].block_size_m;
+    const Vec3f centre{(pos.x + 0.5f) * b, (pos.y + 0.5f) * b, (pos.z + 0.5f) * b};
+    return (T_cw * centre).z;
+  };
 
   // Split candidates: settled blocks above the finest level with complex surface.
   std::vector<float> c(candidates.size(), -1.0f);
@@ -237,8 +244,10 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
     if (b.ptr >= 0 && b.level > 0 && settled(b.ptr)) c[i] = complexity(map, b.ptr, truncation_m);
   });
   std::vector<BlockRef> splits;
-  for (std::size_t i = 0; i < candidates.size(); ++i)
-    if (candidates[i].level > 0 && c[i] > params_.split_threshold) splits.push_back(candidates[i]);
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const BlockRef& b = candidates[i];
+    if (b.level > 0 && c[i] > params_.split_level(depth_of(b.pos, b.level))) splits.push_back(b);
+  }
   stats.evaluated = static_cast<int64_t>(candidates.size());
 
   // Merge candidates: the split parents of touched blocks below the coarsest level, when all 8
@@ -252,10 +261,11 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
   parallel_for(static_cast<int64_t>(parents.size()), [&](int64_t i) {
     const BlockKey& p = parents[static_cast<std::size_t>(i)];
     if (find_block_ptr(view.level[p.level], p.pos) != kPtrSplit) return;
+    const float level = params_.merge_level(depth_of(p.pos, p.level));
     for (int k = 0; k < kChildren; ++k) {
       const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_pos(p.pos, k));
       if (ptr < 0 || !settled(ptr)) return;
-      if (complexity(map, ptr, truncation_m) >= params_.merge_threshold) return;
+      if (complexity(map, ptr, truncation_m) >= level) return;
     }
     mergeable[i] = 1;
   });

@@ -32,6 +32,9 @@ HIVOX_HD inline bool operator==(const Vec3i& a, const Vec3i& b) {
 HIVOX_HD inline bool operator!=(const Vec3i& a, const Vec3i& b) {
   return !(a == b);
 }
+HIVOX_HD inline bool operator==(const Vec3f& a, const Vec3f& b) {
+  return a.x == b.x && a.y == b.y && a.z == b.z;
+}
 HIVOX_HD inline Vec3i operator+(const Vec3i& a, const Vec3i& b) {
   return {a.x + b.x, a.y + b.y, a.z + b.z};
 }

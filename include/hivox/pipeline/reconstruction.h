@@ -15,12 +15,14 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/raycast/raycaster.h"
+#include "hivox/refine/refiner.h"
 
 namespace hivox {
 
 struct ReconstructionParams {
   MapParams map;
   FusionParams fusion;
+  RefineParams refine;  ///< used when map.levels > 1
   RaycastParams raycast;
   /// Raycast the model from each frame's pose after integrating it (tracking needs it; with
   /// given poses it only feeds renders and can be switched off for speed).
@@ -50,6 +52,7 @@ struct FrameStats {
   std::vector<int64_t> blocks_per_level;  ///< finest first
   int64_t splits = 0;
   int64_t merges = 0;
+  int64_t refine_waiting = 0;  ///< splits/merges postponed for lack of room
   int64_t raycast_hits = 0;
 };
 
@@ -81,6 +84,7 @@ class Reconstruction {
   DatasetInfo info_;
   std::unique_ptr<VoxelBlockMap> map_;
   TsdfIntegrator integrator_;
+  Refiner refiner_;
   Raycaster raycaster_;
   RaycastResult render_result_;
   std::vector<FrameStats> frames_;

@@ -8,6 +8,7 @@
 #include <span>
 #include <vector>
 
+#include "hivox/core/pose.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/refine/params.h"
 
@@ -45,7 +46,9 @@ class Refiner {
 
   /// One pass (every `every_n_frames`-th call): judges `candidates` (typically the blocks the
   /// last frame touched) for splitting and their parents for merging, then merges and splits.
-  RefineStats refine(VoxelBlockMap& map, std::span<const BlockRef> candidates, float truncation_m);
+  /// `T_wc` is the camera that just observed them: its depth sets the noise-aware thresholds.
+  RefineStats refine(VoxelBlockMap& map, std::span<const BlockRef> candidates, float truncation_m,
+                     const Pose& T_wc = Pose::Identity());
 
   /// Complexity of pool block `ptr` under the configured criterion (-1: too little observed
   /// surface to judge).

@@ -1,0 +1,246 @@
+#pragma once
+// Reading the TSDF at any point, across levels, written once for every driver (raycast,
+// meshing, evaluation; CPU and CUDA).
+
+#include <cfloat>
+#include <climits>
+
+#include "hivox/core/hd.h"
+#include "hivox/core/math.h"
+#include "hivox/map/map_view.h"
+
+namespace hivox::kernels {
+
+/// Direct-mapped cache of block look-ups (absent blocks included). Neighbouring samples (along a
+/// ray, between neighbouring rays, across a mesh block) mostly need the same few blocks; a CPU
+/// driver keeps one cache per thread, a GPU thread one of its own. Valid while the map's layout
+/// does not change.
+struct BlockLookupCache {
+  static constexpr int kSlots = 4096;  // 80 KB: a row of rays crosses ~100 blocks
+  struct Slot {
+    Vec3i pos;
+    int32_t level = -1;
+    int32_t ptr = kPtrEmpty;
+  };
+  Slot slots[kSlots];
+
+  HIVOX_HD void reset() {
+    for (int i = 0; i < kSlots; ++i) slots[i].level = -1;
+  }
+  /// `ptr` of block `p` at `lvl` (kPtrEmpty when absent), from the cache or the hash table.
+  HIVOX_HD int32_t find(const MapView& map, int lvl, const Vec3i& p) {
+    Slot& s = slots[(block_hash(p, kSlots - 1) + static_cast<uint32_t>(lvl) * 17u) & (kSlots - 1)];
+    if (s.level == lvl && s.pos == p) return s.ptr;
+    s.pos = p;
+    s.level = lvl;
+    s.ptr = find_block_ptr(map.level[lvl], p);
+    return s.ptr;
+  }
+};
+
+/// The block storing world point `p_w`: starts at the coarsest level and descends through Split
+/// entries. Returns the block's ptr, or kPtrEmpty when nothing is stored there; `level` and
+/// `pos` receive the level and block where the search ended.
+HIVOX_HD inline int32_t locate_block(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
+                                     int* level, Vec3i* pos) {
+  for (int l = map.levels - 1; l >= 0; --l) {
+    const Vec3i b = block_of_point(map.level[l], p_w);
+    const int32_t ptr = cache.find(map, l, b);
+    *level = l;
+    *pos = b;
+    if (ptr != kPtrSplit) return ptr;
+  }
+  return kPtrEmpty;
+}
+
+/// Irregular-grid interpolation (paper §V): the function of the trilinear form
+/// F = a1 XYZ + a2 XY + a3 YZ + a4 XZ + a5 X + a6 Y + a7 Z + a8 through 8 samples at arbitrary
+/// positions `pos` (in voxel units of the cell's level), evaluated at `p`, with its gradient.
+/// Sample 0 is moved to the origin, which gives a8 = F0 and leaves a 7x7 system, solved by
+/// Gaussian elimination with partial pivoting. Returns false (and leaves the outputs untouched)
+/// when the positions are degenerate (a pivot below 1e-6): the caller falls back.
+HIVOX_HD inline bool interpolate_irregular(const Vec3f pos[8], const float value[8], const Vec3f& p,
+                                           float* f, Vec3f* gradient) {
+  float a[7][8];  // augmented rows: 7 coefficients (a1..a7) and the right-hand side
+  for (int i = 0; i < 7; ++i) {
+    const Vec3f q = pos[i + 1] - pos[0];
+    a[i][0] = q.x * q.y * q.z;
+    a[i][1] = q.x * q.y;
+    a[i][2] = q.y * q.z;
+    a[i][3] = q.x * q.z;
+    a[i][4] = q.x;
+    a[i][5] = q.y;
+    a[i][6] = q.z;
+    a[i][7] = value[i + 1] - value[0];
+  }
+  for (int c = 0; c < 7; ++c) {
+    int pivot = c;
+    for (int r = c + 1; r < 7; ++r)
+      if (fabsf(a[r][c]) > fabsf(a[pivot][c])) pivot = r;
+    if (fabsf(a[pivot][c]) < 1e-6f) return false;
+    if (pivot != c)
+      for (int k = 0; k < 8; ++k) {
+        const float t = a[c][k];
+        a[c][k] = a[pivot][k];
+        a[pivot][k] = t;
+      }
+    for (int r = c + 1; r < 7; ++r) {
+      const float m = a[r][c] / a[c][c];
+      for (int k = c; k < 8; ++k) a[r][k] -= m * a[c][k];
+    }
+  }
+  float x[7];
+  for (int r = 6; r >= 0; --r) {
+    float s = a[r][7];
+    for (int k = r + 1; k < 7; ++k) s -= a[r][k] * x[k];
+    x[r] = s / a[r][r];
+  }
+  const Vec3f q = p - pos[0];
+  *f = x[0] * q.x * q.y * q.z + x[1] * q.x * q.y + x[2] * q.y * q.z + x[3] * q.x * q.z +
+       x[4] * q.x + x[5] * q.y + x[6] * q.z + value[0];
+  gradient->x = x[0] * q.y * q.z + x[1] * q.y + x[3] * q.z + x[4];
+  gradient->y = x[0] * q.x * q.z + x[1] * q.x + x[2] * q.z + x[5];
+  gradient->z = x[0] * q.x * q.y + x[2] * q.y + x[3] * q.x + x[6];
+  return true;
+}
+
+/// Trilinear interpolation of 8 corner values (corner c = (c & 1, (c >> 1) & 1, c >> 2)) at
+/// fractional position t, with the gradient per voxel.
+HIVOX_HD inline float interpolate_trilinear(const float v[8], const Vec3f& t, Vec3f* gradient) {
+  const float x0 = v[0] + (v[1] - v[0]) * t.x, x1 = v[2] + (v[3] - v[2]) * t.x;
+  const float x2 = v[4] + (v[5] - v[4]) * t.x, x3 = v[6] + (v[7] - v[6]) * t.x;
+  const float y0 = x0 + (x1 - x0) * t.y, y1 = x2 + (x3 - x2) * t.y;
+  const float dx0 = v[1] - v[0], dx1 = v[3] - v[2], dx2 = v[5] - v[4], dx3 = v[7] - v[6];
+  const float dxy0 = dx0 + (dx1 - dx0) * t.y, dxy1 = dx2 + (dx3 - dx2) * t.y;
+  gradient->x = dxy0 + (dxy1 - dxy0) * t.z;
+  gradient->y = (x1 - x0) + ((x3 - x2) - (x1 - x0)) * t.z;
+  gradient->z = y1 - y0;
+  return y0 + (y1 - y0) * t.z;
+}
+
+/// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
+struct TsdfSample {
+  float f = 1.0f;
+  Vec3f gradient;  ///< dF / d(voxel) of the interpolant at the point
+  int32_t nearest_ptr = kPtrEmpty;
+  int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
+};
+
+/// The sample standing in for voxel `g` (integer coordinates of `level`) when its block is not
+/// stored at `level`: the level that stores the point is found from the coarsest down. A finer
+/// level has a voxel exactly there; a coarser one contributes its voxel nearest to the point (or,
+/// when that voxel's block lies elsewhere, the one at the point's floor in the block holding the
+/// point). `pos` receives the sample's position in voxel units of `level`.
+HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCache& cache, int level,
+                                             const Vec3i& g, int32_t* ptr, int* index, Vec3f* pos) {
+  const Vec3f p_w = to_float(g) * map.level[level].voxel_size_m;
+  int l2;
+  Vec3i b2;
+  const int32_t ptr2 = locate_block(map, cache, p_w, &l2, &b2);
+  if (ptr2 < 0 || l2 == level) return false;
+  if (l2 < level) {
+    const int f = 1 << (level - l2);
+    const Vec3i g2{g.x * f, g.y * f, g.z * f};
+    *ptr = cache.find(map, l2, block_of_voxel(g2));
+    if (*ptr < 0) return false;
+    *index = local_voxel_index(g2);
+    *pos = to_float(g);
+    return true;
+  }
+  const int f = 1 << (l2 - level);
+  Vec3i g2{floor_div(g.x + f / 2, f), floor_div(g.y + f / 2, f), floor_div(g.z + f / 2, f)};
+  *ptr = cache.find(map, l2, block_of_voxel(g2));
+  if (*ptr < 0) {
+    g2 = {floor_div(g.x, f), floor_div(g.y, f), floor_div(g.z, f)};
+    *ptr = ptr2;
+  }
+  *index = local_voxel_index(g2);
+  *pos = to_float(Vec3i{g2.x * f, g2.y * f, g2.z * f});
+  return true;
+}
+
+/// Interpolates the TSDF at `p_w` from the 8 voxels of `level` around it: trilinear when they
+/// are all stored at `level` (the common case, and the fast path when they share one block);
+/// where the cell reaches into a region stored at another level, the corners take that level's
+/// samples and the irregular-grid interpolant through their actual positions is used
+/// (trilinear on their values if the positions are degenerate). Fails (returns false) when a
+/// corner is not stored at any level or has fewer than `min_weight` observations: unknown space
+/// must never look like surface.
+HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
+                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
+                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
+                                      int32_t known_ptr = kPtrEmpty) {
+  const float inv_s = map.level[level].inv_voxel_size;
+  const Vec3f q = p_w * inv_s;
+  const Vec3i base = floor_to_int(q);
+  const Vec3f t = q - to_float(base);
+  float v[8];
+  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
+  const Vec3i block = block_of_voxel(base);
+  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
+    // Fast path (most samples): the 8 voxels lie in one block (often the caller's).
+    const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
+    if (ptr < 0) return false;
+    const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
+    const int i0 = voxel_index(local.x, local.y, local.z);
+    constexpr int kY = kBlockSide, kZ = kBlockSide * kBlockSide;
+    const int offsets[8] = {0, 1, kY, kY + 1, kZ, kZ + 1, kZ + kY, kZ + kY + 1};
+    int min_w = 65535;
+    for (int c = 0; c < 8; ++c) {
+      const TsdfVoxel vox = b[i0 + offsets[c]];
+      min_w = vox.weight < min_w ? vox.weight : min_w;
+      v[c] = tsdf_to_float(vox.tsdf);
+    }
+    if (min_w < min_weight) return false;
+    out->nearest_ptr = ptr;
+    out->nearest_index = i0 + offsets[nearest];
+    out->f = interpolate_trilinear(v, t, &out->gradient);
+    return true;
+  }
+  // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
+  const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
+  int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
+  for (int d = 0; d < 8; ++d) {
+    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+    blocks[d] = kPtrEmpty;
+    if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
+    blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
+  }
+  Vec3f pos[8];
+  bool regular = true;
+  for (int c = 0; c < 8; ++c) {
+    const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
+    const Vec3i g{base.x + ox, base.y + oy, base.z + oz};
+    int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
+    int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
+    pos[c] = to_float(g);
+    if (ptr < 0) {  // this corner's region is stored at another level (or nowhere)
+      Vec3f where;
+      if (!corner_from_other_level(map, cache, level, g, &ptr, &i, &where)) return false;
+      regular = regular && where == pos[c];
+      pos[c] = where;
+    }
+    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
+    if (vox.weight < min_weight) return false;
+    v[c] = tsdf_to_float(vox.tsdf);
+    if (c == nearest) {
+      out->nearest_ptr = ptr;
+      out->nearest_index = i;
+    }
+  }
+  if (!regular && interpolate_irregular(pos, v, q, &out->f, &out->gradient)) return true;
+  out->f = interpolate_trilinear(v, t, &out->gradient);
+  return true;
+}
+
+/// The TSDF at `p_w`, at whatever level stores it.
+HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
+                                 int min_weight, TsdfSample* out, int* level) {
+  Vec3i pos;
+  const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
+  if (ptr < 0) return false;
+  return sample_trilinear(map, cache, *level, p_w, min_weight, out);
+}
+
+}  // namespace hivox::kernels
