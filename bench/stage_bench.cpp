@@ -101,8 +101,12 @@ void raycast(benchmark::State& state, bool hinted) {
   state.counters["hits"] = static_cast<double>(s.hits);
   state.counters["blocks"] = static_cast<double>(w.map->blocks_in_use());
 }
-void BM_Raycast(benchmark::State& state) { raycast(state, false); }
-void BM_RaycastHinted(benchmark::State& state) { raycast(state, true); }
+void BM_Raycast(benchmark::State& state) {
+  raycast(state, false);
+}
+void BM_RaycastHinted(benchmark::State& state) {
+  raycast(state, true);
+}
 
 void BM_ExtractMesh(benchmark::State& state) {
   Workload& w = workload();

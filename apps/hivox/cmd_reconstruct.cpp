@@ -159,6 +159,11 @@ void run_reconstruct(ReconstructOptions options) {
                        fmt::format("hivox reconstruct {} (poses: {})", info.source, options.poses));
   const Pose last_pose = rec.trajectory().back().T_wc;
   write_renders(rec.render(info.depth_camera, last_pose), out, "");
+  // The whole model from above and behind the trajectory, with its refinement levels.
+  const PinholeCamera overview_camera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
+  float overview_depth = 0.0f;
+  const Pose overview = rec.overview_pose(overview_camera, &overview_depth);
+  write_renders(rec.render(overview_camera, overview, overview_depth), out, "overview_");
   Stopwatch mesh_watch;
   const TriangleMesh mesh = extract_mesh(rec.map(), options.mesh);
   write_ply(out / "mesh.ply", mesh);
@@ -187,8 +192,10 @@ void run_reconstruct(ReconstructOptions options) {
                static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
     fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
                mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
-    fmt::print("wrote {}/{{trajectory.txt, stats.json, depth/normals/shaded/color/levels.png}}\n",
-               out.string());
+    fmt::print(
+        "wrote {}/{{trajectory.txt, stats.json, "
+        "{{,overview_}}{{depth,normals,shaded,color,levels}}.png}}\n",
+        out.string());
   }
 }
 
@@ -261,8 +268,6 @@ struct DemoOptions {
 void add_demo_command(CLI::App& app) {
   auto options = std::make_shared<DemoOptions>();
   options->run.out = "out/demo";
-  options->run.params.map.voxel_size_m = 0.004f;
-  options->run.params.fusion.truncation_m = 0.016f;
   CLI::App* cmd = app.add_subcommand(
       "demo",
       "Reconstruct a built-in synthetic scene (no download): renders an office desk with a "

@@ -1,6 +1,7 @@
 #include "hivox/pipeline/reconstruction.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <fmt/format.h>
 
@@ -99,6 +100,42 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   trajectory_.push_back({frame.timestamp_s, T_wc});
   frames_.push_back(std::move(s));
   return frames_.back();
+}
+
+Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {
+  // Robust centre and extent of the model: the blocks' centres, trimmed of the farthest 5 %.
+  std::vector<Eigen::Vector3d> centres;
+  for (const BlockRef& b : map_->allocated_blocks()) {
+    const double s = map_->params().block_size_at(b.level);
+    centres.emplace_back((b.pos.x + 0.5) * s, (b.pos.y + 0.5) * s, (b.pos.z + 0.5) * s);
+  }
+  Eigen::Vector3d forward = Eigen::Vector3d::UnitZ(), up = -Eigen::Vector3d::UnitY();
+  if (!trajectory_.empty()) {
+    forward.setZero();
+    up.setZero();
+    for (const StampedPose& p : trajectory_) {
+      forward += p.T_wc.linear().col(2);
+      up -= p.T_wc.linear().col(1);
+    }
+    forward.normalize();
+    up.normalize();
+  }
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& c : centres) target += c;
+  if (!centres.empty()) target /= static_cast<double>(centres.size());
+  std::vector<double> dist;
+  for (const Eigen::Vector3d& c : centres) dist.push_back((c - target).norm());
+  double radius = 1.0;
+  if (!dist.empty()) {
+    std::nth_element(dist.begin(), dist.begin() + dist.size() * 95 / 100, dist.end());
+    radius = std::max(0.1, dist[dist.size() * 95 / 100]);
+  }
+  const double half_fov = std::atan(
+      0.5 * std::min(camera.width / std::abs(camera.fx), camera.height / std::abs(camera.fy)));
+  const double d = 1.15 * radius / std::sin(half_fov);
+  const Eigen::Vector3d eye = target - d * (forward - 0.6 * up).normalized();
+  if (max_depth_m != nullptr) *max_depth_m = static_cast<float>(d + 2.0 * radius);
+  return look_at(eye, target, up);
 }
 
 const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const Pose& T_wc,

@@ -11,11 +11,8 @@ namespace hivox {
 inline constexpr int kMaxLevels = 4;
 
 struct MapParams {
-  float voxel_size_m = 0.002f;  ///< finest voxel size s; level l has s * 2^l
-  /// Number of resolution levels, 1 (fixed grid) to kMaxLevels. The paper's default is 3; it
-  /// stays 1 until blocks can move between levels (split/merge), since without refinement
-  /// every block would stay at the coarsest level.
-  int levels = 1;
+  float voxel_size_m = 0.002f;   ///< finest voxel size s; level l has s * 2^l
+  int levels = 3;                ///< number of resolution levels, 1 (fixed grid) to kMaxLevels
   int64_t max_blocks = 1 << 20;  ///< voxel-block pool size shared by all levels (--max-blocks)
   int64_t buckets_per_level = 1 << 20;  ///< hash buckets per level (power of two)
   int64_t excess_per_level = 1 << 18;   ///< overflow (chain) entries per level

@@ -75,6 +75,11 @@ class Reconstruction {
   const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
                               float max_depth_m = 0.0f);
 
+  /// A viewpoint that shows the whole model: behind and above the trajectory (along the cameras'
+  /// mean viewing direction and image "up"), looking at the centre of the allocated blocks, far
+  /// enough back for `camera` to see them all. `max_depth_m` receives the depth to render to.
+  Pose overview_pose(const PinholeCamera& camera, float* max_depth_m) const;
+
   const std::vector<FrameStats>& frame_stats() const { return frames_; }
   const std::vector<StampedPose>& trajectory() const { return trajectory_; }
   int64_t peak_blocks() const { return peak_blocks_; }
