@@ -67,7 +67,9 @@ int main(int argc, char** argv) try {
   base.map.voxel_size_m = voxel;
   base.fusion.truncation_m = mu;
   base.raycast_every_frame = false;
-  base.map.max_blocks = 1 << 21;
+  base.map.max_blocks = 1 << 22;
+  base.map.buckets_per_level = 1 << 22;
+  base.map.excess_per_level = 1 << 21;
   ReconstructionParams fine = base, adaptive = base, coarse = base;
   fine.map.levels = 1;
   adaptive.map.levels = levels;

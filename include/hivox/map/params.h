@@ -15,7 +15,7 @@ struct MapParams {
   int levels = 3;                ///< number of resolution levels, 1 (fixed grid) to kMaxLevels
   int64_t max_blocks = 1 << 20;  ///< voxel-block pool size shared by all levels (--max-blocks)
   int64_t buckets_per_level = 1 << 20;  ///< hash buckets per level (power of two)
-  int64_t excess_per_level = 1 << 18;   ///< overflow (chain) entries per level
+  int64_t excess_per_level = 1 << 20;   ///< overflow (chain) entries per level
   bool store_color = true;              ///< keep a 4-byte colour per voxel
 
   float voxel_size_at(int level) const { return voxel_size_m * static_cast<float>(1 << level); }
