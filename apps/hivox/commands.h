@@ -19,4 +19,7 @@ void add_demo_command(CLI::App& app);
 /// `hivox synth`: renders a built-in synthetic scene and writes it as a TUM RGB-D sequence.
 void add_synth_command(CLI::App& app);
 
+/// `hivox eval ate --gt FILE --est FILE`: trajectory accuracy against ground truth (cmd_eval.cpp).
+void add_eval_command(CLI::App& app);
+
 }  // namespace hivox::cli

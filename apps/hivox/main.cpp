@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   hivox::cli::add_reconstruct_command(app);
   hivox::cli::add_demo_command(app);
   hivox::cli::add_synth_command(app);
+  hivox::cli::add_eval_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
