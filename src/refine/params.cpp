@@ -36,14 +36,26 @@ RefineParams RefineParams::paper() {
   return p;
 }
 
-float RefineParams::split_level(float z_m) const {
+namespace {
+// sqrt(settled / observed), at least 1: fused noise shrinks with the observations.
+float young_factor(float settled_weight, float mean_weight) {
+  return mean_weight >= settled_weight || mean_weight <= 0.0f
+             ? 1.0f
+             : std::sqrt(settled_weight / mean_weight);
+}
+}  // namespace
+
+float RefineParams::split_level(float z_m, float mean_weight) const {
   if (criterion != RefineCriterion::Detail) return split_threshold;
-  const float n = split_noise_factor * noise.sigma_m(z_m);
+  const float n =
+      split_noise_factor * noise.sigma_m(z_m) * young_factor(settled_weight, mean_weight);
   return n > split_threshold ? n : split_threshold;
 }
 
-float RefineParams::merge_level(float z_m) const {
+float RefineParams::merge_level(float z_m, float mean_weight) const {
   if (criterion != RefineCriterion::Detail) return merge_threshold;
+  // Merging needs no extra caution for young blocks: noise makes them look complex, not simple.
+  (void)mean_weight;
   const float n = merge_noise_factor * noise.sigma_m(z_m);
   return n > merge_threshold ? n : merge_threshold;
 }
@@ -60,6 +72,10 @@ void RefineParams::validate() const {
     fail(ErrorCode::InvalidArgument, "refine every_n_frames must be >= 1, got {}", every_n_frames);
   if (min_weight < 1 || min_weight > 65535)
     fail(ErrorCode::InvalidArgument, "refine min_weight must be in [1, 65535], got {}", min_weight);
+  if (!(settled_weight >= 1.0f))
+    fail(ErrorCode::InvalidArgument, "refine settled_weight must be >= 1, got {}", settled_weight);
+  if (min_samples < 1)
+    fail(ErrorCode::InvalidArgument, "refine min_samples must be >= 1, got {}", min_samples);
   if (min_updates < 0 || min_updates > 65535)
     fail(ErrorCode::InvalidArgument, "refine min_updates must be in [0, 65535], got {}",
          min_updates);

@@ -14,9 +14,11 @@ namespace hivox::kernels {
 /// odd coordinate along axis e (what subsampling to the coarser level loses), counting only
 /// voxels near the surface (|F(v)| < 0.75) whose three voxels are observed `min_weight` times and
 /// not saturated (|F| < 0.98: the clamp at +-1 would look like detail). Returns -1 when fewer
-/// than 16 such samples exist (too little surface to judge).
-HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_weight) {
-  float sum = 0.0f;
+/// than `min_samples` such samples exist (too little surface to judge).
+/// `mean_weight` (optional) receives the mean observation count of the sampled voxels.
+HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_weight,
+                                     int min_samples, float* mean_weight = nullptr) {
+  float sum = 0.0f, weights = 0.0f;
   int n = 0;
   for (int axis = 0; axis < 3; ++axis) {
     const int stride = axis == 0 ? 1 : (axis == 1 ? kBlockSide : kBlockSide * kBlockSide);
@@ -31,10 +33,12 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
       if (fabsf(fm) >= 0.75f || fabsf(fa) >= 0.98f || fabsf(fb) >= 0.98f) continue;
       const float d = fm - 0.5f * (fa + fb);
       sum += d * d;
+      weights += static_cast<float>(m.weight);
       ++n;
     }
   }
-  if (n < 16) return -1.0f;
+  if (mean_weight != nullptr) *mean_weight = n > 0 ? weights / static_cast<float>(n) : 0.0f;
+  if (n < min_samples || n == 0) return -1.0f;
   return sqrtf(sum / static_cast<float>(n)) * mu_m;
 }
 

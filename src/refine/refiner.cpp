@@ -211,11 +211,13 @@ Refiner::Refiner(const RefineParams& params) : params_(params) {
   params_.validate();
 }
 
-float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m) const {
+float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m,
+                          float* mean_weight) const {
   const TsdfVoxel* v = map.block_tsdf(ptr);
   switch (params_.criterion) {
     case RefineCriterion::Detail:
-      return kernels::block_detail_m(v, truncation_m, params_.min_weight);
+      return kernels::block_detail_m(v, truncation_m, params_.min_weight, params_.min_samples,
+                                     mean_weight);
     case RefineCriterion::DetCov:
       return kernels::block_det_cov(v, params_.min_weight);
   }
@@ -238,15 +240,17 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
   };
 
   // Split candidates: settled blocks above the finest level with complex surface.
-  std::vector<float> c(candidates.size(), -1.0f);
+  std::vector<float> c(candidates.size(), -1.0f), w(candidates.size(), 0.0f);
   parallel_for(static_cast<int64_t>(candidates.size()), [&](int64_t i) {
     const BlockRef& b = candidates[static_cast<std::size_t>(i)];
-    if (b.ptr >= 0 && b.level > 0 && settled(b.ptr)) c[i] = complexity(map, b.ptr, truncation_m);
+    if (b.ptr >= 0 && b.level > 0 && settled(b.ptr))
+      c[i] = complexity(map, b.ptr, truncation_m, &w[i]);
   });
   std::vector<BlockRef> splits;
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     const BlockRef& b = candidates[i];
-    if (b.level > 0 && c[i] > params_.split_level(depth_of(b.pos, b.level))) splits.push_back(b);
+    if (b.level > 0 && c[i] > params_.split_level(depth_of(b.pos, b.level), w[i]))
+      splits.push_back(b);
   }
   stats.evaluated = static_cast<int64_t>(candidates.size());
 

@@ -52,7 +52,8 @@ class Refiner {
 
   /// Complexity of pool block `ptr` under the configured criterion (-1: too little observed
   /// surface to judge).
-  float complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m) const;
+  float complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m,
+                   float* mean_weight = nullptr) const;
 
  private:
   RefineParams params_;
