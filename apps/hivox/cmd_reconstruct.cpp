@@ -19,6 +19,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/parallel.h"
 #include "hivox/core/timer.h"
+#include "hivox/eval/trajectory_eval.h"
 #include "hivox/io/image_io.h"
 #include "hivox/io/ply.h"
 #include "hivox/io/stats_json.h"
@@ -36,7 +37,8 @@ namespace fs = std::filesystem;
 struct ReconstructOptions {
   DatasetOptions data;
   std::string refine_criterion = "detail";
-  std::string poses = "gt";
+  std::string icp_loss = "huber";
+  std::string poses = "icp";
   std::string out;
   ReconstructionParams params;
   MeshParams mesh;
@@ -84,6 +86,7 @@ std::string default_out_dir(const std::string& dataset) {
 void run_reconstruct(ReconstructOptions options) {
   if (options.threads > 0) set_thread_count(options.threads);
   options.params.refine.criterion = parse_refine_criterion(options.refine_criterion);
+  options.params.track.loss = parse_robust_loss(options.icp_loss);
   if (options.no_color) {
     options.params.map.store_color = false;
     options.params.fusion.integrate_color = false;
@@ -96,8 +99,13 @@ void run_reconstruct(ReconstructOptions options) {
   const std::unique_ptr<DatasetReader> reader = open_dataset(options.data);
   const DatasetInfo& info = reader->info();
   for (const std::string& w : info.warnings) log::warn("{}", w);
+  const bool tracking = options.poses == "icp";
   std::unique_ptr<PoseFile> pose_file;
-  if (options.poses != "gt")
+  if (tracking) {
+    if (!options.params.raycast_every_frame)
+      fail(ErrorCode::InvalidArgument,
+           "--no-raycast: tracking (--poses icp) needs the per-frame raycast of the model");
+  } else if (options.poses != "gt")
     pose_file = std::make_unique<PoseFile>(options.poses);
   else if (!info.has_ground_truth)
     fail(ErrorCode::InvalidArgument,
@@ -123,12 +131,42 @@ void run_reconstruct(ReconstructOptions options) {
 
   Reconstruction rec(options.params, info);
   const bool tty = isatty(fileno(stdout)) != 0;
-  std::size_t skipped = 0;
   Stopwatch wall;
+  int64_t lost = 0;
+  // Per-frame renders and the progress line.
+  auto progress = [&](std::size_t i, const FrameStats& s, const Pose& T_wc) {
+    if (!s.fused) ++lost;
+    if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
+      write_renders(rec.render(info.depth_camera, T_wc), out, fmt::format("frame{:06d}_", i));
+    if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
+      const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
+      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "",
+                 i + 1, total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"),
+                 rec.map().dropped_blocks(),
+                 tracking ? fmt::format("  lost {}", lost) : std::string(), tty ? "   " : "\n");
+      std::fflush(stdout);
+    }
+  };
+  std::size_t skipped = 0;
+  std::vector<StampedPose> ground_truth;
   for (std::size_t i = 0; i < total; ++i) {
     Stopwatch read_watch;
     RgbdFrame frame = reader->read(i);
     const double read_ms = read_watch.elapsed_ms();
+    if (frame.T_wc_gt) ground_truth.push_back({frame.timestamp_s, *frame.T_wc_gt});
+    if (tracking) {
+      // The first frame fixes the world frame: at its true pose when known (so that renders and
+      // meshes line up with the ground truth), else at the origin.
+      const FrameStats& s =
+          rec.track_and_integrate(frame, read_ms, frame.T_wc_gt.value_or(Pose::Identity()));
+      if (s.tracking == TrackingQuality::Lost)
+        log::warn(
+            "frame {} (t = {:.6f} s): tracking lost (inliers {:.0f} %, residual {:.1f} mm); "
+            "not fused, previous pose kept",
+            i, frame.timestamp_s, 100.0 * s.track_inlier_ratio, 1000.0 * s.track_rms_m);
+      progress(i, s, rec.trajectory().back().T_wc);
+      continue;
+    }
     const std::optional<Pose> T_wc = pose_file ? pose_file->at(frame.timestamp_s) : frame.T_wc_gt;
     if (!T_wc) {
       ++skipped;
@@ -138,16 +176,7 @@ void run_reconstruct(ReconstructOptions options) {
                      i, frame.timestamp_s);
       continue;
     }
-    const FrameStats& s = rec.integrate(frame, *T_wc, read_ms);
-    if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
-      write_renders(rec.render(info.depth_camera, *T_wc), out, fmt::format("frame{:06d}_", i));
-    if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
-      const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
-      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}", tty ? "\r" : "", i + 1,
-                 total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"),
-                 rec.map().dropped_blocks(), tty ? "   " : "\n");
-      std::fflush(stdout);
-    }
+    progress(i, rec.integrate(frame, *T_wc, read_ms), *T_wc);
   }
   const double wall_s = wall.elapsed_ms() / 1e3;
   if (!options.quiet && tty) fmt::print("\n");
@@ -175,6 +204,11 @@ void run_reconstruct(ReconstructOptions options) {
   run.threads = thread_count();
   run.parameters = params_text;
   run.skipped_frames = static_cast<int64_t>(skipped);
+  std::optional<AteResult> ate;
+  if (ground_truth.size() >= 3 && options.poses != "gt") {
+    ate = evaluate_ate(ground_truth, rec.trajectory());
+    run.ate_rmse_m = ate->rmse_m;
+  }
   write_stats_json(out / "stats.json", rec, run);
 
   if (!options.quiet) {
@@ -190,6 +224,19 @@ void run_reconstruct(ReconstructOptions options) {
                rec.map().blocks_in_use(), rec.peak_blocks(),
                fmt::join(rec.map().blocks_per_level(), "/"), rec.map().dropped_blocks(),
                static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
+    if (tracking) {
+      int64_t good = 0, poor = 0;
+      for (const FrameStats& f : frames) {
+        good += f.tracking == TrackingQuality::Good;
+        poor += f.tracking == TrackingQuality::Poor;
+      }
+      fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", good, poor, lost);
+    }
+    if (ate)
+      fmt::print(
+          "trajectory error (ATE, {} poses aligned to the ground truth): RMSE {:.2f} cm, "
+          "mean {:.2f} cm, max {:.2f} cm\n",
+          ate->matched, 100.0 * ate->rmse_m, 100.0 * ate->mean_m, 100.0 * ate->max_m);
     fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
                mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
     fmt::print(
@@ -202,8 +249,8 @@ void run_reconstruct(ReconstructOptions options) {
 void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   auto& p = o.params;
   cmd->add_option("--poses", o.poses,
-                  "where camera poses come from: 'gt' (the dataset's ground truth) or a TUM "
-                  "trajectory file (camera-to-world)")
+                  "where camera poses come from: 'icp' (tracking against the model), 'gt' (the "
+                  "dataset's ground truth) or a TUM trajectory file (camera-to-world)")
       ->capture_default_str();
   cmd->add_option("--levels", p.map.levels, "resolution levels (1 = fixed grid)")
       ->capture_default_str();
@@ -243,6 +290,15 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_option("--refine-min-updates", p.refine.min_updates,
                   "frames a block must have been fused since it changed before it is judged")
       ->capture_default_str();
+  cmd->add_option("--icp-loss", o.icp_loss,
+                  "robust weighting of ICP residuals: none, huber or tukey")
+      ->capture_default_str();
+  cmd->add_option("--icp-iterations", p.track.iterations,
+                  "ICP iterations per pyramid level, finest first (the count sets the levels)")
+      ->capture_default_str()
+      ->delimiter(',');
+  cmd->add_flag("!--no-motion-prior", p.track.constant_velocity,
+                "start ICP at the previous pose instead of extrapolating the last motion");
   cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");
   cmd->add_flag("!--no-raycast", p.raycast_every_frame,
                 "skip the per-frame raycast (renders are still made at the end)");
@@ -271,8 +327,9 @@ void add_demo_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "demo",
       "Reconstruct a built-in synthetic scene (no download): renders an office desk with a "
-      "Kinect-like noise model along a camera path and runs `hivox reconstruct` on it with the "
-      "true poses. Writes mesh.ply, renders, trajectory.txt and stats.json to --out.");
+      "Kinect-like noise model along a camera path and runs `hivox reconstruct` on it, tracking "
+      "the camera by ICP from the first pose and reporting the trajectory error. Writes mesh.ply, "
+      "renders, trajectory.txt and stats.json to --out.");
   cmd->add_option("--scene", options->scene,
                   "built-in scene (room, desk, box, spheres, keyboard, blob)")
       ->capture_default_str();

@@ -35,6 +35,12 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
                          {"refine_waiting", f.refine_waiting},
                          {"valid_pixels", f.valid_pixels},
                          {"raycast_hits", f.raycast_hits},
+                         {"tracking", std::string(to_string(f.tracking))},
+                         {"fused", f.fused},
+                         {"track_inlier_ratio", f.track_inlier_ratio},
+                         {"track_rms_m", f.track_rms_m},
+                         {"track_condition", f.track_condition},
+                         {"track_iterations", f.track_iterations},
                          {"timing_ms",
                           {{"read", f.read_ms},
                            {"track", f.track_ms},
@@ -72,6 +78,12 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
     splits += f.splits;
     merges += f.merges;
   }
+  int64_t good = 0, poor = 0, lost = 0;
+  for (const FrameStats& f : frames)
+    (f.tracking == TrackingQuality::Lost ? lost
+                                         : (f.tracking == TrackingQuality::Poor ? poor : good))++;
+  j["tracking"] = {{"good", good}, {"poor", poor}, {"lost", lost}};
+  if (run.ate_rmse_m) j["ate_rmse_m"] = *run.ate_rmse_m;
   j["splits"] = splits;
   j["merges"] = merges;
   if (map.params().levels > 1) j["refine"] = rec.params().refine.to_string();

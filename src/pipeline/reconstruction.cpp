@@ -20,6 +20,13 @@ RaycastParams raycast_params_for(const ReconstructionParams& p) {
   return r;
 }
 
+TrackParams track_params_for(const ReconstructionParams& p) {
+  TrackParams t = p.track;
+  t.min_depth_m = p.fusion.min_depth_m > 0.0f ? p.fusion.min_depth_m : t.min_depth_m;
+  t.max_depth_m = p.fusion.max_depth_m;
+  return t;
+}
+
 }  // namespace
 
 void ReconstructionParams::validate() const {
@@ -27,13 +34,15 @@ void ReconstructionParams::validate() const {
   fusion.validate();
   refine.validate();
   raycast_params_for(*this).validate();
+  track_params_for(*this).validate();
 }
 
 std::string ReconstructionParams::to_string() const {
-  return fmt::format("map: {}\nfusion: {}\n{}raycast: {}{}", map.to_string(), fusion.to_string(),
+  return fmt::format("map: {}\nfusion: {}\n{}raycast: {}{}\ntrack: {}", map.to_string(),
+                     fusion.to_string(),
                      map.levels > 1 ? "refine: " + refine.to_string() + "\n" : std::string(),
                      raycast_params_for(*this).to_string(),
-                     raycast_every_frame ? " (every frame)" : " (renders only)");
+                     raycast_every_frame ? " (every frame)" : " (renders only)", track.to_string());
 }
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const DatasetInfo& info)
@@ -41,7 +50,8 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const Dataset
       info_(info),
       integrator_(params.fusion),
       refiner_(params.refine),
-      raycaster_(raycast_params_for(params)) {
+      raycaster_(raycast_params_for(params)),
+      tracker_(track_params_for(params)) {
   params_.validate();
   params_.fusion.check_against(params_.map);
   info_.depth_camera.validate("depth camera");
@@ -51,10 +61,65 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const Dataset
 const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc,
                                             double read_ms) {
   FrameStats s;
-  s.index = frame.index;
-  s.timestamp_s = frame.timestamp_s;
   s.read_ms = read_ms;
   Stopwatch total;
+  fuse(frame, T_wc, s);
+  s.total_ms = total.elapsed_ms();
+  trajectory_.push_back({frame.timestamp_s, T_wc});
+  frames_.push_back(std::move(s));
+  return frames_.back();
+}
+
+const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, double read_ms,
+                                                      const Pose& T_wc_first) {
+  if (trajectory_.empty()) {
+    last_track_ = TrackResult{};
+    last_track_.T_wc = T_wc_first;
+    last_track_.quality = TrackingQuality::Good;
+    motion_ = Pose::Identity();
+    return integrate(frame, T_wc_first, read_ms);
+  }
+  FrameStats s;
+  s.read_ms = read_ms;
+  Stopwatch total;
+  const Pose& T_prev = trajectory_.back().T_wc;
+  // Track against the model seen from the previous pose (raycast now if it was not).
+  const RaycastResult& model = raycaster_.result();
+  if (model.depth_m.empty() || !model.T_wc.isApprox(T_prev) ||
+      model.camera.width != info_.depth_camera.width) {
+    raycaster_.raycast(*map_, info_.depth_camera, T_prev);
+  }
+  const Pose T_init = params_.track.constant_velocity ? Pose(T_prev * motion_) : T_prev;
+  last_track_ = tracker_.track(frame.depth_m, info_.depth_camera, raycaster_.result(), T_init);
+  s.track_ms = total.elapsed_ms();
+  s.tracking = last_track_.quality;
+  s.track_inlier_ratio = last_track_.inlier_ratio;
+  s.track_rms_m = last_track_.rms_m;
+  s.track_condition = last_track_.condition;
+  s.track_iterations = last_track_.iterations;
+  Pose T_wc = T_prev;
+  if (last_track_.quality == TrackingQuality::Lost) {
+    s.fused = false;
+    s.index = frame.index;
+    s.timestamp_s = frame.timestamp_s;
+    s.valid_pixels = last_track_.valid_pixels;
+    s.blocks_total = map_->blocks_in_use();
+    s.blocks_per_level = map_->blocks_per_level();
+    motion_ = Pose::Identity();
+  } else {
+    T_wc = last_track_.T_wc;
+    motion_ = T_prev.inverse() * T_wc;
+    fuse(frame, T_wc, s);
+  }
+  s.total_ms = total.elapsed_ms();
+  trajectory_.push_back({frame.timestamp_s, T_wc});
+  frames_.push_back(std::move(s));
+  return frames_.back();
+}
+
+void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s) {
+  s.index = frame.index;
+  s.timestamp_s = frame.timestamp_s;
   Stopwatch stage;
 
   FusionInput in;
@@ -93,13 +158,9 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
   }
-  s.total_ms = total.elapsed_ms();
   s.blocks_total = map_->blocks_in_use();
   s.blocks_per_level = map_->blocks_per_level();
   peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
-  trajectory_.push_back({frame.timestamp_s, T_wc});
-  frames_.push_back(std::move(s));
-  return frames_.back();
 }
 
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {

@@ -59,9 +59,9 @@ void expect_complete_stats(const nlohmann::json& s, std::size_t frames, int leve
 TEST(Reconstruct, SyntheticSequenceEndToEnd) {
   test::TempDir out;
   const std::string spec = "synthetic:box?frames=12&width=160&height=120&noise=none";
-  const auto r =
-      run_hivox("reconstruct '" + spec + "' --levels 1 --voxel-size 0.01 --truncation 0.04 --out " +
-                out.path().string());
+  const auto r = run_hivox("reconstruct '" + spec +
+                           "' --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --out " +
+                           out.path().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("map: voxel 10.0 mm"), std::string::npos) << "effective parameters";
   EXPECT_NE(r.output.find("frame 12/12"), std::string::npos) << "progress line";
@@ -80,6 +80,36 @@ TEST(Reconstruct, SyntheticSequenceEndToEnd) {
     const ColorImage img = read_color(out / png);
     EXPECT_EQ(img.width(), 160) << png;
   }
+}
+
+// The default: poses by ICP from the first ground-truth pose; ATE printed and in stats.json.
+TEST(Reconstruct, TracksByDefault) {
+  test::TempDir out;
+  const std::string spec = "synthetic:desk?frames=40&width=320&height=240&noise=kinect";
+  const auto r =
+      run_hivox("reconstruct '" + spec +
+                "' --levels 1 --voxel-size 0.008 --truncation 0.032 --out " + out.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("trajectory error (ATE"), std::string::npos) << r.output;
+  const nlohmann::json s = read_json(out / "stats.json");
+  expect_complete_stats(s, 40, 1);
+  ASSERT_TRUE(s.contains("tracking") && s.contains("ate_rmse_m")) << s.dump();
+  EXPECT_EQ(s["tracking"]["lost"].get<int>(), 0);
+  EXPECT_EQ(s["tracking"]["good"].get<int>() + s["tracking"]["poor"].get<int>(), 40);
+  EXPECT_LE(s["ate_rmse_m"].get<double>(), 0.01);
+  EXPECT_GT(s["ate_rmse_m"].get<double>(), 0.0) << "noisy depth: not exactly the truth";
+  for (const auto& f : s["per_frame"]) {
+    ASSERT_TRUE(f.contains("tracking")) << f.dump();
+    EXPECT_TRUE(f["fused"].get<bool>());
+  }
+  // The trajectory is the estimate, close to (not equal to) the truth.
+  SyntheticDataset truth(parse_synthetic_spec(spec));
+  const auto poses = read_tum_trajectory(out / "trajectory.txt");
+  ASSERT_EQ(poses.size(), 40u);
+  EXPECT_TRUE(poses[0].T_wc.isApprox(*truth.read(0).T_wc_gt, 1e-6)) << "starts at the truth";
+  for (std::size_t i = 1; i < poses.size(); ++i)
+    EXPECT_LE((poses[i].T_wc.translation() - truth.read(i).T_wc_gt->translation()).norm(), 0.03)
+        << "pose " << i;
 }
 
 TEST(Reconstruct, RealDataTwentyFrames) {

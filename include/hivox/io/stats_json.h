@@ -3,6 +3,7 @@
 /// `stats.json` of a reconstruction run: what was done, how fast, how big.
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "hivox/pipeline/reconstruction.h"
@@ -15,14 +16,16 @@ struct RunInfo {
   std::string pose_source;  ///< "gt", a file name, "icp"
   double wall_s = 0;        ///< the whole loop, reading included
   int threads = 0;
-  std::string parameters;      ///< effective parameters, as printed at start
-  int64_t skipped_frames = 0;  ///< frames not integrated (e.g. without a pose)
+  std::string parameters;            ///< effective parameters, as printed at start
+  int64_t skipped_frames = 0;        ///< frames not integrated (e.g. without a pose)
+  std::optional<double> ate_rmse_m;  ///< trajectory error against ground truth, when known
 };
 
 /// Writes `stats.json` with: frames, fps (processing, reading excluded), fps_wall (everything),
 /// timing_ms (mean per stage: read, track, allocate, integrate, refine, raycast, total),
 /// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
-/// bytes_per_voxel, memory_bytes, and per_frame (block counts per level and stage times).
+/// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known), and
+/// per_frame (block counts per level, stage times, tracking quality and ICP numbers).
 void write_stats_json(const std::filesystem::path& path, const Reconstruction& reconstruction,
                       const RunInfo& run);
 

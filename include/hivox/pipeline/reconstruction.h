@@ -16,6 +16,7 @@
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
+#include "hivox/track/tracker.h"
 
 namespace hivox {
 
@@ -24,6 +25,7 @@ struct ReconstructionParams {
   FusionParams fusion;
   RefineParams refine;  ///< used when map.levels > 1
   RaycastParams raycast;
+  TrackParams track;  ///< used by track_and_integrate; its depth range follows the fusion's
   /// Raycast the model from each frame's pose after integrating it (tracking needs it; with
   /// given poses it only feeds renders and can be switched off for speed).
   bool raycast_every_frame = true;
@@ -54,6 +56,13 @@ struct FrameStats {
   int64_t merges = 0;
   int64_t refine_waiting = 0;  ///< splits/merges postponed for lack of room
   int64_t raycast_hits = 0;
+  /// Tracking (frames from track_and_integrate; others are Good with no ICP numbers).
+  TrackingQuality tracking = TrackingQuality::Good;
+  bool fused = true;  ///< false for a lost frame: not integrated, previous pose kept
+  double track_inlier_ratio = 0;
+  double track_rms_m = 0;
+  double track_condition = 0;
+  int track_iterations = 0;
 };
 
 class Reconstruction {
@@ -66,6 +75,15 @@ class Reconstruction {
 
   /// Fuses `frame` at camera-to-world pose `T_wc`. `read_ms` is recorded in the statistics.
   const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc, double read_ms = 0.0);
+
+  /// The online loop: estimates the pose of `frame` by ICP against the raycast of the model
+  /// from the previous pose, then fuses it there (allocate, integrate, refine, raycast). The
+  /// first frame is fused at `T_wc_first`. A frame whose tracking is lost is not fused and keeps
+  /// the previous pose (the motion prior restarts).
+  const FrameStats& track_and_integrate(const RgbdFrame& frame, double read_ms = 0.0,
+                                        const Pose& T_wc_first = Pose::Identity());
+  /// Outcome of the last tracked frame's ICP.
+  const TrackResult& last_track() const { return last_track_; }
 
   const VoxelBlockMap& map() const { return *map_; }
   VoxelBlockMap& map() { return *map_; }
@@ -92,6 +110,11 @@ class Reconstruction {
   Refiner refiner_;
   Raycaster raycaster_;
   RaycastResult render_result_;
+  void fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s);
+
+  Tracker tracker_;
+  TrackResult last_track_;
+  Pose motion_ = Pose::Identity();  ///< last frame-to-frame motion (camera frame), for the prior
   std::vector<FrameStats> frames_;
   std::vector<StampedPose> trajectory_;
   int64_t peak_blocks_ = 0;

@@ -1,0 +1,58 @@
+#pragma once
+/// @file
+/// Frame-to-model camera tracking (DESIGN §6): point-to-plane ICP of a depth frame against the
+/// raycast of the model, coarse to fine, with robust weights and a per-frame quality verdict.
+
+#include <cstdint>
+#include <vector>
+
+#include "hivox/core/camera.h"
+#include "hivox/core/image.h"
+#include "hivox/core/pose.h"
+#include "hivox/raycast/raycaster.h"
+#include "hivox/track/params.h"
+#include "hivox/track/preprocess.h"
+
+namespace hivox {
+
+struct TrackResult {
+  Pose T_wc = Pose::Identity();  ///< estimated camera-to-world pose (the start pose when lost)
+  TrackingQuality quality = TrackingQuality::Lost;
+  int64_t valid_pixels = 0;  ///< finest-level pixels with a point and a normal
+  int64_t inliers = 0;       ///< finest-level pixels matched to the model in the last iteration
+  double inlier_ratio = 0;   ///< inliers / valid_pixels
+  double rms_m = 0;          ///< RMS point-to-plane residual of the inliers
+  double condition = 0;      ///< smallest / largest eigenvalue of the normalised system (0..1)
+  int iterations = 0;        ///< Gauss-Newton iterations run, all levels
+  double preprocess_ms = 0;
+  double icp_ms = 0;
+};
+
+class Tracker {
+ public:
+  explicit Tracker(const TrackParams& params = {});
+  const TrackParams& params() const { return params_; }
+
+  /// Aligns the depth frame to `model` (a raycast of the map, points and normals in world
+  /// coordinates, from the model's own pose and camera) starting at `T_wc_init`. The depth
+  /// camera may differ in resolution from the model's.
+  TrackResult track(const DepthImage& depth_m, const PinholeCamera& camera,
+                    const RaycastResult& model, const Pose& T_wc_init);
+
+  /// The frame pyramid of the last call (finest first), e.g. for inspection.
+  const std::vector<PyramidLevel>& pyramid() const { return frame_; }
+
+ private:
+  struct ModelLevel {
+    PinholeCamera camera;
+    Image<Vec3f> points_w, normals_w;  ///< zero normal where the model has no surface
+    DepthImage depth_m;
+  };
+  void build_model_pyramid(const RaycastResult& model);
+
+  TrackParams params_;
+  std::vector<PyramidLevel> frame_;
+  std::vector<ModelLevel> model_;
+};
+
+}  // namespace hivox

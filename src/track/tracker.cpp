@@ -1,0 +1,235 @@
+#include "hivox/track/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "hivox/core/parallel.h"
+#include "hivox/core/timer.h"
+#include "track_kernels.h"
+
+namespace hivox {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+/// Sums of one Gauss-Newton pass: the normal equations and residual statistics.
+struct Normals {
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
+  double distance = 0;  ///< sum of the inliers' distances from the camera centre
+  int64_t inliers = 0;
+  Normals& operator+=(const Normals& o) {
+    A += o.A;
+    b += o.b;
+    r2 += o.r2;
+    distance += o.distance;
+    inliers += o.inliers;
+    return *this;
+  }
+};
+
+/// Pose after the world-frame motion (t, w) of the camera about its centre c:
+/// p -> R(w) (p - c) + c + t.
+Pose apply_increment(const Pose& T, const Eigen::Matrix<double, 6, 1>& x) {
+  const Eigen::Vector3d t = x.head<3>(), w = x.tail<3>();
+  const double angle = w.norm();
+  const Eigen::Matrix3d R = angle > 0.0 ? Eigen::AngleAxisd(angle, w / angle).toRotationMatrix()
+                                        : Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d c = T.translation();
+  Pose inc = Pose::Identity();
+  inc.linear() = R;
+  inc.translation() = c + t - R * c;
+  Pose out = inc * T;
+  // Keep the rotation orthonormal over many small updates.
+  out.linear() = Eigen::Quaterniond(out.linear()).normalized().toRotationMatrix();
+  return out;
+}
+
+double rotation_deg(const Eigen::Matrix3d& R) {
+  return Eigen::AngleAxisd(R).angle() * 180.0 / 3.14159265358979;
+}
+
+}  // namespace
+
+Tracker::Tracker(const TrackParams& params) : params_(params) {
+  params_.validate();
+}
+
+void Tracker::build_model_pyramid(const RaycastResult& model) {
+  model_.resize(static_cast<std::size_t>(params_.levels()));
+  ModelLevel& finest = model_[0];
+  finest.camera = model.camera;
+  finest.points_w = model.points_w;
+  finest.normals_w.resize(model.camera.width, model.camera.height);
+  finest.depth_m = model.depth_m;
+  for (int y = 0; y < model.camera.height; ++y)
+    for (int x = 0; x < model.camera.width; ++x)
+      finest.normals_w(x, y) = model.hit(x, y) ? model.normals_w(x, y) : Vec3f{0, 0, 0};
+  for (std::size_t l = 1; l < model_.size(); ++l) {
+    const ModelLevel& in = model_[l - 1];
+    ModelLevel& out = model_[l];
+    const int w = in.depth_m.width() / 2, h = in.depth_m.height() / 2;
+    out.camera = in.camera.scaled(0.5f);
+    out.camera.width = w;
+    out.camera.height = h;
+    out.points_w.resize(w, h);
+    out.normals_w.resize(w, h);
+    out.depth_m.resize(w, h);
+    parallel_for(h, [&](int64_t yy) {
+      const int y = static_cast<int>(yy);
+      for (int x = 0; x < w; ++x) {
+        Vec3f p{0, 0, 0}, n{0, 0, 0};
+        float first = 0.0f, d = 0.0f;
+        int count = 0;
+        for (int k = 0; k < 4; ++k) {
+          const int xs = 2 * x + (k & 1), ys = 2 * y + (k >> 1);
+          const float dk = in.depth_m(xs, ys);
+          if (dk <= 0.0f || kernels::is_zero(in.normals_w(xs, ys))) continue;
+          if (count == 0) first = dk;
+          if (!kernels::same_surface(first, dk, params_.max_depth_jump_ratio)) continue;
+          p += in.points_w(xs, ys);
+          n += in.normals_w(xs, ys);
+          d += dk;
+          ++count;
+        }
+        out.points_w(x, y) = count > 0 ? p / static_cast<float>(count) : Vec3f{0, 0, 0};
+        out.normals_w(x, y) = count > 0 ? normalized(n) : Vec3f{0, 0, 0};
+        out.depth_m(x, y) = count > 0 ? d / static_cast<float>(count) : 0.0f;
+      }
+    });
+  }
+}
+
+TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camera,
+                           const RaycastResult& model, const Pose& T_wc_init) {
+  TrackResult result;
+  Stopwatch watch;
+  build_pyramid(depth_m, camera, params_, frame_);
+  build_model_pyramid(model);
+  result.preprocess_ms = watch.lap_ms();
+
+  const Rigid3f T_model_cw = to_rigid3f(model.T_wc.inverse());
+  const float cos_max_angle = std::cos(params_.max_normal_angle_deg * kPi / 180.0f);
+  const float floor2 = params_.residual_floor_m * params_.residual_floor_m;
+
+  // One pass over a pyramid level at pose T: projective association and the normal equations.
+  auto accumulate = [&](int level, const Pose& T) {
+    const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
+    const ModelLevel& M = model_[static_cast<std::size_t>(level)];
+    const Rigid3f T_wc = to_rigid3f(T);
+    const Vec3f c_w = T_wc.t;
+    const float max_dist = params_.max_distance_m * static_cast<float>(1 << level);
+    const int w = F.depth_m.width(), h = F.depth_m.height();
+    std::vector<Normals> partial(static_cast<std::size_t>(thread_count()));
+    parallel_threads([&](int tid, int nthreads) {
+      if (tid >= static_cast<int>(partial.size())) return;
+      Normals& acc = partial[static_cast<std::size_t>(tid)];
+      // Upper triangle in floats per row, doubles per thread: exact enough and fast.
+      for (int y = tid; y < h; y += nthreads) {
+        for (int x = 0; x < w; ++x) {
+          const Vec3f n_c = F.normals_c(x, y);
+          if (kernels::is_zero(n_c)) continue;
+          const Vec3f p_c = F.points_c(x, y);
+          const Vec3f p_w = T_wc * p_c;
+          const Vec3f p_m = T_model_cw * p_w;
+          if (p_m.z <= 0.0f) continue;
+          const Vec2f uv = M.camera.project(p_m);
+          const int u = static_cast<int>(std::lround(uv.x)),
+                    v = static_cast<int>(std::lround(uv.y));
+          if (u < 0 || v < 0 || u >= M.camera.width || v >= M.camera.height) continue;
+          const Vec3f m_w = M.normals_w(u, v);
+          if (kernels::is_zero(m_w)) continue;
+          const Vec3f q_w = M.points_w(u, v);
+          const Vec3f diff = p_w - q_w;
+          if (dot(diff, diff) > max_dist * max_dist) continue;
+          if (dot(T_wc.rotate(n_c), m_w) < cos_max_angle) continue;
+          float J[6];
+          const float r = kernels::point_to_plane(p_w, q_w, m_w, c_w, J);
+          const float s = params_.noise.sigma_m(p_c.z);
+          const float sigma2 = s * s + floor2;
+          const float wgt =
+              kernels::robust_weight(r / std::sqrt(sigma2), params_.loss, params_.robust_scale) /
+              sigma2;
+          for (int i = 0; i < 6; ++i) {
+            const double wj = static_cast<double>(wgt * J[i]);
+            for (int j = i; j < 6; ++j) acc.A(i, j) += wj * J[j];
+            acc.b(i) += wj * r;
+          }
+          acc.r2 += static_cast<double>(r) * r;
+          acc.distance += norm(p_w - c_w);
+          ++acc.inliers;
+        }
+      }
+    });
+    Normals sum;
+    for (const Normals& p : partial) sum += p;
+    sum.A.triangularView<Eigen::StrictlyLower>() = sum.A.transpose();
+    return sum;
+  };
+
+  Pose T = T_wc_init;
+  bool diverged = false;
+  for (int level = params_.levels() - 1; level >= 0 && !diverged; --level) {
+    for (int it = 0; it < params_.iterations[static_cast<std::size_t>(level)]; ++it) {
+      const Normals ne = accumulate(level, T);
+      if (ne.inliers < 6) break;
+      const Eigen::Matrix<double, 6, 1> x = ne.A.ldlt().solve(-ne.b);
+      if (!x.allFinite()) {
+        diverged = true;
+        break;
+      }
+      T = apply_increment(T, x);
+      ++result.iterations;
+      if (x.head<3>().norm() < params_.convergence_step &&
+          x.tail<3>().norm() < params_.convergence_step)
+        break;
+    }
+  }
+
+  // The verdict, from the correspondences at the final pose on the finest level.
+  const Normals fin = accumulate(0, T);
+  for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
+    if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result.valid_pixels;
+  }
+  result.inliers = fin.inliers;
+  result.inlier_ratio =
+      result.valid_pixels > 0 ? static_cast<double>(fin.inliers) / result.valid_pixels : 0.0;
+  result.rms_m = fin.inliers > 0 ? std::sqrt(fin.r2 / static_cast<double>(fin.inliers)) : 0.0;
+  if (fin.inliers >= 6) {
+    // Rotations scaled by the mean lever arm so that both halves are in metres.
+    const double arm = std::max(1e-3, fin.distance / static_cast<double>(fin.inliers));
+    Eigen::Matrix<double, 6, 1> s;
+    s << 1, 1, 1, 1 / arm, 1 / arm, 1 / arm;
+    const Eigen::Matrix<double, 6, 6> An = s.asDiagonal() * fin.A * s.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(An,
+                                                                         Eigen::EigenvaluesOnly);
+    const double lmax = eig.eigenvalues().maxCoeff();
+    result.condition = lmax > 0.0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / lmax : 0.0;
+  }
+  result.icp_ms = watch.lap_ms();
+
+  const Pose jump = T_wc_init.inverse() * T;
+  const bool lost = diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
+                    result.inlier_ratio < params_.lost_inlier_ratio ||
+                    result.rms_m > params_.lost_rms_m ||
+                    jump.translation().norm() > params_.lost_jump_m ||
+                    rotation_deg(jump.linear()) > params_.lost_jump_deg;
+  if (lost) {
+    result.quality = TrackingQuality::Lost;
+    result.T_wc = T_wc_init;
+  } else {
+    result.quality =
+        result.inlier_ratio < params_.poor_inlier_ratio || result.condition < params_.poor_condition
+            ? TrackingQuality::Poor
+            : TrackingQuality::Good;
+    result.T_wc = T;
+  }
+  return result;
+}
+
+}  // namespace hivox
