@@ -129,8 +129,11 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
     parallel_threads([&](int tid, int nthreads) {
       if (tid >= static_cast<int>(partial.size())) return;
       Normals& acc = partial[static_cast<std::size_t>(tid)];
-      // Upper triangle in floats per row, doubles per thread: exact enough and fast.
+      // Sums in floats along a row (at most a few hundred terms, vectorisable), in doubles
+      // across rows.
       for (int y = tid; y < h; y += nthreads) {
+        float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
+        int row_inliers = 0;
         for (int x = 0; x < w; ++x) {
           const Vec3f n_c = F.normals_c(x, y);
           if (kernels::is_zero(n_c)) continue;
@@ -139,9 +142,11 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
           const Vec3f p_m = T_model_cw * p_w;
           if (p_m.z <= 0.0f) continue;
           const Vec2f uv = M.camera.project(p_m);
-          const int u = static_cast<int>(std::lround(uv.x)),
-                    v = static_cast<int>(std::lround(uv.y));
-          if (u < 0 || v < 0 || u >= M.camera.width || v >= M.camera.height) continue;
+          const float uf = std::floor(uv.x + 0.5f), vf = std::floor(uv.y + 0.5f);
+          if (!(uf >= 0.0f && vf >= 0.0f && uf < static_cast<float>(M.camera.width) &&
+                vf < static_cast<float>(M.camera.height)))
+            continue;
+          const int u = static_cast<int>(uf), v = static_cast<int>(vf);
           const Vec3f m_w = M.normals_w(u, v);
           if (kernels::is_zero(m_w)) continue;
           const Vec3f q_w = M.points_w(u, v);
@@ -155,15 +160,24 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
           const float wgt =
               kernels::robust_weight(r / std::sqrt(sigma2), params_.loss, params_.robust_scale) /
               sigma2;
+          int k = 0;
           for (int i = 0; i < 6; ++i) {
-            const double wj = static_cast<double>(wgt * J[i]);
-            for (int j = i; j < 6; ++j) acc.A(i, j) += wj * J[j];
-            acc.b(i) += wj * r;
+            const float wj = wgt * J[i];
+            for (int j = i; j < 6; ++j) row_A[k++] += wj * J[j];
+            row_b[i] += wj * r;
           }
-          acc.r2 += static_cast<double>(r) * r;
-          acc.distance += norm(p_w - c_w);
-          ++acc.inliers;
+          row_r2 += r * r;
+          row_distance += norm(p_w - c_w);
+          ++row_inliers;
         }
+        int k = 0;
+        for (int i = 0; i < 6; ++i) {
+          for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
+          acc.b(i) += row_b[i];
+        }
+        acc.r2 += row_r2;
+        acc.distance += row_distance;
+        acc.inliers += row_inliers;
       }
     });
     Normals sum;
@@ -174,9 +188,15 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
 
   Pose T = T_wc_init;
   bool diverged = false;
+  Normals fin;  // the last pass at the finest level: its correspondences give the verdict
+  Pose T_fin = T;
   for (int level = params_.levels() - 1; level >= 0 && !diverged; --level) {
     for (int it = 0; it < params_.iterations[static_cast<std::size_t>(level)]; ++it) {
       const Normals ne = accumulate(level, T);
+      if (level == 0) {
+        fin = ne;
+        T_fin = T;
+      }
       if (ne.inliers < 6) break;
       const Eigen::Matrix<double, 6, 1> x = ne.A.ldlt().solve(-ne.b);
       if (!x.allFinite()) {
@@ -191,8 +211,13 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
     }
   }
 
-  // The verdict, from the correspondences at the final pose on the finest level.
-  const Normals fin = accumulate(0, T);
+  // The verdict, from the correspondences on the finest level at the pose of its last pass
+  // (one increment before the end: the same correspondences once converged); a fresh pass only
+  // when the last increment was large.
+  const Pose last_step = T_fin.inverse() * T;
+  if (result.iterations == 0 || last_step.translation().norm() > 1e-3 ||
+      rotation_deg(last_step.linear()) > 0.1)
+    fin = accumulate(0, T);
   for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
     if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result.valid_pixels;
   }
