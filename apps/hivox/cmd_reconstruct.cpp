@@ -297,6 +297,9 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "ICP iterations per pyramid level, finest first (the count sets the levels)")
       ->capture_default_str()
       ->delimiter(',');
+  cmd->add_option("--icp-model-subsample", p.track.model_subsample,
+                  "raycast the model for tracking at 1/N of the frame resolution (1, 2 or 4)")
+      ->capture_default_str();
   cmd->add_flag("!--no-motion-prior", p.track.constant_velocity,
                 "start ICP at the previous pose instead of extrapolating the last motion");
   cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");

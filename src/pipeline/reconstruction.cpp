@@ -86,8 +86,8 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
   // Track against the model seen from the previous pose (raycast now if it was not).
   const RaycastResult& model = raycaster_.result();
   if (model.depth_m.empty() || !model.T_wc.isApprox(T_prev) ||
-      model.camera.width != info_.depth_camera.width) {
-    raycaster_.raycast(*map_, info_.depth_camera, T_prev);
+      model.camera.width != model_camera().width) {
+    raycaster_.raycast(*map_, model_camera(), T_prev);
   }
   const Pose T_init = params_.track.constant_velocity ? Pose(T_prev * motion_) : T_prev;
   last_track_ = tracker_.track(frame.depth_m, info_.depth_camera, raycaster_.result(), T_init);
@@ -154,13 +154,32 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
     stage.restart();
     RaycastStats rs;
     // The frame was just fused from this pose: its depth tells each ray where to start.
-    raycaster_.raycast(*map_, info_.depth_camera, T_wc, &rs, &frame.depth_m);
+    const PinholeCamera camera = model_camera();
+    const DepthImage* hint = &frame.depth_m;
+    if (camera.width != frame.depth_m.width()) {
+      const int n = params_.track.model_subsample;
+      hint_.resize(camera.width, camera.height);
+      for (int y = 0; y < camera.height; ++y)
+        for (int x = 0; x < camera.width; ++x)
+          hint_(x, y) = frame.depth_m(n * x + n / 2, n * y + n / 2);
+      hint = &hint_;
+    }
+    raycaster_.raycast(*map_, camera, T_wc, &rs, hint);
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
   }
   s.blocks_total = map_->blocks_in_use();
   s.blocks_per_level = map_->blocks_per_level();
   peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
+}
+
+PinholeCamera Reconstruction::model_camera() const {
+  const int n = params_.track.model_subsample;
+  if (n == 1) return info_.depth_camera;
+  PinholeCamera c = info_.depth_camera.scaled(1.0f / static_cast<float>(n));
+  c.width = info_.depth_camera.width / n;
+  c.height = info_.depth_camera.height / n;
+  return c;
 }
 
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {

@@ -42,6 +42,9 @@ RobustLoss parse_robust_loss(std::string_view name) {
 }
 
 void TrackParams::validate() const {
+  if (model_subsample != 1 && model_subsample != 2 && model_subsample != 4)
+    fail(ErrorCode::InvalidArgument, "track model_subsample must be 1, 2 or 4, got {}",
+         model_subsample);
   auto positive = [](float v, const char* name) {
     if (!std::isfinite(v) || v <= 0.0f)
       fail(ErrorCode::InvalidArgument, "track {} must be > 0, got {}", name, v);
@@ -91,9 +94,9 @@ void TrackParams::validate() const {
 std::string TrackParams::to_string() const {
   return fmt::format(
       "point-to-plane ICP, {} levels (iterations {} finest first), {} loss at {:g} sigma, "
-      "reject > {:.0f} mm or > {:.0f} deg, bilateral r {} px, {}",
+      "reject > {:.0f} mm or > {:.0f} deg, bilateral r {} px, model 1/{} resolution, {}",
       levels(), fmt::join(iterations, "/"), hivox::to_string(loss), robust_scale,
-      max_distance_m * 1000.0f, max_normal_angle_deg, bilateral_radius_px,
+      max_distance_m * 1000.0f, max_normal_angle_deg, bilateral_radius_px, model_subsample,
       constant_velocity ? "constant-velocity prior" : "previous pose as start");
 }
 

@@ -87,7 +87,8 @@ class Reconstruction {
 
   const VoxelBlockMap& map() const { return *map_; }
   VoxelBlockMap& map() { return *map_; }
-  /// The raycast of the last frame (empty before the first, or without raycast_every_frame).
+  /// The raycast of the last frame (empty before the first, or without raycast_every_frame), at
+  /// the tracking model's resolution (`track.model_subsample`); `render` gives full renders.
   const RaycastResult& last_raycast() const { return raycaster_.result(); }
   /// Raycasts the model from any pose with any camera (renders, overviews).
   const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
@@ -111,6 +112,9 @@ class Reconstruction {
   Raycaster raycaster_;
   RaycastResult render_result_;
   void fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s);
+  /// The camera of the per-frame raycast (the depth camera, subsampled for tracking).
+  PinholeCamera model_camera() const;
+  DepthImage hint_;  ///< the fused depth at the model camera's resolution
 
   Tracker tracker_;
   TrackResult last_track_;

@@ -57,6 +57,10 @@ struct TrackParams {
   /// Start from the previous pose moved by the previous frame-to-frame motion (constant
   /// velocity) instead of the previous pose itself.
   bool constant_velocity = true;
+  /// The model is raycast at 1/model_subsample of the frame's resolution (1, 2 or 4): the
+  /// raycast is the costliest stage of the loop, and projective association needs no more than
+  /// one model pixel per 2x2 frame pixels to find the right plane.
+  int model_subsample = 2;
   /// Iterations stop when an update moves less than this (metres and radians).
   float convergence_step = 1e-5f;
 
