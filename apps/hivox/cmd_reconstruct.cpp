@@ -290,6 +290,13 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_option("--refine-min-updates", p.refine.min_updates,
                   "frames a block must have been fused since it changed before it is judged")
       ->capture_default_str();
+  cmd->add_option("--refine-settled-weight", p.refine.settled_weight,
+                  "observations after which a block's fused noise counts as settled; young blocks "
+                  "split only on detail well above their noise (lower: more blocks stay fine)")
+      ->capture_default_str();
+  cmd->add_option("--refine-noise-factor", p.refine.split_noise_factor,
+                  "split when detail exceeds this times the sensor noise at the block's depth")
+      ->capture_default_str();
   cmd->add_option("--icp-loss", o.icp_loss,
                   "robust weighting of ICP residuals: none, huber or tukey")
       ->capture_default_str();
