@@ -9,7 +9,25 @@
 #include <random>
 #include <string>
 
+#include "hivox/core/error.h"
+
 namespace hivox::test {
+
+/// The error a call throws (code and message); records a test failure when it throws none.
+template <typename F>
+Error error_of(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "expected an hivox::Error, none was thrown";
+  return Error(ErrorCode::Cuda, "(no error thrown)");
+}
+
+inline bool contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
 
 /// The shared real-data folder ($HIVOX_DATA_DIR, else ../shared/data beside the project), or an
 /// empty path when it is absent.

@@ -132,10 +132,8 @@ void run_reconstruct(ReconstructOptions options) {
   Reconstruction rec(options.params, info);
   const bool tty = isatty(fileno(stdout)) != 0;
   Stopwatch wall;
-  int64_t lost = 0;
   // Per-frame renders and the progress line.
   auto progress = [&](std::size_t i, const FrameStats& s, const Pose& T_wc) {
-    if (!s.fused) ++lost;
     if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
       write_renders(rec.render(info.depth_camera, T_wc), out, fmt::format("frame{:06d}_", i));
     if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
@@ -143,7 +141,8 @@ void run_reconstruct(ReconstructOptions options) {
       fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "",
                  i + 1, total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"),
                  rec.map().dropped_blocks(),
-                 tracking ? fmt::format("  lost {}", lost) : std::string(), tty ? "   " : "\n");
+                 tracking ? fmt::format("  lost {}", rec.tracking_counts().lost) : std::string(),
+                 tty ? "   " : "\n");
       std::fflush(stdout);
     }
   };
@@ -225,12 +224,8 @@ void run_reconstruct(ReconstructOptions options) {
                fmt::join(rec.map().blocks_per_level(), "/"), rec.map().dropped_blocks(),
                static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
     if (tracking) {
-      int64_t good = 0, poor = 0;
-      for (const FrameStats& f : frames) {
-        good += f.tracking == TrackingQuality::Good;
-        poor += f.tracking == TrackingQuality::Poor;
-      }
-      fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", good, poor, lost);
+      const TrackingCounts& tc = rec.tracking_counts();
+      fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", tc.good, tc.poor, tc.lost);
     }
     if (ate)
       fmt::print(

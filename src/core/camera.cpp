@@ -20,6 +20,13 @@ PinholeCamera PinholeCamera::scaled(float factor) const {
   return c;
 }
 
+PinholeCamera PinholeCamera::subsampled(int factor) const {
+  PinholeCamera c = scaled(1.0f / static_cast<float>(factor));
+  c.width = width / factor;
+  c.height = height / factor;
+  return c;
+}
+
 void PinholeCamera::validate(const std::string& what) const {
   if (!std::isfinite(fx) || fx <= 0.0f)
     fail(ErrorCode::InvalidArgument, "{}: fx must be a positive focal length in pixels, got {}",

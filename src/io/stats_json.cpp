@@ -78,11 +78,8 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
     splits += f.splits;
     merges += f.merges;
   }
-  int64_t good = 0, poor = 0, lost = 0;
-  for (const FrameStats& f : frames)
-    (f.tracking == TrackingQuality::Lost ? lost
-                                         : (f.tracking == TrackingQuality::Poor ? poor : good))++;
-  j["tracking"] = {{"good", good}, {"poor", poor}, {"lost", lost}};
+  const TrackingCounts& tc = rec.tracking_counts();
+  j["tracking"] = {{"good", tc.good}, {"poor", tc.poor}, {"lost", tc.lost}};
   if (run.ate_rmse_m) j["ate_rmse_m"] = *run.ate_rmse_m;
   j["splits"] = splits;
   j["merges"] = merges;

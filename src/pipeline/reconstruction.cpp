@@ -64,10 +64,7 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   s.read_ms = read_ms;
   Stopwatch total;
   fuse(frame, T_wc, s);
-  s.total_ms = total.elapsed_ms();
-  trajectory_.push_back({frame.timestamp_s, T_wc});
-  frames_.push_back(std::move(s));
-  return frames_.back();
+  return record(frame, T_wc, total, s);
 }
 
 const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, double read_ms,
@@ -97,29 +94,43 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
   s.track_rms_m = last_track_.rms_m;
   s.track_condition = last_track_.condition;
   s.track_iterations = last_track_.iterations;
-  Pose T_wc = T_prev;
   if (last_track_.quality == TrackingQuality::Lost) {
     s.fused = false;
-    s.index = frame.index;
-    s.timestamp_s = frame.timestamp_s;
     s.valid_pixels = last_track_.valid_pixels;
-    s.blocks_total = map_->blocks_in_use();
-    s.blocks_per_level = map_->blocks_per_level();
     motion_ = Pose::Identity();
-  } else {
-    T_wc = last_track_.T_wc;
-    motion_ = T_prev.inverse() * T_wc;
-    fuse(frame, T_wc, s);
+    return record(frame, T_prev, total, s);
   }
+  const Pose T_wc = last_track_.T_wc;
+  motion_ = T_prev.inverse() * T_wc;
+  fuse(frame, T_wc, s);
+  return record(frame, T_wc, total, s);
+}
+
+const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_wc,
+                                         const Stopwatch& total, FrameStats& s) {
+  s.index = frame.index;
+  s.timestamp_s = frame.timestamp_s;
+  s.blocks_total = map_->blocks_in_use();
+  s.blocks_per_level = map_->blocks_per_level();
+  peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
   s.total_ms = total.elapsed_ms();
+  switch (s.tracking) {
+    case TrackingQuality::Good:
+      ++tracking_counts_.good;
+      break;
+    case TrackingQuality::Poor:
+      ++tracking_counts_.poor;
+      break;
+    case TrackingQuality::Lost:
+      ++tracking_counts_.lost;
+      break;
+  }
   trajectory_.push_back({frame.timestamp_s, T_wc});
   frames_.push_back(std::move(s));
   return frames_.back();
 }
 
 void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s) {
-  s.index = frame.index;
-  s.timestamp_s = frame.timestamp_s;
   Stopwatch stage;
 
   FusionInput in;
@@ -168,18 +179,10 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
   }
-  s.blocks_total = map_->blocks_in_use();
-  s.blocks_per_level = map_->blocks_per_level();
-  peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
 }
 
 PinholeCamera Reconstruction::model_camera() const {
-  const int n = params_.track.model_subsample;
-  if (n == 1) return info_.depth_camera;
-  PinholeCamera c = info_.depth_camera.scaled(1.0f / static_cast<float>(n));
-  c.width = info_.depth_camera.width / n;
-  c.height = info_.depth_camera.height / n;
-  return c;
+  return info_.depth_camera.subsampled(params_.track.model_subsample);
 }
 
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {

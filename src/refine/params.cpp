@@ -52,10 +52,8 @@ float RefineParams::split_level(float z_m, float mean_weight) const {
   return n > split_threshold ? n : split_threshold;
 }
 
-float RefineParams::merge_level(float z_m, float mean_weight) const {
+float RefineParams::merge_level(float z_m) const {
   if (criterion != RefineCriterion::Detail) return merge_threshold;
-  // Merging needs no extra caution for young blocks: noise makes them look complex, not simple.
-  (void)mean_weight;
   const float n = merge_noise_factor * noise.sigma_m(z_m);
   return n > merge_threshold ? n : merge_threshold;
 }

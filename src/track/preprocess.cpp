@@ -84,9 +84,7 @@ void build_pyramid(const DepthImage& depth_m, const PinholeCamera& camera,
     PyramidLevel& level = levels[l];
     if (l > 0) {
       downsample_depth(levels[l - 1].depth_m, level.depth_m, params);
-      level.camera = levels[l - 1].camera.scaled(0.5f);
-      level.camera.width = level.depth_m.width();
-      level.camera.height = level.depth_m.height();
+      level.camera = levels[l - 1].camera.subsampled(2);
     }
     points_and_normals(level.depth_m, level.camera, params, level.points_c, level.normals_c);
   }

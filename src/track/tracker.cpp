@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -13,8 +14,6 @@
 namespace hivox {
 
 namespace {
-
-constexpr float kPi = 3.14159265358979f;
 
 /// Sums of one Gauss-Newton pass: the normal equations and residual statistics.
 struct Normals {
@@ -50,8 +49,8 @@ Pose apply_increment(const Pose& T, const Eigen::Matrix<double, 6, 1>& x) {
   return out;
 }
 
-double rotation_deg(const Eigen::Matrix3d& R) {
-  return Eigen::AngleAxisd(R).angle() * 180.0 / 3.14159265358979;
+double rotation_deg(const Pose& T) {
+  return rotation_angle_rad(T) * 180.0 / std::numbers::pi;
 }
 
 }  // namespace
@@ -65,18 +64,13 @@ void Tracker::build_model_pyramid(const RaycastResult& model) {
   ModelLevel& finest = model_[0];
   finest.camera = model.camera;
   finest.points_w = model.points_w;
-  finest.normals_w.resize(model.camera.width, model.camera.height);
+  finest.normals_w = model.normals_w;  // zero where the ray missed
   finest.depth_m = model.depth_m;
-  for (int y = 0; y < model.camera.height; ++y)
-    for (int x = 0; x < model.camera.width; ++x)
-      finest.normals_w(x, y) = model.hit(x, y) ? model.normals_w(x, y) : Vec3f{0, 0, 0};
   for (std::size_t l = 1; l < model_.size(); ++l) {
     const ModelLevel& in = model_[l - 1];
     ModelLevel& out = model_[l];
     const int w = in.depth_m.width() / 2, h = in.depth_m.height() / 2;
-    out.camera = in.camera.scaled(0.5f);
-    out.camera.width = w;
-    out.camera.height = h;
+    out.camera = in.camera.subsampled(2);
     out.points_w.resize(w, h);
     out.normals_w.resize(w, h);
     out.depth_m.resize(w, h);
@@ -114,7 +108,8 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
   result.preprocess_ms = watch.lap_ms();
 
   const Rigid3f T_model_cw = to_rigid3f(model.T_wc.inverse());
-  const float cos_max_angle = std::cos(params_.max_normal_angle_deg * kPi / 180.0f);
+  const float cos_max_angle =
+      std::cos(params_.max_normal_angle_deg * std::numbers::pi_v<float> / 180.0f);
   const float floor2 = params_.residual_floor_m * params_.residual_floor_m;
 
   // One pass over a pyramid level at pose T: projective association and the normal equations.
@@ -216,7 +211,7 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
   // when the last increment was large.
   const Pose last_step = T_fin.inverse() * T;
   if (result.iterations == 0 || last_step.translation().norm() > 1e-3 ||
-      rotation_deg(last_step.linear()) > 0.1)
+      rotation_deg(last_step) > 0.1)
     fin = accumulate(0, T);
   for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
     if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result.valid_pixels;
@@ -239,11 +234,10 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
   result.icp_ms = watch.lap_ms();
 
   const Pose jump = T_wc_init.inverse() * T;
-  const bool lost = diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
-                    result.inlier_ratio < params_.lost_inlier_ratio ||
-                    result.rms_m > params_.lost_rms_m ||
-                    jump.translation().norm() > params_.lost_jump_m ||
-                    rotation_deg(jump.linear()) > params_.lost_jump_deg;
+  const bool lost =
+      diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
+      result.inlier_ratio < params_.lost_inlier_ratio || result.rms_m > params_.lost_rms_m ||
+      jump.translation().norm() > params_.lost_jump_m || rotation_deg(jump) > params_.lost_jump_deg;
   if (lost) {
     result.quality = TrackingQuality::Lost;
     result.T_wc = T_wc_init;

@@ -18,11 +18,8 @@ namespace hivox {
 namespace {
 
 using test::CliRun;
+using test::contains;
 using test::run_hivox;
-
-bool contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
-}
 
 // Ground truth and an estimate with a known ATE after alignment (see trajectory_test_util.h):
 // offsets of 1 cm and 2 cm in alternation, then a large rigid motion.

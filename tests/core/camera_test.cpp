@@ -61,6 +61,20 @@ TEST(Camera, ScaledKeepsRaysThroughPixelCentres) {
   EXPECT_NEAR(r_half.y, r_full.y, 1e-6f);
 }
 
+TEST(Camera, SubsampledRoundsOddSizesDown) {
+  PinholeCamera cam = tum_like();
+  cam.width = 161;
+  cam.height = 121;
+  const PinholeCamera quarter = cam.subsampled(4);
+  EXPECT_EQ(quarter.width, 40);  // whole 4x4 blocks only
+  EXPECT_EQ(quarter.height, 30);
+  // Pixel (0,0) of the quarter image covers full-resolution pixels 0..3, centred at 1.5.
+  const Vec3f r_quarter = quarter.ray(0.0f, 0.0f);
+  const Vec3f r_full = cam.ray(1.5f, 1.5f);
+  EXPECT_NEAR(r_quarter.x, r_full.x, 1e-6f);
+  EXPECT_NEAR(r_quarter.y, r_full.y, 1e-6f);
+}
+
 TEST(Camera, ValidateNamesTheBadField) {
   auto expect_fail = [](PinholeCamera c, const std::string& field) {
     try {

@@ -13,6 +13,7 @@
 
 #include "eval/trajectory_test_util.h"
 #include "hivox/core/error.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -21,21 +22,8 @@ using test::loop_trajectory;
 using test::perturbed;
 using test::some_rigid_motion;
 
-/// The error a call throws; fails the test when it throws none.
-template <typename F>
-Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected an hivox::Error";
-  return Error(ErrorCode::Unsupported, "");
-}
-
-bool contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
-}
+using test::contains;
+using test::error_of;
 
 StampedPose at(double t_s, const Eigen::Vector3d& p_w) {
   StampedPose p;

@@ -20,18 +20,6 @@ namespace hivox::test {
 
 namespace fs = std::filesystem;
 
-/// The error a call throws; records a test failure when it throws none.
-template <typename F>
-Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected an hivox::Error, none was thrown";
-  return Error(ErrorCode::Cuda, "(no error thrown)");
-}
-
 /// Asserts the code and that the message contains every one of `parts`.
 template <typename F>
 void expect_error(F&& f, ErrorCode code, std::initializer_list<std::string> parts) {

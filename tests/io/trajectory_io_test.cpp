@@ -10,20 +10,9 @@
 namespace hivox {
 namespace {
 
+using test::error_of;
 using test::TempDir;
 using test::write_text;
-
-/// The error a call throws (code and message); fails the test when it throws none.
-template <typename F>
-Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected an hivox::Error";
-  return Error(ErrorCode::Unsupported, "");
-}
 
 TEST(TumTrajectory, ReadsPosesInFileOrder) {
   TempDir dir;

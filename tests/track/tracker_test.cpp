@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "hivox/core/error.h"
@@ -18,7 +19,7 @@ namespace hivox {
 namespace {
 
 double angle_deg(const Pose& a, const Pose& b) {
-  return Eigen::AngleAxisd(a.rotation().transpose() * b.rotation()).angle() * 180.0 / M_PI;
+  return rotation_angle_rad(a.inverse() * b) * 180.0 / std::numbers::pi;
 }
 double distance_m(const Pose& a, const Pose& b) {
   return (a.translation() - b.translation()).norm();
@@ -26,7 +27,8 @@ double distance_m(const Pose& a, const Pose& b) {
 
 Pose motion(const Eigen::Vector3d& t_m, const Eigen::Vector3d& axis, double deg) {
   Pose T = Pose::Identity();
-  T.linear() = Eigen::AngleAxisd(deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
+  T.linear() =
+      Eigen::AngleAxisd(deg * std::numbers::pi / 180.0, axis.normalized()).toRotationMatrix();
   T.translation() = t_m;
   return T;
 }

@@ -36,6 +36,10 @@ struct PinholeCamera {
 
   /// Camera for an image resampled by `factor` (0.5 = half resolution), pixel centres kept.
   PinholeCamera scaled(float factor) const;
+  /// Camera for an image subsampled by an integer `factor` (2 = half resolution): width and
+  /// height divided rounding down (what 2x2 block averaging of an odd-sized image gives), pixel
+  /// centres kept.
+  PinholeCamera subsampled(int factor) const;
 
   /// Throws `Error(InvalidArgument)` naming the first bad field. `what` prefixes the message
   /// (e.g. the file the intrinsics came from).

@@ -12,6 +12,7 @@
 #include "hivox/core/camera.h"
 #include "hivox/core/dataset.h"
 #include "hivox/core/pose.h"
+#include "hivox/core/timer.h"
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/raycast/raycaster.h"
@@ -65,6 +66,11 @@ struct FrameStats {
   int track_iterations = 0;
 };
 
+/// Frames by tracking verdict (frames fused with given poses count as good).
+struct TrackingCounts {
+  int64_t good = 0, poor = 0, lost = 0;
+};
+
 class Reconstruction {
  public:
   /// `info` gives the cameras (depth and colour) and their relative pose.
@@ -84,6 +90,7 @@ class Reconstruction {
                                         const Pose& T_wc_first = Pose::Identity());
   /// Outcome of the last tracked frame's ICP.
   const TrackResult& last_track() const { return last_track_; }
+  const TrackingCounts& tracking_counts() const { return tracking_counts_; }
 
   const VoxelBlockMap& map() const { return *map_; }
   VoxelBlockMap& map() { return *map_; }
@@ -111,7 +118,12 @@ class Reconstruction {
   Refiner refiner_;
   Raycaster raycaster_;
   RaycastResult render_result_;
+  /// Allocate, integrate, refine and raycast `frame` at `T_wc`, filling the stage statistics.
   void fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s);
+  /// Completes `s` (frame, block counts, total time since `total` started), appends it and the
+  /// pose to the history.
+  const FrameStats& record(const RgbdFrame& frame, const Pose& T_wc, const Stopwatch& total,
+                           FrameStats& s);
   /// The camera of the per-frame raycast (the depth camera, subsampled for tracking).
   PinholeCamera model_camera() const;
   DepthImage hint_;  ///< the fused depth at the model camera's resolution
@@ -119,6 +131,7 @@ class Reconstruction {
   Tracker tracker_;
   TrackResult last_track_;
   Pose motion_ = Pose::Identity();  ///< last frame-to-frame motion (camera frame), for the prior
+  TrackingCounts tracking_counts_;
   std::vector<FrameStats> frames_;
   std::vector<StampedPose> trajectory_;
   int64_t peak_blocks_ = 0;

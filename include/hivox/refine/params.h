@@ -57,9 +57,10 @@ struct RefineParams {
   static RefineParams paper();
 
   /// Complexity above which a block at depth z_m whose voxels were observed `mean_weight` times
-  /// splits, and below which it may merge.
+  /// splits (young blocks need more), and below which a block at depth z_m may merge (no extra
+  /// caution for young blocks: noise makes them look complex, not simple).
   float split_level(float z_m, float mean_weight = 1e9f) const;
-  float merge_level(float z_m, float mean_weight = 1e9f) const;
+  float merge_level(float z_m) const;
 
   void validate() const;
   std::string to_string() const;
