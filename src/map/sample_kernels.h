@@ -159,45 +159,20 @@ HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCach
   return true;
 }
 
-/// Interpolates the TSDF at `p_w` from the 8 voxels of `level` around it: trilinear when they
-/// are all stored at `level` (the common case, and the fast path when they share one block);
-/// where the cell reaches into a region stored at another level, the corners take that level's
-/// samples and the irregular-grid interpolant through their actual positions is used
-/// (trilinear on their values if the positions are degenerate). Fails (returns false) when a
-/// corner is not stored at any level or has fewer than `min_weight` observations: unknown space
-/// must never look like surface.
-HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
-                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
-                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
-                                      int32_t known_ptr = kPtrEmpty) {
-  const float inv_s = map.level[level].inv_voxel_size;
-  const Vec3f q = p_w * inv_s;
+/// The general case of `sample_trilinear`: the 8 voxels around `p_w` span several blocks, and
+/// some may be stored at another level.
+HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView& map,
+                                                                   BlockLookupCache& cache,
+                                                                   int level, const Vec3f& p_w,
+                                                                   int min_weight,
+                                                                   TsdfSample* out) {
+  const Vec3f q = p_w * map.level[level].inv_voxel_size;
   const Vec3i base = floor_to_int(q);
   const Vec3f t = q - to_float(base);
   float v[8];
   const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
   const Vec3i block = block_of_voxel(base);
   const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
-  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
-    // Fast path (most samples): the 8 voxels lie in one block (often the caller's).
-    const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
-    if (ptr < 0) return false;
-    const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
-    const int i0 = voxel_index(local.x, local.y, local.z);
-    constexpr int kY = kBlockSide, kZ = kBlockSide * kBlockSide;
-    const int offsets[8] = {0, 1, kY, kY + 1, kZ, kZ + 1, kZ + kY, kZ + kY + 1};
-    int min_w = 65535;
-    for (int c = 0; c < 8; ++c) {
-      const TsdfVoxel vox = b[i0 + offsets[c]];
-      min_w = vox.weight < min_w ? vox.weight : min_w;
-      v[c] = tsdf_to_float(vox.tsdf);
-    }
-    if (min_w < min_weight) return false;
-    out->nearest_ptr = ptr;
-    out->nearest_index = i0 + offsets[nearest];
-    out->f = interpolate_trilinear(v, t, &out->gradient);
-    return true;
-  }
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
   const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
   int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
@@ -231,6 +206,88 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
   }
   if (!regular && interpolate_irregular(pos, v, q, &out->f, &out->gradient)) return true;
   out->f = interpolate_trilinear(v, t, &out->gradient);
+  return true;
+}
+
+/// Interpolates the TSDF at `p_w` from the 8 voxels of `level` around it: trilinear when they
+/// are all stored at `level` (the common case, and the fast path when they share one block);
+/// where the cell reaches into a region stored at another level, the corners take that level's
+/// samples and the irregular-grid interpolant through their actual positions is used
+/// (trilinear on their values if the positions are degenerate). Fails (returns false) when a
+/// corner is not stored at any level or has fewer than `min_weight` observations: unknown space
+/// must never look like surface.
+HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
+                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
+                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
+                                      int32_t known_ptr = kPtrEmpty) {
+  const Vec3f q = p_w * map.level[level].inv_voxel_size;
+  const Vec3i base = floor_to_int(q);
+  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
+  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
+    // Most samples: the 8 voxels lie in one block (often the caller's).
+    const Vec3i block = block_of_voxel(base);
+    const Vec3f t = q - to_float(base);
+    const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+    float v[8];
+    const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
+    if (ptr < 0) return false;
+    const TsdfVoxel* b = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
+    const int i0 = voxel_index(local.x, local.y, local.z);
+    constexpr int kY = kBlockSide, kZ = kBlockSide * kBlockSide;
+    const int offsets[8] = {0, 1, kY, kY + 1, kZ, kZ + 1, kZ + kY, kZ + kY + 1};
+    int min_w = 65535;
+    for (int c = 0; c < 8; ++c) {
+      const TsdfVoxel vox = b[i0 + offsets[c]];
+      min_w = vox.weight < min_w ? vox.weight : min_w;
+      v[c] = tsdf_to_float(vox.tsdf);
+    }
+    if (min_w < min_weight) return false;
+    out->nearest_ptr = ptr;
+    out->nearest_index = i0 + offsets[nearest];
+    out->f = interpolate_trilinear(v, t, &out->gradient);
+    return true;
+  }
+  return sample_trilinear_across_blocks(map, cache, level, p_w, min_weight, out);
+}
+
+/// F(p + h e_k) for k = x, y, z (h: the voxel size of `level`): the trilinear samples one voxel
+/// beyond `p_w` along each axis, as three `sample_trilinear` calls would give them, with at most
+/// one look-up per block, when every voxel they need is stored at `level`. Returns false
+/// otherwise (the caller samples one by one, across levels) or when a needed voxel has fewer
+/// than `min_weight` observations.
+HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCache& cache, int level,
+                                             const Vec3f& p_w, int min_weight, Vec3f* ahead) {
+  const Vec3f q = p_w * map.level[level].inv_voxel_size;
+  const Vec3i base = floor_to_int(q);
+  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
+  const Vec3i block = block_of_voxel(base);
+  // The voxels base + [0, 2]^3 span one or two blocks per axis.
+  const int span_x = local.x >= 6, span_y = local.y >= 6, span_z = local.z >= 6;
+  const TsdfVoxel* blocks[8];
+  for (int d = 0; d < 8; ++d) {
+    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+    blocks[d] = nullptr;
+    if ((dx > span_x) | (dy > span_y) | (dz > span_z)) continue;
+    const int32_t ptr = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
+    if (ptr < 0) return false;
+    blocks[d] = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
+  }
+  const Vec3f t = q - to_float(base);
+  for (int k = 0; k < 3; ++k) {
+    float v[8];
+    int min_w = 65535;
+    for (int c = 0; c < 8; ++c) {
+      const int x = local.x + (c & 1) + (k == 0), y = local.y + ((c >> 1) & 1) + (k == 1),
+                z = local.z + (c >> 2) + (k == 2);
+      const TsdfVoxel vox =
+          blocks[(x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2)][voxel_index(x & 7, y & 7, z & 7)];
+      min_w = vox.weight < min_w ? vox.weight : min_w;
+      v[c] = tsdf_to_float(vox.tsdf);
+    }
+    if (min_w < min_weight) return false;
+    Vec3f unused;
+    (*ahead)[k] = interpolate_trilinear(v, t, &unused);
+  }
   return true;
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "analytic_scene.h"
 #include "hivox/fusion/integrator.h"
@@ -130,6 +131,38 @@ TEST(Levels, InterpolationIsContinuousAcrossTheBoundary) {
   EXPECT_LT(worst_jump, 0.25 * 4 * kVoxel) << "largest step between samples 0.5 mm apart, metres";
   EXPECT_GE(crossings, 10);
   EXPECT_LT(worst_error, 0.5) << "crossings off the true surface, local voxels";
+}
+
+TEST(Levels, SamplesOneVoxelAheadEqualThreeSingleSamples) {
+  // The raycaster's normals take F(p + h e_k) from one gather of the 3x3x3 voxels around p;
+  // wherever that gather succeeds it must give what three separate samples give, at block
+  // borders (p anywhere in its block) and beside the level boundary alike.
+  const MapView v = scene().map->view();
+  kernels::BlockLookupCache cache;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> x(-0.2f, 0.2f), y(-0.2f, 0.6f), z(-0.01f, 0.5f);
+  int gathered = 0, declined = 0;
+  for (int i = 0; i < 200000 && gathered < 2000; ++i) {
+    const Vec3f p{x(rng), y(rng), z(rng)};
+    kernels::TsdfSample s;
+    int level;
+    if (!kernels::sample_tsdf(v, cache, p, 1, &s, &level) || std::abs(s.f) > 0.5f) continue;
+    Vec3f ahead;
+    if (!kernels::samples_one_voxel_ahead(v, cache, level, p, 1, &ahead)) {
+      ++declined;
+      continue;
+    }
+    ++gathered;
+    for (int k = 0; k < 3; ++k) {
+      Vec3f a = p;
+      a[k] += v.level[level].voxel_size_m;
+      kernels::TsdfSample sa;
+      ASSERT_TRUE(kernels::sample_trilinear(v, cache, level, a, 1, &sa)) << "axis " << k;
+      EXPECT_NEAR(ahead[k], sa.f, 1e-5f) << "axis " << k << " at level " << level;
+    }
+  }
+  EXPECT_EQ(gathered, 2000);
+  EXPECT_GT(declined, 0) << "points next to the level boundary must be declined";
 }
 
 TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {

@@ -6,6 +6,9 @@
 
 #if defined(__CUDACC__)
 #define HIVOX_HD __host__ __device__
+#define HIVOX_NOINLINE __noinline__
 #else
 #define HIVOX_HD
+/// Keeps a rarely taken path out of line so that the common path around it can be inlined.
+#define HIVOX_NOINLINE __attribute__((noinline))
 #endif
