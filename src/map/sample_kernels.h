@@ -182,6 +182,31 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
     if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
     blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
   }
+  {  // Usually every block the cell reaches into is stored at this level too.
+    bool one_level = true;
+    int min_w = 65535;
+    for (int c = 0; c < 8; ++c) {
+      const int x = local.x + (c & 1), y = local.y + ((c >> 1) & 1), z = local.z + (c >> 2);
+      const int32_t ptr = blocks[(x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2)];
+      if (ptr < 0) {
+        one_level = false;
+        break;
+      }
+      const int i = voxel_index(x & 7, y & 7, z & 7);
+      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
+      min_w = vox.weight < min_w ? vox.weight : min_w;
+      v[c] = tsdf_to_float(vox.tsdf);
+      if (c == nearest) {
+        out->nearest_ptr = ptr;
+        out->nearest_index = i;
+      }
+    }
+    if (one_level) {
+      if (min_w < min_weight) return false;
+      out->f = interpolate_trilinear(v, t, &out->gradient);
+      return true;
+    }
+  }
   Vec3f pos[8];
   bool regular = true;
   for (int c = 0; c < 8; ++c) {
