@@ -11,6 +11,13 @@
 
 namespace hivox::kernels {
 
+/// Weight of a neighbour `dist2_px` squared pixels away whose depth differs by `dd_m` in the
+/// bilateral filter.
+HIVOX_HD inline float bilateral_weight(float dist2_px, float dd_m, float inv_2sigma_px2,
+                                       float inv_2sigma_d2) {
+  return exp_nonpositive(-dist2_px * inv_2sigma_px2 - dd_m * dd_m * inv_2sigma_d2);
+}
+
 /// Bilateral-filtered depth at (x, y); 0 where the input is invalid or outside [min, max].
 HIVOX_HD inline float bilateral_depth(ImageView<const float> in, int x, int y, int radius,
                                       float inv_2sigma_px2, float inv_2sigma_d2, float min_m,
@@ -26,9 +33,8 @@ HIVOX_HD inline float bilateral_depth(ImageView<const float> in, int x, int y, i
       if (xx < 0 || xx >= in.width) continue;
       const float d = in(xx, yy);
       if (!(d >= min_m && d <= max_m)) continue;
-      const float dd = d - d0;
-      const float w =
-          expf(-static_cast<float>(dx * dx + dy * dy) * inv_2sigma_px2 - dd * dd * inv_2sigma_d2);
+      const float w = bilateral_weight(static_cast<float>(dx * dx + dy * dy), d - d0,
+                                       inv_2sigma_px2, inv_2sigma_d2);
       sum += w * d;
       wsum += w;
     }

@@ -6,10 +6,12 @@
 
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include <Eigen/Core>
 
 #include "hivox/track/preprocess.h"
+#include "track/track_kernels.h"
 
 namespace hivox {
 namespace {
@@ -104,6 +106,38 @@ TEST(Preprocess, BilateralSmoothsNoiseButKeepsEdges) {
     EXPECT_NEAR(filtered(80, y), 1.5f, 0.006f);
   }
   EXPECT_EQ(filtered(40, 40), 0.0f);
+}
+
+TEST(Preprocess, RowWiseFilterEqualsThePerPixelKernel) {
+  // The CPU filter sums over whole rows at once; it must give what the per-pixel kernel (the one
+  // a GPU driver runs) gives, at borders, holes and out-of-range depths included.
+  const PinholeCamera c = camera();
+  DepthImage depth(c.width, c.height);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x) {
+      const float r = u(rng);
+      depth(x, y) = r < 0.1f ? 0.0f : (r < 0.12f ? 3.5f : 1.0f + 0.01f * x + 0.05f * u(rng));
+    }
+  TrackParams params;
+  for (int radius : {1, 2, 4}) {
+    params.bilateral_radius_px = radius;
+    DepthImage filtered;
+    bilateral_filter(depth, filtered, params);
+    const float inv_px = 1.0f / (2.0f * params.bilateral_sigma_px * params.bilateral_sigma_px);
+    const float inv_d =
+        1.0f / (2.0f * params.bilateral_sigma_depth_m * params.bilateral_sigma_depth_m);
+    int differ = 0;
+    for (int y = 0; y < c.height; ++y)
+      for (int x = 0; x < c.width; ++x) {
+        const float expect =
+            kernels::bilateral_depth(std::as_const(depth).view(), x, y, radius, inv_px, inv_d,
+                                     params.min_depth_m, params.max_depth_m);
+        differ += std::abs(filtered(x, y) - expect) > 1e-5f;
+      }
+    EXPECT_EQ(differ, 0) << "radius " << radius;
+  }
 }
 
 TEST(Preprocess, DepthRangeAndPyramid) {
