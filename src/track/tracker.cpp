@@ -124,11 +124,16 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
     parallel_threads([&](int tid, int nthreads) {
       if (tid >= static_cast<int>(partial.size())) return;
       Normals& acc = partial[static_cast<std::size_t>(tid)];
-      // Sums in floats along a row (at most a few hundred terms, vectorisable), in doubles
-      // across rows.
+      // Per row: the inliers' weighted Jacobian rows and residuals are collected first (the
+      // association branches), then summed over the row in floats by loops that vectorize;
+      // rows are summed in doubles.
+      std::vector<float> rows(static_cast<std::size_t>(8 * w));
+      float* const Jw = rows.data();  // 6 columns: sqrt(weight) * J
+      float* const rw = Jw + 6 * w;   // sqrt(weight) * r
+      float* const rr = rw + w;       // r
       for (int y = tid; y < h; y += nthreads) {
         float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
-        int row_inliers = 0;
+        int n = 0;
         for (int x = 0; x < w; ++x) {
           const Vec3f n_c = F.normals_c(x, y);
           if (kernels::is_zero(n_c)) continue;
@@ -152,27 +157,40 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
           const float r = kernels::point_to_plane(p_w, q_w, m_w, c_w, J);
           const float s = params_.noise.sigma_m(p_c.z);
           const float sigma2 = s * s + floor2;
-          const float wgt =
+          const float sqrt_w = std::sqrt(
               kernels::robust_weight(r / std::sqrt(sigma2), params_.loss, params_.robust_scale) /
-              sigma2;
-          int k = 0;
-          for (int i = 0; i < 6; ++i) {
-            const float wj = wgt * J[i];
-            for (int j = i; j < 6; ++j) row_A[k++] += wj * J[j];
-            row_b[i] += wj * r;
-          }
-          row_r2 += r * r;
+              sigma2);
+          for (int i = 0; i < 6; ++i) Jw[i * w + n] = sqrt_w * J[i];
+          rw[n] = sqrt_w * r;
+          rr[n] = r;
           row_distance += norm(p_w - c_w);
-          ++row_inliers;
+          ++n;
         }
         int k = 0;
+        for (int i = 0; i < 6; ++i) {
+          const float* Ji = Jw + i * w;
+          for (int j = i; j < 6; ++j) {
+            const float* Jj = Jw + j * w;
+            float a = 0.0f;
+#pragma omp simd reduction(+ : a)
+            for (int m = 0; m < n; ++m) a += Ji[m] * Jj[m];
+            row_A[k++] = a;
+          }
+          float b = 0.0f;
+#pragma omp simd reduction(+ : b)
+          for (int m = 0; m < n; ++m) b += Ji[m] * rw[m];
+          row_b[i] = b;
+        }
+#pragma omp simd reduction(+ : row_r2)
+        for (int m = 0; m < n; ++m) row_r2 += rr[m] * rr[m];
+        k = 0;
         for (int i = 0; i < 6; ++i) {
           for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
           acc.b(i) += row_b[i];
         }
         acc.r2 += row_r2;
         acc.distance += row_distance;
-        acc.inliers += row_inliers;
+        acc.inliers += n;
       }
     });
     Normals sum;
