@@ -234,22 +234,19 @@ struct RangeTiles {
   int tiles_x = 0, tiles_y = 0, tile_px = 8;
 };
 
-/// Projects one block's bounding box, grown by `margin_m` on every side, into the range tiles
-/// (atomic min/max of depth per tile). Returns false when the box is outside the view or the
-/// depth range.
+/// Projects one block's bounding box into the range tiles (atomic min/max of depth per tile).
+/// Returns false when the block is outside the view or the depth range.
 HIVOX_HD inline bool project_block_to_tiles(const Rigid3f& T_cw, const PinholeCamera& cam,
-                                            const Vec3i& pos, float block_m, float margin_m,
-                                            float min_depth_m, float max_depth_m,
-                                            const RangeTiles& tiles) {
-  const Vec3f origin = to_float(pos) * block_m - Vec3f{margin_m, margin_m, margin_m};
-  const float side_m = block_m + 2.0f * margin_m;
+                                            const Vec3i& pos, float block_m, float min_depth_m,
+                                            float max_depth_m, const RangeTiles& tiles) {
+  const Vec3f origin = to_float(pos) * block_m;
   float u_lo = FLT_MAX, u_hi = -FLT_MAX, v_lo = FLT_MAX, v_hi = -FLT_MAX;
   float z_lo = FLT_MAX, z_hi = -FLT_MAX;
   bool crosses_camera_plane = false;
   for (int c = 0; c < 8; ++c) {
-    const Vec3f corner{origin.x + ((c & 1) ? side_m : 0.0f),
-                       origin.y + (((c >> 1) & 1) ? side_m : 0.0f),
-                       origin.z + ((c >> 2) ? side_m : 0.0f)};
+    const Vec3f corner{origin.x + ((c & 1) ? block_m : 0.0f),
+                       origin.y + (((c >> 1) & 1) ? block_m : 0.0f),
+                       origin.z + ((c >> 2) ? block_m : 0.0f)};
     const Vec3f p = T_cw * corner;
     z_lo = p.z < z_lo ? p.z : z_lo;
     z_hi = p.z > z_hi ? p.z : z_hi;

@@ -9,9 +9,6 @@
 #include "raycast/raycast_kernels.h"
 
 namespace hivox {
-namespace {
-constexpr float kRangeMarginVoxels = 2.0f;
-}  // namespace
 
 Vec3f RaycastResult::point_c(int x, int y) const {
   return to_rigid3f(T_wc.inverse()) * points_w(x, y);
@@ -64,14 +61,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : projected)
   for (int32_t ptr = 0; ptr < high_water; ++ptr) {
     const BlockMeta& m = view.meta[ptr];
-    // Every crossing has a voxel at or behind the surface (TSDF <= 0) among its interpolation
-    // corners, so only blocks holding one bound the rays, grown by the cells reaching into
-    // their neighbours (the crossing itself may lie up to a voxel outside) and the look-back
-    // of the march.
-    if (m.level < 0 || m.min_tsdf > 0) continue;
+    if (m.level < 0) continue;
     projected +=
         kernels::project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
-                                        kRangeMarginVoxels * view.level[m.level].voxel_size_m,
                                         params_.min_depth_m, params_.max_depth_m, tiles);
   }
   const double range_ms = watch.lap_ms();
