@@ -159,6 +159,22 @@ HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCach
   return true;
 }
 
+/// The blocks of `level` that voxels `block`'s origin + [0, 8 + 8 * span) reach into, one or
+/// two per axis (`span` 0 or 1 per axis): `ptrs[neighbour_slot(x, y, z)]` holds the block of
+/// the voxel at (x, y, z) from that origin; slots beyond the span are kPtrEmpty.
+HIVOX_HD inline void neighbour_blocks(const MapView& map, BlockLookupCache& cache, int level,
+                                      const Vec3i& block, const Vec3i& span, int32_t ptrs[8]) {
+  for (int d = 0; d < 8; ++d) {
+    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+    ptrs[d] = (dx > span.x) | (dy > span.y) | (dz > span.z)
+                  ? kPtrEmpty
+                  : cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
+  }
+}
+HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
+  return (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
+}
+
 /// The general case of `sample_trilinear`: the 8 voxels around `p_w` span several blocks, and
 /// some may be stored at another level.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView& map,
@@ -174,20 +190,14 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
   const Vec3i block = block_of_voxel(base);
   const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
-  const int cross_x = local.x == 7, cross_y = local.y == 7, cross_z = local.z == 7;
-  int32_t blocks[8];  // indexed by the block offset (dx | dy << 1 | dz << 2)
-  for (int d = 0; d < 8; ++d) {
-    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-    blocks[d] = kPtrEmpty;
-    if ((dx > cross_x) | (dy > cross_y) | (dz > cross_z)) continue;
-    blocks[d] = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
-  }
+  int32_t blocks[8];
+  neighbour_blocks(map, cache, level, block, {local.x == 7, local.y == 7, local.z == 7}, blocks);
   {  // Usually every block the cell reaches into is stored at this level too.
     bool one_level = true;
     int min_w = 65535;
     for (int c = 0; c < 8; ++c) {
       const int x = local.x + (c & 1), y = local.y + ((c >> 1) & 1), z = local.z + (c >> 2);
-      const int32_t ptr = blocks[(x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2)];
+      const int32_t ptr = blocks[neighbour_slot(x, y, z)];
       if (ptr < 0) {
         one_level = false;
         break;
@@ -212,7 +222,7 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
   for (int c = 0; c < 8; ++c) {
     const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
     const Vec3i g{base.x + ox, base.y + oy, base.z + oz};
-    int32_t ptr = blocks[(ox & cross_x) | ((oy & cross_y) << 1) | ((oz & cross_z) << 2)];
+    int32_t ptr = blocks[neighbour_slot(local.x + ox, local.y + oy, local.z + oz)];
     int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
     pos[c] = to_float(g);
     if (ptr < 0) {  // this corner's region is stored at another level (or nowhere)
@@ -287,16 +297,8 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
   const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
   const Vec3i block = block_of_voxel(base);
   // The voxels base + [0, 2]^3 span one or two blocks per axis.
-  const int span_x = local.x >= 6, span_y = local.y >= 6, span_z = local.z >= 6;
-  const TsdfVoxel* blocks[8];
-  for (int d = 0; d < 8; ++d) {
-    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-    blocks[d] = nullptr;
-    if ((dx > span_x) | (dy > span_y) | (dz > span_z)) continue;
-    const int32_t ptr = cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
-    if (ptr < 0) return false;
-    blocks[d] = map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels;
-  }
+  int32_t blocks[8];
+  neighbour_blocks(map, cache, level, block, {local.x >= 6, local.y >= 6, local.z >= 6}, blocks);
   const Vec3f t = q - to_float(base);
   for (int k = 0; k < 3; ++k) {
     float v[8];
@@ -304,8 +306,10 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
     for (int c = 0; c < 8; ++c) {
       const int x = local.x + (c & 1) + (k == 0), y = local.y + ((c >> 1) & 1) + (k == 1),
                 z = local.z + (c >> 2) + (k == 2);
+      const int32_t ptr = blocks[neighbour_slot(x, y, z)];
+      if (ptr < 0) return false;
       const TsdfVoxel vox =
-          blocks[(x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2)][voxel_index(x & 7, y & 7, z & 7)];
+          map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7)];
       min_w = vox.weight < min_w ? vox.weight : min_w;
       v[c] = tsdf_to_float(vox.tsdf);
     }
