@@ -1,6 +1,7 @@
 #include "hivox/track/preprocess.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -58,17 +59,14 @@ void downsample_depth(const DepthImage& in, DepthImage& out, const TrackParams& 
   parallel_for(h, [&](int64_t yy) {
     const int y = static_cast<int>(yy);
     for (int x = 0; x < w; ++x) {
-      float first = 0.0f, sum = 0.0f;
-      int n = 0;
-      for (int k = 0; k < 4; ++k) {
-        const float d = in(2 * x + (k & 1), 2 * y + (k >> 1));
-        if (d <= 0.0f) continue;
-        if (n == 0) first = d;
-        if (!kernels::same_surface(first, d, params.max_depth_jump_ratio)) continue;
-        sum += d;
-        ++n;
-      }
-      out(x, y) = n > 0 ? sum / static_cast<float>(n) : 0.0f;
+      float d[4];
+      for (int k = 0; k < 4; ++k) d[k] = in(2 * x + (k & 1), 2 * y + (k >> 1));
+      const int mask = kernels::same_surface_2x2(d, params.max_depth_jump_ratio);
+      float sum = 0.0f;
+      for (int k = 0; k < 4; ++k)
+        if (mask & (1 << k)) sum += d[k];
+      out(x, y) =
+          mask != 0 ? sum / static_cast<float>(std::popcount(static_cast<unsigned>(mask))) : 0.0f;
     }
   });
 }

@@ -52,6 +52,19 @@ HIVOX_HD inline bool same_surface(float a, float b, float max_jump_ratio) {
   return b > 0.0f && fabsf(a - b) <= max_jump_ratio * a;
 }
 
+/// The samples of a 2x2 block (depth <= 0: none) that lie on the surface of its first valid
+/// one, as a bit mask: what downsampling averages, so that no average mixes two surfaces.
+HIVOX_HD inline int same_surface_2x2(const float d[4], float max_jump_ratio) {
+  int mask = 0;
+  float first = 0.0f;
+  for (int k = 0; k < 4; ++k) {
+    if (d[k] <= 0.0f) continue;
+    if (mask == 0) first = d[k];
+    if (same_surface(first, d[k], max_jump_ratio)) mask |= 1 << k;
+  }
+  return mask;
+}
+
 /// Unit normal at (x, y) from central differences of the point image, pointing to the camera
 /// (the origin); zero at borders, without depth, or across a depth discontinuity.
 HIVOX_HD inline Vec3f normal_from_points(ImageView<const Vec3f> p, int x, int y,

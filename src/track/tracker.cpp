@@ -1,6 +1,7 @@
 #include "hivox/track/tracker.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <numbers>
 
@@ -77,20 +78,23 @@ void Tracker::build_model_pyramid(const RaycastResult& model) {
     parallel_for(h, [&](int64_t yy) {
       const int y = static_cast<int>(yy);
       for (int x = 0; x < w; ++x) {
-        Vec3f p{0, 0, 0}, n{0, 0, 0};
-        float first = 0.0f, d = 0.0f;
-        int count = 0;
+        // Pixels without a model normal count as empty.
+        float dk[4];
         for (int k = 0; k < 4; ++k) {
           const int xs = 2 * x + (k & 1), ys = 2 * y + (k >> 1);
-          const float dk = in.depth_m(xs, ys);
-          if (dk <= 0.0f || kernels::is_zero(in.normals_w(xs, ys))) continue;
-          if (count == 0) first = dk;
-          if (!kernels::same_surface(first, dk, params_.max_depth_jump_ratio)) continue;
+          dk[k] = kernels::is_zero(in.normals_w(xs, ys)) ? 0.0f : in.depth_m(xs, ys);
+        }
+        const int mask = kernels::same_surface_2x2(dk, params_.max_depth_jump_ratio);
+        Vec3f p{0, 0, 0}, n{0, 0, 0};
+        float d = 0.0f;
+        for (int k = 0; k < 4; ++k) {
+          if (!(mask & (1 << k))) continue;
+          const int xs = 2 * x + (k & 1), ys = 2 * y + (k >> 1);
           p += in.points_w(xs, ys);
           n += in.normals_w(xs, ys);
-          d += dk;
-          ++count;
+          d += dk[k];
         }
+        const int count = std::popcount(static_cast<unsigned>(mask));
         out.points_w(x, y) = count > 0 ? p / static_cast<float>(count) : Vec3f{0, 0, 0};
         out.normals_w(x, y) = count > 0 ? normalized(n) : Vec3f{0, 0, 0};
         out.depth_m(x, y) = count > 0 ? d / static_cast<float>(count) : 0.0f;
@@ -127,10 +131,9 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
       // Per row: the inliers' weighted Jacobian rows and residuals are collected first (the
       // association branches), then summed over the row in floats by loops that vectorize;
       // rows are summed in doubles.
-      std::vector<float> rows(static_cast<std::size_t>(8 * w));
+      std::vector<float> rows(static_cast<std::size_t>(7 * w));
       float* const Jw = rows.data();  // 6 columns: sqrt(weight) * J
       float* const rw = Jw + 6 * w;   // sqrt(weight) * r
-      float* const rr = rw + w;       // r
       for (int y = tid; y < h; y += nthreads) {
         float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
         int n = 0;
@@ -162,7 +165,7 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
               sigma2);
           for (int i = 0; i < 6; ++i) Jw[i * w + n] = sqrt_w * J[i];
           rw[n] = sqrt_w * r;
-          rr[n] = r;
+          row_r2 += r * r;
           row_distance += norm(p_w - c_w);
           ++n;
         }
@@ -181,8 +184,6 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
           for (int m = 0; m < n; ++m) b += Ji[m] * rw[m];
           row_b[i] = b;
         }
-#pragma omp simd reduction(+ : row_r2)
-        for (int m = 0; m < n; ++m) row_r2 += rr[m] * rr[m];
         k = 0;
         for (int i = 0; i < 6; ++i) {
           for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
