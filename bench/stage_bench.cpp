@@ -3,7 +3,8 @@
 // `kWarmupFrames` frames; each benchmark then repeats one stage on the next frame.
 //
 // Workload knobs (environment): HIVOX_BENCH_VOXEL (m, default 0.005), HIVOX_BENCH_TRUNC (m,
-// default 0.02), HIVOX_BENCH_LEVELS (default 1), HIVOX_BENCH_WARMUP (frames, default 100).
+// default 0.02), HIVOX_BENCH_LEVELS (default 1; with more, the warm-up refines every frame as
+// the pipeline does), HIVOX_BENCH_WARMUP (frames, default 100).
 
 #include <benchmark/benchmark.h>
 
@@ -17,6 +18,7 @@
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/raycast/raycaster.h"
+#include "hivox/refine/refiner.h"
 
 namespace hivox {
 namespace {
@@ -44,11 +46,15 @@ struct Workload {
     map = std::make_unique<VoxelBlockMap>(mp);
     fusion.truncation_m = static_cast<float>(env_or("HIVOX_BENCH_TRUNC", 0.02));
     TsdfIntegrator integrator(fusion);
+    Refiner refiner;  // with several levels, blocks split and merge as in the pipeline
     const auto warmup = static_cast<std::size_t>(env_or("HIVOX_BENCH_WARMUP", 100));
     for (std::size_t i = 0; i < warmup && i + 1 < reader->size(); ++i) {
       const RgbdFrame f = reader->read(i);
       if (!f.T_wc_gt) continue;
-      integrator.fuse(*map, make_input(f));
+      const FusionInput in = make_input(f);
+      integrator.fuse(*map, in);
+      if (mp.levels > 1)
+        refiner.refine(*map, integrator.visible_blocks(), fusion.truncation_m, in.T_wc);
     }
     frame = reader->read(warmup);
     input = make_input(frame);

@@ -58,6 +58,10 @@ struct BlockBounds {
   }
 };
 
+template <bool kUnbounded = false, typename Visitor>
+HIVOX_HD void walk_segment_in(const MapView& map, int level, const Vec3f& a_w, const Vec3f& b_w,
+                              const BlockBounds& bounds, Visitor& visitor);
+
 /// Visits, in order, every block of `level` that segment a_w -> b_w passes through (3D DDA,
 /// Amanatides & Woo) within `bounds`. `visitor.block(level, pos)` returns the block's `ptr`
 /// (kPtrEmpty when absent); a Split block is walked again one level finer over the part of the
@@ -99,8 +103,8 @@ HIVOX_HD void walk_segment_level(const MapView& map, int level, const Vec3f& a_w
       BlockBounds children;
       children.lo = {2 * cell.x, 2 * cell.y, 2 * cell.z};
       children.hi = {2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};
-      walk_segment_level(map, level - 1, a_w + (b_w - a_w) * t_enter, a_w + (b_w - a_w) * t_exit,
-                         children, visitor);
+      walk_segment_in(map, level - 1, a_w + (b_w - a_w) * t_enter, a_w + (b_w - a_w) * t_exit,
+                      children, visitor);
     }
     if (cell == last || t_max[axis] > 1.0f) break;
     t_enter = t_max[axis];
@@ -110,28 +114,53 @@ HIVOX_HD void walk_segment_level(const MapView& map, int level, const Vec3f& a_w
   }
 }
 
-/// Walks the segment from the coarsest level down. Most band segments start and end in the
-/// same block or in two blocks sharing a face; those are visited directly (same blocks, same
-/// order as the DDA would give, without its set-up), everything else takes the DDA.
+/// Visits the blocks of `level` (within `bounds`) that segment a_w -> b_w passes through, and
+/// below Split ones their children likewise. Most segments start and end in the same block or
+/// in two blocks sharing a face (at every level: a band segment is short, and below a Split
+/// block it is clipped to that block); those are visited directly -- the same blocks in the same
+/// order as the DDA would give, without its set-up -- everything else takes the DDA.
+/// `kUnbounded` (the coarsest level: `bounds` is everything) makes a separate, non-recursive
+/// function that the per-pixel loop inlines.
+template <bool kUnbounded, typename Visitor>
+HIVOX_HD void walk_segment_in(const MapView& map, int level, const Vec3f& a_w, const Vec3f& b_w,
+                              const BlockBounds& bounds, Visitor& visitor) {
+  const LevelView& lv = map.level[level];
+  const Vec3i cell_a = kUnbounded ? block_of_point(lv, a_w) : bounds.clamp(block_of_point(lv, a_w));
+  const Vec3i cell_b = kUnbounded ? block_of_point(lv, b_w) : bounds.clamp(block_of_point(lv, b_w));
+  const Vec3i diff{cell_b.x - cell_a.x, cell_b.y - cell_a.y, cell_b.z - cell_a.z};
+  const int manhattan = abs(diff.x) + abs(diff.y) + abs(diff.z);
+  if (manhattan > 1) {
+    walk_segment_level(map, level, a_w, b_w, bounds, visitor);
+    return;
+  }
+  const auto children_of = [](const Vec3i& c) {
+    return BlockBounds{{2 * c.x, 2 * c.y, 2 * c.z}, {2 * c.x + 1, 2 * c.y + 1, 2 * c.z + 1}};
+  };
+  if (manhattan == 0) {
+    if (visitor.block(level, cell_a) == kPtrSplit && level > 0)
+      walk_segment_in(map, level - 1, a_w, b_w, children_of(cell_a), visitor);
+    return;
+  }
+  // Two face neighbours: the segment crosses their common face once, at parameter t (only
+  // needed below a Split one).
+  const auto crossing = [&]() {
+    const int axis = diff.x != 0 ? 0 : (diff.y != 0 ? 1 : 2);
+    const int face = cell_a[axis] > cell_b[axis] ? cell_a[axis] : cell_b[axis];
+    const float t =
+        (static_cast<float>(face) * lv.block_size_m - a_w[axis]) / (b_w[axis] - a_w[axis]);
+    return a_w + (b_w - a_w) * clampf(t, 0.0f, 1.0f);
+  };
+  if (visitor.block(level, cell_a) == kPtrSplit && level > 0)
+    walk_segment_in(map, level - 1, a_w, crossing(), children_of(cell_a), visitor);
+  if (visitor.block(level, cell_b) == kPtrSplit && level > 0)
+    walk_segment_in(map, level - 1, crossing(), b_w, children_of(cell_b), visitor);
+}
+
+/// Walks the segment from the coarsest level down (see walk_segment_in).
 template <typename Visitor>
 HIVOX_HD void walk_segment(const MapView& map, const Vec3f& a_w, const Vec3f& b_w,
                            Visitor& visitor) {
-  const int top = map.levels - 1;
-  const Vec3i cell_a = block_of_point(map.level[top], a_w);
-  const Vec3i cell_b = block_of_point(map.level[top], b_w);
-  const Vec3i diff{cell_b.x - cell_a.x, cell_b.y - cell_a.y, cell_b.z - cell_a.z};
-  const int changed = (diff.x != 0) + (diff.y != 0) + (diff.z != 0);
-  const bool neighbours = abs(diff.x) + abs(diff.y) + abs(diff.z) == 1;
-  if (changed != 0 && !neighbours) {
-    walk_segment_level(map, top, a_w, b_w, BlockBounds{}, visitor);
-    return;
-  }
-  // The segment lies inside the box of the one or two cells (a convex set): visit them in
-  // order, descending into split ones over the part of the segment inside them.
-  if (visitor.block(top, cell_a) == kPtrSplit && top > 0)
-    walk_segment_level(map, top, a_w, b_w, BlockBounds{cell_a, cell_a}, visitor);
-  if (changed != 0 && visitor.block(top, cell_b) == kPtrSplit && top > 0)
-    walk_segment_level(map, top, a_w, b_w, BlockBounds{cell_b, cell_b}, visitor);
+  walk_segment_in<true>(map, map.levels - 1, a_w, b_w, BlockBounds{}, visitor);
 }
 
 /// The truncation-band segment of pixel (x, y) in world coordinates: depths [d - mu, d + mu]
