@@ -126,6 +126,10 @@ void run_reconstruct(ReconstructOptions options) {
     fmt::print("hivox reconstruct {}\n", info.source);
     fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", total, reader->size(),
                info.depth_camera.width, info.depth_camera.height, options.poses, thread_count());
+    fmt::print("camera: {} [{}]\n", info.depth_camera.to_string(), info.intrinsics_source);
+    if (!info.distortion.none())
+      fmt::print("lens distortion: {} ({})\n", info.distortion.to_string(),
+                 info.undistorted ? "removed from every frame" : "kept: --keep-distortion");
     fmt::print("{}\noutput: {}\n", params_text, out.string());
   }
 

@@ -28,6 +28,9 @@ void add_dataset_options(CLI::App* cmd, DatasetOptions& options) {
   cmd->add_option("--max-frames", options.params.max_frames,
                   "use the first N frames only (0 = all)")
       ->type_name("N");
+  cmd->add_flag("!--keep-distortion", options.params.undistort,
+                "use frames as stored even when the calibration has lens distortion (by default "
+                "it is removed from every frame as it is read)");
 }
 
 std::string dataset_help() {
@@ -44,6 +47,8 @@ std::string dataset_help() {
          "             (or PNG), in the folder or in Frames/\n"
          "Intrinsics come from --intrinsics, --preset, the folder's intrinsics.json, the layout's\n"
          "default or a guess from the folder name (fr1/freiburg1 -> tum_fr1), in that order.\n"
+         "Lens distortion (intrinsics.json 'distortion_k1k2p1p2k3', the fr1/fr2 presets) is\n"
+         "removed from depth and registered colour as frames are read (--keep-distortion: not).\n"
          "Camera presets (all 640x480):\n" +
          presets;
 }

@@ -48,4 +48,18 @@ std::string PinholeCamera::to_string() const {
                      height);
 }
 
+void LensDistortion::validate(const std::string& what) const {
+  const float c[5] = {k1, k2, p1, p2, k3};
+  const char* names[5] = {"k1", "k2", "p1", "p2", "k3"};
+  for (int i = 0; i < 5; ++i)
+    if (!std::isfinite(c[i]))
+      fail(ErrorCode::InvalidArgument, "{}: distortion coefficient {} must be finite, got {}", what,
+           names[i], c[i]);
+}
+
+std::string LensDistortion::to_string() const {
+  if (none()) return "none";
+  return fmt::format("k1={:g} k2={:g} p1={:g} p2={:g} k3={:g}", k1, k2, p1, p2, k3);
+}
+
 }  // namespace hivox

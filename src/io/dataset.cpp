@@ -23,11 +23,20 @@ constexpr PinholeCamera vga(float fx, float fy, float cx, float cy) {
   return PinholeCamera{fx, fy, cx, cy, 640, 480};
 }
 
-// Published calibrations: TUM RGB-D "file formats" page (fr1-3, default), ICL-NUIM (its
-// negative fy mirrors y), 7-Scenes (depth camera), Redwood (PrimeSense default, as in Open3D).
+// Published calibrations: TUM RGB-D "file formats" page (fr1-3 with their lens distortion, the
+// default), ICL-NUIM (its negative fy mirrors y), 7-Scenes (depth camera), Redwood (PrimeSense
+// default, as in Open3D).
 constexpr std::array<CameraPreset, 7> kPresets = {{
-    {"tum_fr1", vga(517.3f, 516.5f, 318.6f, 255.3f), 5000, "TUM RGB-D Freiburg 1 (Kinect)"},
-    {"tum_fr2", vga(520.9f, 521.0f, 325.1f, 249.7f), 5000, "TUM RGB-D Freiburg 2 (Kinect)"},
+    {"tum_fr1",
+     vga(517.3f, 516.5f, 318.6f, 255.3f),
+     5000,
+     "TUM RGB-D Freiburg 1 (Kinect)",
+     {0.2624f, -0.9531f, -0.0054f, 0.0026f, 1.1633f}},
+    {"tum_fr2",
+     vga(520.9f, 521.0f, 325.1f, 249.7f),
+     5000,
+     "TUM RGB-D Freiburg 2 (Kinect)",
+     {0.2312f, -0.7849f, -0.0033f, -0.0001f, 0.9172f}},
     {"tum_fr3", vga(535.4f, 539.2f, 320.1f, 247.6f), 5000, "TUM RGB-D Freiburg 3 (Xtion)"},
     {"tum_default", vga(525.0f, 525.0f, 319.5f, 239.5f), 5000, "TUM ROS default (Kinect)"},
     {"icl_nuim", vga(481.20f, -480.00f, 319.50f, 239.50f), 5000, "ICL-NUIM (negative fy)"},
@@ -128,11 +137,11 @@ void DatasetParams::validate() const {
 }
 
 std::string DatasetParams::to_string() const {
-  return fmt::format("preset={} depth_scale={} intrinsics={} max_frames={}",
+  return fmt::format("preset={} depth_scale={} intrinsics={} max_frames={} undistort={}",
                      preset.empty() ? "(none)" : preset,
                      depth_scale > 0 ? fmt::format("{:g}", depth_scale) : "auto",
                      intrinsics_path.empty() ? "(dataset)" : intrinsics_path.string(),
-                     max_frames > 0 ? std::to_string(max_frames) : "all");
+                     max_frames > 0 ? std::to_string(max_frames) : "all", undistort);
 }
 
 std::span<const CameraPreset> camera_presets() {
@@ -254,11 +263,13 @@ std::string describe_dataset(DatasetReader& reader) {
   line("resolution", fmt::format("{}x{}", info.depth_camera.width, info.depth_camera.height));
   line("intrinsics",
        fmt::format("{}  [{}]", info.depth_camera.to_string(), info.intrinsics_source));
+  if (!info.distortion.none())
+    line("distortion",
+         fmt::format("{}  ({})", info.distortion.to_string(),
+                     info.undistorted ? "removed from every frame as it is read" : "kept"));
   const PinholeCamera& cc = info.color_camera;
   const PinholeCamera& dc = info.depth_camera;
-  const bool registered = cc.fx == dc.fx && cc.fy == dc.fy && cc.cx == dc.cx && cc.cy == dc.cy &&
-                          cc.width == dc.width && cc.height == dc.height &&
-                          info.T_color_depth.isApprox(Pose::Identity());
+  const bool registered = cc == dc && info.T_color_depth.isApprox(Pose::Identity());
   if (info.has_color && !registered) {
     line("colour camera", cc.to_string());
     const Eigen::Vector3d t = info.T_color_depth.translation();

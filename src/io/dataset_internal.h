@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "hivox/core/dataset.h"
+#include "hivox/core/undistort.h"
 #include "hivox/io/dataset.h"
 
 namespace hivox::detail {
@@ -53,11 +54,13 @@ class FileDataset final : public DatasetReader {
   DatasetInfo info_;
   std::vector<FrameFiles> frames_;
   DepthDecoding decoding_;
+  std::unique_ptr<Undistorter> undistorter_;  ///< when `info_.undistorted`
 };
 
 /// Intrinsics and depth scale of a registered camera, with where each came from.
 struct Calibration {
   PinholeCamera camera;
+  LensDistortion distortion;
   std::string intrinsics_source;
   double depth_scale = 0;
   std::string depth_scale_source;

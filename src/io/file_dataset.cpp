@@ -90,6 +90,10 @@ FileDataset::FileDataset(DatasetInfo info, std::vector<FrameFiles> frames, Depth
     : info_(std::move(info)), frames_(std::move(frames)), decoding_(decoding) {
   if (frames_.empty()) fail(ErrorCode::InvalidData, "{}: the dataset has no frames", info_.source);
   truncate(0);  // fills the frame-derived fields of info_
+  if (info_.undistorted) {
+    info_.distortion.validate(info_.intrinsics_source);
+    undistorter_ = std::make_unique<Undistorter>(info_.depth_camera, info_.distortion);
+  }
 }
 
 void FileDataset::truncate(std::size_t max_frames) {
@@ -130,10 +134,15 @@ RgbdFrame FileDataset::read(std::size_t index) {
   out.index = index;
   out.timestamp_s = f.timestamp_s;
   out.depth_m = read_depth(index);
+  if (undistorter_) out.depth_m = undistorter_->depth(out.depth_m);
   if (!f.color.empty()) {
     out.color = read_color(f.color);
     check_size(f.color, "colour", out.color.width(), out.color.height(), info_.color_camera,
                info_.intrinsics_source);
+    // Registered colour shares the depth camera and its distortion.
+    if (undistorter_ && info_.T_color_depth.isApprox(Pose::Identity()) &&
+        info_.color_camera == info_.depth_camera)
+      out.color = undistorter_->color(out.color);
   }
   if (f.T_wc_gt) {
     out.T_wc_gt = f.T_wc_gt;
@@ -168,15 +177,19 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
   const CameraPreset* guessed = nullptr;
   if (explicit_file) {
     c.camera = explicit_file->camera;
+    c.distortion = explicit_file->distortion;
     c.intrinsics_source = fmt::format("{} (given)", params.intrinsics_path.string());
   } else if (explicit_preset) {
     c.camera = explicit_preset->camera;
+    c.distortion = explicit_preset->distortion;
     c.intrinsics_source = fmt::format("preset {} (given)", explicit_preset->name);
   } else if (const IntrinsicsFile* f = load_folder_file()) {
     c.camera = f->camera;
+    c.distortion = f->distortion;
     c.intrinsics_source = folder_json.string();
   } else if (defaults.preset) {
     c.camera = defaults.preset->camera;
+    c.distortion = defaults.preset->distortion;
     c.intrinsics_source =
         fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name);
   } else {
@@ -188,6 +201,7 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
            "camera preset (--preset, one of: {}) or an intrinsics file (--intrinsics FILE)",
            dir.string(), preset_names());
     c.camera = guessed->camera;
+    c.distortion = guessed->distortion;
     c.intrinsics_source =
         fmt::format("preset {}, guessed from the folder name '{}'", guessed->name, matched);
   }

@@ -1,5 +1,6 @@
 #include "hivox/io/intrinsics_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -10,6 +11,8 @@
 namespace hivox {
 
 namespace {
+
+constexpr const char* kDistortionField = "distortion_k1k2p1p2k3";
 
 double number_field(const nlohmann::json& j, const std::filesystem::path& path, const char* name) {
   if (!j.contains(name))
@@ -54,6 +57,17 @@ IntrinsicsFile read_intrinsics_json(const std::filesystem::path& path) {
            path.string(), out.depth_scale);
   }
   if (j.contains("note") && j.at("note").is_string()) out.note = j.at("note").get<std::string>();
+  if (j.contains(kDistortionField)) {
+    const auto& d = j.at(kDistortionField);
+    if (!d.is_array() || d.size() < 4 || d.size() > 5 ||
+        !std::all_of(d.begin(), d.end(), [](const nlohmann::json& v) { return v.is_number(); }))
+      fail(ErrorCode::InvalidData,
+           "{}: field '{}' must be 4 or 5 numbers (k1 k2 p1 p2 [k3]), found {}", path.string(),
+           kDistortionField, d.dump());
+    out.distortion = {d[0].get<float>(), d[1].get<float>(), d[2].get<float>(), d[3].get<float>(),
+                      d.size() == 5 ? d[4].get<float>() : 0.0f};
+    out.distortion.validate(path.string());
+  }
   return out;
 }
 
@@ -67,6 +81,10 @@ void write_intrinsics_json(const std::filesystem::path& path, const IntrinsicsFi
   j["height"] = intrinsics.camera.height;
   if (intrinsics.depth_scale > 0) j["depth_scale"] = intrinsics.depth_scale;
   if (!intrinsics.note.empty()) j["note"] = intrinsics.note;
+  if (!intrinsics.distortion.none()) {
+    const LensDistortion& d = intrinsics.distortion;
+    j[kDistortionField] = {d.k1, d.k2, d.p1, d.p2, d.k3};
+  }
   std::ofstream out(path);
   if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
   out << j.dump(2) << "\n";

@@ -80,6 +80,8 @@ std::unique_ptr<FileDataset> open_seven_scenes(const fs::path& dir, const Datase
   info.depth_camera = calibration.camera;
   info.color_camera = calibration.camera;
   info.intrinsics_source = calibration.intrinsics_source;
+  info.distortion = calibration.distortion;
+  info.undistorted = params.undistort && !calibration.distortion.none();
   info.depth_scale = calibration.depth_scale;
   info.depth_scale_source = calibration.depth_scale_source;
   if (any_color)

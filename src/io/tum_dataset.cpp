@@ -159,6 +159,8 @@ std::unique_ptr<FileDataset> open_tum(const fs::path& dir, const DatasetParams& 
   info.depth_camera = calibration.camera;
   info.color_camera = calibration.camera;  // TUM depth is registered to colour
   info.intrinsics_source = calibration.intrinsics_source;
+  info.distortion = calibration.distortion;
+  info.undistorted = params.undistort && !calibration.distortion.none();
   info.depth_scale = calibration.depth_scale;
   info.depth_scale_source = calibration.depth_scale_source;
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),

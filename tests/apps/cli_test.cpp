@@ -44,6 +44,17 @@ TEST(Cli, InfoDescribesADataset) {
   EXPECT_NE(scaled.output.find("depth scale:    1000 raw units per metre  [given]"),
             std::string::npos)
       << scaled.output;
+
+  // Lens distortion from the folder's intrinsics.json: removed unless --keep-distortion.
+  test::write_text(dir / "intrinsics.json",
+                   R"({"fx": 10, "fy": 10, "cx": 3.5, "cy": 2.5, "width": 8, "height": 6,
+                       "distortion_k1k2p1p2k3": [0.1, 0, 0, 0, 0]})");
+  const CliRun removed = run_hivox("info " + dir.path().string());
+  EXPECT_NE(removed.output.find("distortion:     k1=0.1 k2=0 p1=0 p2=0 k3=0  (removed"),
+            std::string::npos)
+      << removed.output;
+  const CliRun kept = run_hivox("info " + dir.path().string() + " --keep-distortion");
+  EXPECT_NE(kept.output.find("(kept)"), std::string::npos) << kept.output;
 }
 
 TEST(Cli, BadInputIsOneLineAndExitCodeOne) {

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "dataset_test_util.h"
+#include "hivox/core/undistort.h"
 #include "hivox/io/dataset.h"
 #include "hivox/io/image_io.h"
 
@@ -62,10 +63,20 @@ TEST(RealData, TumFr1Rpy) {
   expect_pose_equals_line(*f.T_wc_gt,
                           nearest_groundtruth_line(dir / "groundtruth.txt", f.timestamp_s));
   EXPECT_EQ(f.color.width(), 640);
-  // Depth is the raw PNG over 5000.
+  // Depth is the raw PNG over 5000, with the fr1 lens distortion of intrinsics.json removed:
+  // as read with --keep-distortion, then resampled.
+  EXPECT_TRUE(info.undistorted);
+  EXPECT_EQ(info.distortion.k1, 0.2624f);
   const Image<uint16_t> raw = read_depth16(dir / "depth/1305031232.868557.png");
+  DatasetParams keep;
+  keep.undistort = false;
+  const RgbdFrame kept = open_dataset(dir.string(), keep)->read(100);
   for (const auto& [x, y] : {std::pair{320, 240}, std::pair{100, 400}, std::pair{600, 50}})
-    EXPECT_FLOAT_EQ(f.depth_m(x, y), raw(x, y) / 5000.0f) << x << "," << y;
+    EXPECT_FLOAT_EQ(kept.depth_m(x, y), raw(x, y) / 5000.0f) << x << "," << y;
+  const DepthImage undistorted =
+      Undistorter(info.depth_camera, info.distortion).depth(kept.depth_m);
+  for (std::size_t i = 0; i < undistorted.size(); ++i)
+    ASSERT_EQ(f.depth_m.data()[i], undistorted.data()[i]) << i;
   for (std::size_t i : {441u, 442u, 443u}) EXPECT_FALSE(reader->read(i).T_wc_gt.has_value()) << i;
   EXPECT_TRUE(reader->read(444).T_wc_gt.has_value());
 }

@@ -9,6 +9,8 @@
 
 #include "dataset_test_util.h"
 #include "hivox/core/error.h"
+#include "hivox/core/undistort.h"
+#include "hivox/io/intrinsics_io.h"
 
 namespace hivox {
 namespace {
@@ -197,10 +199,56 @@ TEST(DatasetCalibration, GuessedFromFolderName) {
   EXPECT_NE(info.intrinsics_source.find("tum_fr2"), std::string::npos) << info.intrinsics_source;
   EXPECT_NE(info.intrinsics_source.find("guessed"), std::string::npos) << info.intrinsics_source;
   EXPECT_EQ(info.depth_scale, 5000.0);
-  EXPECT_NEAR(reader->read(0).depth_m(0, 0), 9000.0f / 5000.0f, kTol);
+  // At the principal point the fr2 lens distortion (removed on reading) moves nothing.
+  EXPECT_NEAR(reader->read(0).depth_m(325, 250), (9000.0f + 3250 + 250) / 5000.0f, kTol);
 
   const auto fr1 = write_vga_tum(root.path(), "fr1_xyz");
   EXPECT_EQ(open_dataset(fr1.string())->info().depth_camera.fx, 517.3f);
+}
+
+TEST(DatasetCalibration, LensDistortionIsRemovedAsFramesAreRead) {
+  TempDir root;
+  const auto dir = write_vga_tum(root.path(), "set");
+  IntrinsicsFile file;
+  file.camera = {500, 500, 320, 240, 640, 480};
+  file.depth_scale = 5000;
+  file.distortion = {0.2f, -0.5f, 0.001f, -0.002f, 0.3f};
+  write_intrinsics_json(dir / "intrinsics.json", file);
+  EXPECT_EQ(read_intrinsics_json(dir / "intrinsics.json").distortion.k3, 0.3f);  // round trip
+
+  auto reader = open_dataset(dir.string());
+  const DatasetInfo& info = reader->info();
+  EXPECT_TRUE(info.undistorted);
+  EXPECT_EQ(info.distortion.k1, 0.2f);
+  EXPECT_EQ(info.distortion.p2, -0.002f);
+  EXPECT_NE(describe_dataset(*reader).find("removed from every frame"), std::string::npos);
+  DatasetParams keep;
+  keep.undistort = false;
+  auto raw_reader = open_dataset(dir.string(), keep);
+  EXPECT_FALSE(raw_reader->info().undistorted);
+  const RgbdFrame raw = raw_reader->read(0), frame = reader->read(0);
+  const Undistorter undistorter(file.camera, file.distortion);
+  const DepthImage expected_depth = undistorter.depth(raw.depth_m);
+  const ColorImage expected_colour = undistorter.color(raw.color);
+  int moved = 0;
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) {
+      ASSERT_EQ(frame.depth_m(x, y), expected_depth(x, y)) << x << "," << y;
+      ASSERT_EQ(frame.color(x, y), expected_colour(x, y)) << x << "," << y;
+      moved += frame.depth_m(x, y) != raw.depth_m(x, y);
+    }
+  EXPECT_GT(moved, 640 * 480 / 2);  // every pixel value differs here: most moved
+
+  // The TUM presets carry the published distortion; a guessed fr1 folder is undistorted too.
+  const auto fr1 = write_vga_tum(root.path(), "fr1_xyz");
+  const DatasetInfo fr1_info = open_dataset(fr1.string())->info();
+  EXPECT_TRUE(fr1_info.undistorted);
+  EXPECT_EQ(fr1_info.distortion.k1, 0.2624f);
+  // 4 coefficients (k3 = 0) are accepted, as OpenCV writes them.
+  write_text(dir / "intrinsics.json",
+             R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480,
+                 "distortion_k1k2p1p2k3": [0.1, 0.01, 0, 0]})");
+  EXPECT_EQ(open_dataset(dir.string())->info().distortion.k1, 0.1f);
 }
 
 TEST(DatasetCalibration, NothingToGoOnAsksForPresetOrIntrinsics) {
@@ -315,7 +363,9 @@ TEST(DatasetParams, ValidateAndPrint) {
   expect_error([&] { p.validate(); }, ErrorCode::InvalidArgument, {"tum_fr1", "cam.json"});
   p.intrinsics_path.clear();
   p.max_frames = 7;
-  EXPECT_EQ(p.to_string(), "preset=tum_fr1 depth_scale=1000 intrinsics=(dataset) max_frames=7");
+  p.undistort = false;
+  EXPECT_EQ(p.to_string(),
+            "preset=tum_fr1 depth_scale=1000 intrinsics=(dataset) max_frames=7 undistort=false");
 }
 
 // ---- 7-Scenes --------------------------------------------------------------------------------
@@ -679,6 +729,13 @@ TEST(DatasetBadInput, BadIntrinsics) {
   write_text(json, R"({"fx": 10, "fy": 10, "cx": 3.5})");
   expect_error([&] { open_dataset(dir.path().string()); }, ErrorCode::InvalidData,
                {"intrinsics.json", "cy"});
+  write_text(json,
+             R"({"fx": 10, "fy": 10, "distortion_k1k2p1p2k3": [0.1, 0.2, 0.3], )" + rest + "}");
+  expect_error([&] { open_dataset(dir.path().string()); }, ErrorCode::InvalidData,
+               {"intrinsics.json", "distortion_k1k2p1p2k3", "4 or 5"});
+  write_text(json, R"({"fx": 10, "fy": 10, "distortion_k1k2p1p2k3": "none", )" + rest + "}");
+  expect_error([&] { open_dataset(dir.path().string()); }, ErrorCode::InvalidData,
+               {"intrinsics.json", "distortion_k1k2p1p2k3"});
   // A broken folder file does not matter when the user gives the intrinsics.
   DatasetParams params;
   params.intrinsics_path = dir / "given.json";

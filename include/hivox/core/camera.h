@@ -45,6 +45,30 @@ struct PinholeCamera {
   /// (e.g. the file the intrinsics came from).
   void validate(const std::string& what = "camera") const;
   std::string to_string() const;
+  bool operator==(const PinholeCamera&) const = default;
+};
+
+/// Radial-tangential lens distortion (Brown-Conrady, in OpenCV's order k1, k2, p1, p2, k3) of
+/// normalised image coordinates (x, y) = ((u - cx) / fx, (v - cy) / fy). All zero = none.
+/// Frames are undistorted when they are read (see `Undistorter`): everything after works on an
+/// ideal pinhole camera.
+struct LensDistortion {
+  float k1 = 0, k2 = 0, p1 = 0, p2 = 0, k3 = 0;
+
+  HIVOX_HD bool none() const {
+    return k1 == 0.0f && k2 == 0.0f && p1 == 0.0f && p2 == 0.0f && k3 == 0.0f;
+  }
+  /// Where the ideal normalised point `xy` appears in the distorted image (normalised).
+  HIVOX_HD Vec2f distort(const Vec2f& xy) const {
+    const float x = xy.x, y = xy.y;
+    const float r2 = x * x + y * y;
+    const float radial = 1.0f + r2 * (k1 + r2 * (k2 + r2 * k3));
+    return {x * radial + 2.0f * p1 * x * y + p2 * (r2 + 2.0f * x * x),
+            y * radial + p1 * (r2 + 2.0f * y * y) + 2.0f * p2 * x * y};
+  }
+  /// Throws `Error(InvalidArgument)` when a coefficient is not finite; `what` prefixes it.
+  void validate(const std::string& what = "lens distortion") const;
+  std::string to_string() const;
 };
 
 }  // namespace hivox

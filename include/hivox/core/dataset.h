@@ -27,6 +27,11 @@ struct DatasetInfo {
   /// Maps depth-camera points into the colour-camera frame (identity when registered).
   Pose T_color_depth = Pose::Identity();
   std::string intrinsics_source;  ///< where the intrinsics came from (file, preset name)
+  /// Lens distortion of the depth camera (= colour camera when registered) as calibrated.
+  LensDistortion distortion;
+  /// Frames come with `distortion` removed (depth, and colour when registered); false when the
+  /// calibration has none or undistortion was turned off.
+  bool undistorted = false;
   /// Raw depth units per metre (value / depth_scale = metres); 0 when depth is metric already.
   double depth_scale = 0;
   std::string depth_scale_source;  ///< file, preset or override that set `depth_scale`

@@ -44,6 +44,9 @@ struct DatasetParams {
   std::filesystem::path intrinsics_path;
   /// Read at most this many frames (the first ones); 0 = all.
   std::size_t max_frames = 0;
+  /// Remove the lens distortion of the calibration (if it has any) from every frame as it is
+  /// read. Off: frames are used as stored, as if the camera were an ideal pinhole.
+  bool undistort = true;
 
   /// Throws `Error(InvalidArgument)` naming the bad field.
   void validate() const;
@@ -56,6 +59,7 @@ struct CameraPreset {
   PinholeCamera camera;
   double depth_scale = 0;  ///< raw depth units per metre
   std::string_view description;
+  LensDistortion distortion{};  ///< as published with the intrinsics; none when not given
 };
 
 /// All presets: `tum_fr1`, `tum_fr2`, `tum_fr3`, `tum_default`, `icl_nuim` (negative fy),

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// `intrinsics.json`: `{"fx", "fy", "cx", "cy", "width", "height", "depth_scale"}` (+ optional
-/// `note` and distortion, which hivox reads but does not use).
+/// `note` and `distortion_k1k2p1p2k3`, 4 or 5 lens distortion coefficients in OpenCV's order).
 
 #include <filesystem>
 #include <string>
@@ -12,7 +12,8 @@ namespace hivox {
 
 struct IntrinsicsFile {
   PinholeCamera camera;
-  double depth_scale = 0;  ///< raw depth units per metre; 0 when the file has none
+  double depth_scale = 0;     ///< raw depth units per metre; 0 when the file has none
+  LensDistortion distortion;  ///< none when the file has none
   std::string note;
 };
 
