@@ -94,8 +94,8 @@ void expect_sensible_hierarchy(const Outcome& o, double walls_coarse, double max
 
 TEST(HierarchyDesk, NoiseFree) {
   const Outcome o = run("none");
-  // Measured (120 frames, 640x480): walls ~100 % coarse, floor ~99 %, keyboard ~94 % finest,
-  // blob ~49 %, blocks ~10 % of the fixed 2 mm grid, error ~1.42x fixed 2 mm and ~0.70x fixed
+  // Measured (120 frames, 640x480): walls ~100 % coarse, floor ~99 %, keyboard ~90 % finest,
+  // blob ~49 %, blocks ~9 % of the fixed 2 mm grid, error ~1.44x fixed 2 mm and ~0.71x fixed
   // 8 mm (the issue asks 1.25x: the refinement's noise terms assume a Kinect even here).
   expect_sensible_hierarchy(o, 0.9, 1.6, 0.8);
   EXPECT_GE(o.level_share.at("floor")[2], 0.7);
@@ -103,13 +103,15 @@ TEST(HierarchyDesk, NoiseFree) {
 
 TEST(HierarchyDesk, KinectNoise) {
   const Outcome o = run("kinect");
-  // Measured: walls ~65 % coarse (the rest mostly at the middle level: the synthetic noise at
-  // 2-3 m, sigma 8-15 mm per pixel, still leaves visible ripple after 120 frames), keyboard
-  // ~100 % finest, blob ~80 %, blocks ~22 % of fixed 2 mm, error ~0.93x fixed 2 mm (noise
-  // averages out in the coarser voxels) and ~0.91x fixed 8 mm (itself within 5 % of fixed 2 mm
-  // at this noise, so the issue's 0.6x of fixed 8 mm cannot hold here). Short of the issue's
-  // >= 80 % coarse walls; the table top stays fine (see BENCHMARKS.md, open points).
-  expect_sensible_hierarchy(o, 0.55, 1.25, 0.97);
+  // Measured: walls ~81 % coarse (most of the rest at the middle level: the synthetic noise at
+  // 2-3 m, sigma 8-15 mm per pixel, still leaves visible ripple after 120 frames), floor ~57 %,
+  // keyboard ~94 % finest, blob ~51 %, table top ~57 % finest (objects stand on it, and the
+  // synthetic depth quantisation leaves a staircase on the tilted top), blocks ~18 % of fixed
+  // 2 mm, error ~0.94x fixed 2 mm (noise averages out in the coarser voxels) and ~0.92x fixed
+  // 8 mm (itself within 5 % of fixed 2 mm at this noise, so the issue's 0.6x of fixed 8 mm
+  // cannot hold here).
+  expect_sensible_hierarchy(o, 0.78, 1.25,
+                            0.97);  // walls: the issue's 80 %, less 2 points for other CPUs
 }
 
 }  // namespace
