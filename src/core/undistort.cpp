@@ -45,7 +45,8 @@ DepthImage Undistorter::depth(const DepthImage& in) const {
   parallel_for(static_cast<int64_t>(source_.size()), [&](int64_t i) {
     const Vec2f s = source_[static_cast<std::size_t>(i)];
     if (s.x == kOutside) return;
-    const int x = static_cast<int>(std::lround(s.x)), y = static_cast<int>(std::lround(s.y));
+    // Nearest pixel: s >= -0.5, so truncating s + 0.5 rounds (a libm call per pixel does not).
+    const int x = static_cast<int>(s.x + 0.5f), y = static_cast<int>(s.y + 0.5f);
     out.data()[i] = in(x < w ? x : w - 1, y < h ? y : h - 1);
   });
   return out;
@@ -67,7 +68,7 @@ ColorImage Undistorter::color(const ColorImage& in) const {
     const Rgb8 c00 = in(x0, y0), c10 = in(x1, y0), c01 = in(x0, y1), c11 = in(x1, y1);
     const auto mix = [&](uint8_t a, uint8_t b, uint8_t c, uint8_t d) {
       const float top = a + (b - a) * ax, bottom = c + (d - c) * ax;
-      return static_cast<uint8_t>(std::lround(top + (bottom - top) * ay));
+      return static_cast<uint8_t>(top + (bottom - top) * ay + 0.5f);  // >= 0: rounds
     };
     out.data()[i] = {mix(c00.r, c10.r, c01.r, c11.r), mix(c00.g, c10.g, c01.g, c11.g),
                      mix(c00.b, c10.b, c01.b, c11.b)};
