@@ -87,12 +87,6 @@ void run_reconstruct(ReconstructOptions options) {
   if (options.threads > 0) set_thread_count(options.threads);
   options.params.refine.criterion = parse_refine_criterion(options.refine_criterion);
   options.params.track.loss = parse_robust_loss(options.icp_loss);
-  {  // The merge factor follows the split factor, keeping the default hysteresis ratio.
-    const RefineParams defaults;
-    RefineParams& r = options.params.refine;
-    r.merge_noise_factor =
-        r.split_noise_factor * (defaults.merge_noise_factor / defaults.split_noise_factor);
-  }
   if (options.no_color) {
     options.params.map.store_color = false;
     options.params.fusion.integrate_color = false;
@@ -300,8 +294,9 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "split only on detail well above their noise (lower: more blocks stay fine)")
       ->capture_default_str();
   cmd->add_option("--refine-noise-factor", p.refine.split_noise_factor,
-                  "split when detail exceeds this times the sensor noise at the block's depth "
-                  "(merge below 0.72 times as much)")
+                  fmt::format("split when detail exceeds this times the sensor noise at the "
+                              "block's depth (merge below {:g} times as much)",
+                              p.refine.merge_noise_ratio))
       ->capture_default_str();
   cmd->add_option("--icp-loss", o.icp_loss,
                   "robust weighting of ICP residuals: none, huber or tukey")

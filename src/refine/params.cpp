@@ -54,7 +54,7 @@ float RefineParams::split_level(float z_m, float mean_weight) const {
 
 float RefineParams::merge_level(float z_m) const {
   if (criterion != RefineCriterion::Detail) return merge_threshold;
-  const float n = merge_noise_factor * noise.sigma_m(z_m);
+  const float n = merge_noise_ratio * split_noise_factor * noise.sigma_m(z_m);
   return n > merge_threshold ? n : merge_threshold;
 }
 
@@ -81,11 +81,12 @@ void RefineParams::validate() const {
     fail(ErrorCode::InvalidArgument,
          "refine sensor noise terms must be >= 0, got {} + {} (z - {})^2", noise.sigma_min_m,
          noise.quadratic_per_m, noise.z0_m);
-  if (!(split_noise_factor >= 0.0f) || !(merge_noise_factor >= 0.0f) ||
-      merge_noise_factor > split_noise_factor)
-    fail(ErrorCode::InvalidArgument,
-         "refine noise factors must satisfy 0 <= merge ({}) <= split ({})", merge_noise_factor,
+  if (!(split_noise_factor >= 0.0f) || !std::isfinite(split_noise_factor))
+    fail(ErrorCode::InvalidArgument, "refine split_noise_factor must be >= 0, got {}",
          split_noise_factor);
+  if (!(merge_noise_ratio >= 0.0f && merge_noise_ratio <= 1.0f))
+    fail(ErrorCode::InvalidArgument, "refine merge_noise_ratio must be in [0, 1], got {}",
+         merge_noise_ratio);
   if (!(split_weight_scale > 0.0f && split_weight_scale <= 1.0f))
     fail(ErrorCode::InvalidArgument, "refine split_weight_scale must be in (0, 1], got {}",
          split_weight_scale);
@@ -100,8 +101,8 @@ std::string RefineParams::to_string() const {
       hivox::to_string(criterion), metres ? split_threshold * 1000.0f : split_threshold,
       metres ? " mm" : "", noisy ? fmt::format(" or {} sigma(z)", split_noise_factor) : "",
       metres ? merge_threshold * 1000.0f : merge_threshold, metres ? " mm" : "",
-      noisy ? fmt::format(" or {} sigma(z)", merge_noise_factor) : "", every_n_frames,
-      every_n_frames > 1 ? "s" : "", min_weight, min_updates);
+      noisy ? fmt::format(" or {:g} sigma(z)", merge_noise_ratio * split_noise_factor) : "",
+      every_n_frames, every_n_frames > 1 ? "s" : "", min_weight, min_updates);
 }
 
 }  // namespace hivox

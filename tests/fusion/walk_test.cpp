@@ -20,7 +20,9 @@ namespace {
 
 using Key = std::tuple<int, int, int, int>;  // level, x, y, z
 
-Key key_of(int level, const Vec3i& p) { return {level, p.x, p.y, p.z}; }
+Key key_of(int level, const Vec3i& p) {
+  return {level, p.x, p.y, p.z};
+}
 
 struct RecordingVisitor {
   const MapView& map;

@@ -7,6 +7,7 @@
 #include <set>
 #include <tuple>
 
+#include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 #include "hivox/refine/refiner.h"
 #include "map/map_invariants.h"
@@ -241,6 +242,25 @@ TEST(SplitMerge, InvalidRequestsAreCountedNotApplied) {
   const std::vector<BlockKey> not_split = {{{0, 0, 0}, 1}};
   EXPECT_EQ(merge_blocks(map, not_split).invalid, 1);
   test::expect_map_consistent(map);
+}
+
+TEST(RefineParams, MergeLevelFollowsTheSplitLevelAndBadValuesAreRejected) {
+  RefineParams p;
+  // Far away the noise terms dominate the fixed thresholds: the merge level is the split level
+  // of a settled block times the ratio, whatever the split factor.
+  for (float factor : {0.25f, 0.1f, 0.5f}) {
+    p.split_noise_factor = factor;
+    const float z = 3.0f;
+    ASSERT_GT(p.merge_level(z), p.merge_threshold);
+    EXPECT_NEAR(p.merge_level(z), p.merge_noise_ratio * p.split_level(z), 1e-9f) << factor;
+    EXPECT_LT(p.merge_level(z), p.split_level(z, 1.0f)) << "hysteresis, young blocks too";
+  }
+  p = RefineParams{};
+  p.merge_noise_ratio = 1.5f;
+  EXPECT_THROW(p.validate(), Error);
+  p = RefineParams{};
+  p.split_noise_factor = -0.1f;
+  EXPECT_THROW(p.validate(), Error);
 }
 
 }  // namespace

@@ -30,14 +30,16 @@ struct RefineParams {
   /// determinant for DetCov (which ignores the noise terms).
   float split_threshold = 0.0005f;
   /// Merge 8 sibling leaves back when each one's complexity is below
-  /// max(merge_threshold, merge_noise_factor * sigma(z)) (< the split level: hysteresis).
+  /// max(merge_threshold, merge_noise_ratio * split_noise_factor * sigma(z)) (< the split level:
+  /// hysteresis).
   float merge_threshold = 0.00025f;
   SensorNoise noise = SensorNoise::kinect();
   float split_noise_factor = 0.25f;
-  /// 0.18 (0.72 x the split factor): walls seen at 2-3 m with Kinect noise settle at the
-  /// coarsest level (81 % of their area on the noisy synthetic desk, 65 % with 0.12) at the same
+  /// The merge level's noise term as a fraction of the split level's, in [0, 1]. 0.72 (0.18
+  /// sigma(z) with the default split factor): walls seen at 2-3 m with Kinect noise settle at the
+  /// coarsest level (81 % of their area on the noisy synthetic desk, 65 % with 0.48) at the same
   /// accuracy; on real fr1/rpy the block count changes by 1 % (BENCHMARKS.md).
-  float merge_noise_factor = 0.18f;
+  float merge_noise_ratio = 0.72f;
   /// Fused noise falls as 1/sqrt(observations): a block whose sampled voxels were observed n
   /// times on average (n < settled_weight) has its noise terms raised by sqrt(settled_weight /
   /// n), so it splits early only on detail well above its noise. 32 is measured (BENCHMARKS.md):
