@@ -176,11 +176,8 @@ void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
     color.image = {in.color->data(), in.color->width(), in.color->height()};
     color.camera = in.color_camera;
     color.T_color_depth = to_rigid3f(in.T_color_depth);
-    const PinholeCamera& a = in.color_camera;
-    const PinholeCamera& b = in.depth_camera;
-    color.registered = in.T_color_depth.isApprox(Pose::Identity()) && a.fx == b.fx &&
-                       a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
-                       a.height == b.height;
+    color.registered =
+        in.T_color_depth.isApprox(Pose::Identity()) && in.color_camera == in.depth_camera;
     if (color.registered) {
       std::vector<uint32_t>& packed = scratch_->packed_color;
       packed.resize(in.color->size());

@@ -268,9 +268,7 @@ std::string describe_dataset(DatasetReader& reader) {
          fmt::format("{}  ({})", info.distortion.to_string(),
                      info.undistorted ? "removed from every frame as it is read" : "kept"));
   const PinholeCamera& cc = info.color_camera;
-  const PinholeCamera& dc = info.depth_camera;
-  const bool registered = cc == dc && info.T_color_depth.isApprox(Pose::Identity());
-  if (info.has_color && !registered) {
+  if (info.has_color && !info.color_registered()) {
     line("colour camera", cc.to_string());
     const Eigen::Vector3d t = info.T_color_depth.translation();
     line("T_color_depth",

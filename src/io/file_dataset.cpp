@@ -140,9 +140,7 @@ RgbdFrame FileDataset::read(std::size_t index) {
     check_size(f.color, "colour", out.color.width(), out.color.height(), info_.color_camera,
                info_.intrinsics_source);
     // Registered colour shares the depth camera and its distortion.
-    if (undistorter_ && info_.T_color_depth.isApprox(Pose::Identity()) &&
-        info_.color_camera == info_.depth_camera)
-      out.color = undistorter_->color(out.color);
+    if (undistorter_ && info_.color_registered()) out.color = undistorter_->color(out.color);
   }
   if (f.T_wc_gt) {
     out.T_wc_gt = f.T_wc_gt;

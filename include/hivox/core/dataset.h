@@ -26,6 +26,10 @@ struct DatasetInfo {
   PinholeCamera color_camera;
   /// Maps depth-camera points into the colour-camera frame (identity when registered).
   Pose T_color_depth = Pose::Identity();
+  /// Colour pixel (u, v) sees what depth pixel (u, v) sees: one camera, no offset.
+  bool color_registered() const {
+    return color_camera == depth_camera && T_color_depth.isApprox(Pose::Identity());
+  }
   std::string intrinsics_source;  ///< where the intrinsics came from (file, preset name)
   /// Lens distortion of the depth camera (= colour camera when registered) as calibrated.
   LensDistortion distortion;
