@@ -21,6 +21,9 @@ void RaycastParams::validate() const {
     fail(ErrorCode::InvalidArgument, "range_tile_px must be in [1, 64], got {}", range_tile_px);
   if (!(step_fraction > 0.0f && step_fraction <= 1.0f))
     fail(ErrorCode::InvalidArgument, "step_fraction must be in (0, 1], got {}", step_fraction);
+  if (!std::isfinite(hint_margin_mu) || hint_margin_mu < 0.0f)
+    fail(ErrorCode::InvalidArgument,
+         "raycast hint_margin_mu must be >= 0 truncation bands (finite), got {}", hint_margin_mu);
   if (min_weight < 1)
     fail(ErrorCode::InvalidArgument, "min_weight must be >= 1, got {}", min_weight);
 }

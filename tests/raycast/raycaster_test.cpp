@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
@@ -214,6 +215,13 @@ TEST(Raycaster, ParamsAreValidated) {
   p = RaycastParams{};
   p.step_fraction = 0;
   EXPECT_THROW(p.validate(), Error);
+  p = RaycastParams{};
+  p.hint_margin_mu = -1.0f;  // rays would start behind the hinted surface
+  EXPECT_THROW(p.validate(), Error);
+  p.hint_margin_mu = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(p.validate(), Error);
+  p.hint_margin_mu = 0.0f;
+  EXPECT_NO_THROW(p.validate());
 }
 
 }  // namespace
