@@ -18,10 +18,9 @@ Undistorter::Undistorter(const PinholeCamera& camera, const LensDistortion& dist
   source_.resize(static_cast<std::size_t>(camera.width) * camera.height);
   for (int v = 0; v < camera.height; ++v)
     for (int u = 0; u < camera.width; ++u) {
-      const Vec2f xy{(static_cast<float>(u) - camera.cx) / camera.fx,
-                     (static_cast<float>(v) - camera.cy) / camera.fy};
-      const Vec2f d = distortion.distort(xy);
-      Vec2f src{camera.fx * d.x + camera.cx, camera.fy * d.y + camera.cy};
+      const Vec3f ray = camera.ray(static_cast<float>(u), static_cast<float>(v));
+      const Vec2f d = distortion.distort({ray.x, ray.y});
+      Vec2f src = camera.project({d.x, d.y, 1.0f});
       // Sources within half a pixel of the border still have a nearest pixel inside.
       if (!(src.x >= -0.5f && src.y >= -0.5f && src.x <= static_cast<float>(camera.width) - 0.5f &&
             src.y <= static_cast<float>(camera.height) - 0.5f)) {

@@ -4,6 +4,7 @@
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/core/atomic.h"
+#include "hivox/core/dataset.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 
@@ -176,8 +177,7 @@ void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
     color.image = {in.color->data(), in.color->width(), in.color->height()};
     color.camera = in.color_camera;
     color.T_color_depth = to_rigid3f(in.T_color_depth);
-    color.registered =
-        in.T_color_depth.isApprox(Pose::Identity()) && in.color_camera == in.depth_camera;
+    color.registered = color_registered(in.color_camera, in.depth_camera, in.T_color_depth);
     if (color.registered) {
       std::vector<uint32_t>& packed = scratch_->packed_color;
       packed.resize(in.color->size());

@@ -64,6 +64,10 @@ struct Calibration {
   std::string intrinsics_source;
   double depth_scale = 0;
   std::string depth_scale_source;
+
+  /// Fills `info`'s camera fields (depth and registered colour camera, distortion, depth scale,
+  /// with their sources); the distortion is removed from frames when `undistort` and it has any.
+  void apply_to(DatasetInfo& info, bool undistort) const;
 };
 
 /// What a layout falls back to when the user and the folder say nothing.

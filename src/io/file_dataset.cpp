@@ -90,10 +90,8 @@ FileDataset::FileDataset(DatasetInfo info, std::vector<FrameFiles> frames, Depth
     : info_(std::move(info)), frames_(std::move(frames)), decoding_(decoding) {
   if (frames_.empty()) fail(ErrorCode::InvalidData, "{}: the dataset has no frames", info_.source);
   truncate(0);  // fills the frame-derived fields of info_
-  if (info_.undistorted) {
-    info_.distortion.validate(info_.intrinsics_source);
+  if (info_.undistorted)
     undistorter_ = std::make_unique<Undistorter>(info_.depth_camera, info_.distortion);
-  }
 }
 
 void FileDataset::truncate(std::size_t max_frames) {
@@ -152,6 +150,16 @@ RgbdFrame FileDataset::read(std::size_t index) {
 
 // ---- calibration -----------------------------------------------------------------------------
 
+void Calibration::apply_to(DatasetInfo& info, bool undistort) const {
+  info.depth_camera = camera;
+  info.color_camera = camera;
+  info.intrinsics_source = intrinsics_source;
+  info.distortion = distortion;
+  info.undistorted = undistort && !distortion.none();
+  info.depth_scale = depth_scale;
+  info.depth_scale_source = depth_scale_source;
+}
+
 Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params,
                                 const LayoutDefaults& defaults) {
   Calibration c;
@@ -172,24 +180,22 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
     return &*folder_file;
   };
 
+  // The camera and its distortion come together from one source.
+  auto take = [&c](const auto& from, std::string source) {
+    c.camera = from.camera;
+    c.distortion = from.distortion;
+    c.intrinsics_source = std::move(source);
+  };
   const CameraPreset* guessed = nullptr;
   if (explicit_file) {
-    c.camera = explicit_file->camera;
-    c.distortion = explicit_file->distortion;
-    c.intrinsics_source = fmt::format("{} (given)", params.intrinsics_path.string());
+    take(*explicit_file, fmt::format("{} (given)", params.intrinsics_path.string()));
   } else if (explicit_preset) {
-    c.camera = explicit_preset->camera;
-    c.distortion = explicit_preset->distortion;
-    c.intrinsics_source = fmt::format("preset {} (given)", explicit_preset->name);
+    take(*explicit_preset, fmt::format("preset {} (given)", explicit_preset->name));
   } else if (const IntrinsicsFile* f = load_folder_file()) {
-    c.camera = f->camera;
-    c.distortion = f->distortion;
-    c.intrinsics_source = folder_json.string();
+    take(*f, folder_json.string());
   } else if (defaults.preset) {
-    c.camera = defaults.preset->camera;
-    c.distortion = defaults.preset->distortion;
-    c.intrinsics_source =
-        fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name);
+    take(*defaults.preset,
+         fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name));
   } else {
     std::string matched;
     if (defaults.guess_from_folder_name) guessed = guess_preset(dir, &matched);
@@ -198,10 +204,8 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
            "{}: no intrinsics.json and the camera cannot be guessed from the folder name; give a "
            "camera preset (--preset, one of: {}) or an intrinsics file (--intrinsics FILE)",
            dir.string(), preset_names());
-    c.camera = guessed->camera;
-    c.distortion = guessed->distortion;
-    c.intrinsics_source =
-        fmt::format("preset {}, guessed from the folder name '{}'", guessed->name, matched);
+    take(*guessed,
+         fmt::format("preset {}, guessed from the folder name '{}'", guessed->name, matched));
   }
 
   if (params.depth_scale > 0) {

@@ -77,13 +77,7 @@ std::unique_ptr<FileDataset> open_seven_scenes(const fs::path& dir, const Datase
   DatasetInfo info;
   info.source = dir.string();
   info.layout = DatasetLayout::SevenScenes;
-  info.depth_camera = calibration.camera;
-  info.color_camera = calibration.camera;
-  info.intrinsics_source = calibration.intrinsics_source;
-  info.distortion = calibration.distortion;
-  info.undistorted = params.undistort && !calibration.distortion.none();
-  info.depth_scale = calibration.depth_scale;
-  info.depth_scale_source = calibration.depth_scale_source;
+  calibration.apply_to(info, params.undistort);
   if (any_color)
     info.warnings.push_back(
         "7-Scenes colour and depth come from two cameras and are not registered; hivox treats "

@@ -156,13 +156,7 @@ std::unique_ptr<FileDataset> open_tum(const fs::path& dir, const DatasetParams& 
                            .depth_scale_source = "TUM default (intrinsics.json has none)"});
   info.source = dir.string();
   info.layout = DatasetLayout::Tum;
-  info.depth_camera = calibration.camera;
-  info.color_camera = calibration.camera;  // TUM depth is registered to colour
-  info.intrinsics_source = calibration.intrinsics_source;
-  info.distortion = calibration.distortion;
-  info.undistorted = params.undistort && !calibration.distortion.none();
-  info.depth_scale = calibration.depth_scale;
-  info.depth_scale_source = calibration.depth_scale_source;
+  calibration.apply_to(info, params.undistort);  // TUM depth is registered to colour
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),
                                        DepthDecoding{calibration.depth_scale, 0, 0.0});
 }

@@ -175,6 +175,30 @@ HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
   return (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
 }
 
+/// Reads the 8 voxels of the cell whose lowest voxel is `origin` (coordinates from the origin of
+/// `blocks`' first block, see neighbour_blocks) into `v` (corner c = (c & 1, (c >> 1) & 1,
+/// c >> 2)) and their smallest weight into `min_w`; the voxel of corner `nearest` (-1: none) is
+/// noted in `out`. Returns false when a corner's block is not stored at this level.
+HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], const Vec3i& origin,
+                               int nearest, float v[8], int* min_w, TsdfSample* out = nullptr) {
+  int w = 65535;
+  for (int c = 0; c < 8; ++c) {
+    const int x = origin.x + (c & 1), y = origin.y + ((c >> 1) & 1), z = origin.z + (c >> 2);
+    const int32_t ptr = blocks[neighbour_slot(x, y, z)];
+    if (ptr < 0) return false;
+    const int i = voxel_index(x & 7, y & 7, z & 7);
+    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
+    w = vox.weight < w ? vox.weight : w;
+    v[c] = tsdf_to_float(vox.tsdf);
+    if (c == nearest) {
+      out->nearest_ptr = ptr;
+      out->nearest_index = i;
+    }
+  }
+  *min_w = w;
+  return true;
+}
+
 /// The general case of `sample_trilinear`: the 8 voxels around `p_w` span several blocks, and
 /// some may be stored at another level.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView& map,
@@ -192,30 +216,12 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
   int32_t blocks[8];
   neighbour_blocks(map, cache, level, block, {local.x == 7, local.y == 7, local.z == 7}, blocks);
-  {  // Usually every block the cell reaches into is stored at this level too.
-    bool one_level = true;
-    int min_w = 65535;
-    for (int c = 0; c < 8; ++c) {
-      const int x = local.x + (c & 1), y = local.y + ((c >> 1) & 1), z = local.z + (c >> 2);
-      const int32_t ptr = blocks[neighbour_slot(x, y, z)];
-      if (ptr < 0) {
-        one_level = false;
-        break;
-      }
-      const int i = voxel_index(x & 7, y & 7, z & 7);
-      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
-      min_w = vox.weight < min_w ? vox.weight : min_w;
-      v[c] = tsdf_to_float(vox.tsdf);
-      if (c == nearest) {
-        out->nearest_ptr = ptr;
-        out->nearest_index = i;
-      }
-    }
-    if (one_level) {
-      if (min_w < min_weight) return false;
-      out->f = interpolate_trilinear(v, t, &out->gradient);
-      return true;
-    }
+  // Usually every block the cell reaches into is stored at this level too.
+  int min_w;
+  if (read_cell(map, blocks, local, nearest, v, &min_w, out)) {
+    if (min_w < min_weight) return false;
+    out->f = interpolate_trilinear(v, t, &out->gradient);
+    return true;
   }
   Vec3f pos[8];
   bool regular = true;
@@ -302,18 +308,9 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
   const Vec3f t = q - to_float(base);
   for (int k = 0; k < 3; ++k) {
     float v[8];
-    int min_w = 65535;
-    for (int c = 0; c < 8; ++c) {
-      const int x = local.x + (c & 1) + (k == 0), y = local.y + ((c >> 1) & 1) + (k == 1),
-                z = local.z + (c >> 2) + (k == 2);
-      const int32_t ptr = blocks[neighbour_slot(x, y, z)];
-      if (ptr < 0) return false;
-      const TsdfVoxel vox =
-          map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7)];
-      min_w = vox.weight < min_w ? vox.weight : min_w;
-      v[c] = tsdf_to_float(vox.tsdf);
-    }
-    if (min_w < min_weight) return false;
+    int min_w;
+    const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
+    if (!read_cell(map, blocks, origin, -1, v, &min_w) || min_w < min_weight) return false;
     Vec3f unused;
     (*ahead)[k] = interpolate_trilinear(v, t, &unused);
   }

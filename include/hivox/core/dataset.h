@@ -17,6 +17,12 @@ namespace hivox {
 enum class DatasetLayout { Tum, SevenScenes, InfiniTam, Synthetic };
 std::string_view to_string(DatasetLayout layout);
 
+/// Colour pixel (u, v) sees what depth pixel (u, v) sees: one camera, no offset between the two.
+inline bool color_registered(const PinholeCamera& color_camera, const PinholeCamera& depth_camera,
+                             const Pose& T_color_depth) {
+  return color_camera == depth_camera && T_color_depth.isApprox(Pose::Identity());
+}
+
 struct DatasetInfo {
   std::string source;  ///< directory, or `synthetic:NAME`
   DatasetLayout layout = DatasetLayout::Tum;
@@ -26,10 +32,8 @@ struct DatasetInfo {
   PinholeCamera color_camera;
   /// Maps depth-camera points into the colour-camera frame (identity when registered).
   Pose T_color_depth = Pose::Identity();
-  /// Colour pixel (u, v) sees what depth pixel (u, v) sees: one camera, no offset.
-  bool color_registered() const {
-    return color_camera == depth_camera && T_color_depth.isApprox(Pose::Identity());
-  }
+  /// Colour pixel (u, v) sees what depth pixel (u, v) sees (the free `color_registered`).
+  bool color_registered() const;
   std::string intrinsics_source;  ///< where the intrinsics came from (file, preset name)
   /// Lens distortion of the depth camera (= colour camera when registered) as calibrated.
   LensDistortion distortion;
@@ -47,6 +51,10 @@ struct DatasetInfo {
   double first_timestamp_s = 0;
   std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
 };
+
+inline bool DatasetInfo::color_registered() const {
+  return hivox::color_registered(color_camera, depth_camera, T_color_depth);
+}
 
 struct RgbdFrame {
   std::size_t index = 0;
