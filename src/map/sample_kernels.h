@@ -317,6 +317,84 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
   return true;
 }
 
+/// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
+/// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
+/// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
+/// level's voxel nearest to it (`exact` false). Returns false when no level stores the point.
+HIVOX_HD inline bool lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
+                                   const Vec3i& g, int32_t* ptr, int* index, bool* exact) {
+  for (int l = level; l >= 0; --l) {
+    const int k = 1 << (level - l);
+    const Vec3i gl{g.x * k, g.y * k, g.z * k};
+    const int32_t p = cache.find(map, l, block_of_voxel(gl));
+    if (p >= 0) {
+      *ptr = p;
+      *index = local_voxel_index(gl);
+      *exact = true;
+      return true;
+    }
+    if (p != kPtrSplit) break;
+  }
+  for (int l = level + 1; l < map.levels; ++l) {
+    const int k = 1 << (l - level);
+    const Vec3i gl{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k), floor_div(g.z + k / 2, k)};
+    const int32_t p = cache.find(map, l, block_of_voxel(gl));
+    if (p >= 0) {
+      *ptr = p;
+      *index = local_voxel_index(gl);
+      *exact = false;
+      return true;
+    }
+    if (p == kPtrSplit) break;
+  }
+  return false;
+}
+
+/// The TSDF at lattice point `g` of `level` as the coarser level `coarse` represents it: the
+/// trilinear interpolant of that level's cell around the point, with exact fractions (a point
+/// on a coarse face or edge reads only the corners of that face or edge, a coarse lattice point
+/// only its own voxel). This is what a coarse cell's marching cubes sees on its faces, so a
+/// finer grid that takes these values where it touches the coarse region meets its surface.
+/// Corners inside finer regions are read there exactly. Fails when a corner that contributes
+/// is not stored or has fewer than `min_weight` observations; `nearest_ptr`/`nearest_index`
+/// receive the contributing voxel of the largest interpolation weight.
+HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCache& cache,
+                                               int level, const Vec3i& g, int coarse,
+                                               float min_weight, float* f, int32_t* nearest_ptr,
+                                               int* nearest_index) {
+  const int k = 1 << (coarse - level);
+  const Vec3i base{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
+  const float inv_k = 1.0f / static_cast<float>(k);  // exact: k is a power of two
+  const Vec3f t{static_cast<float>(g.x - base.x * k) * inv_k,
+                static_cast<float>(g.y - base.y * k) * inv_k,
+                static_cast<float>(g.z - base.z * k) * inv_k};
+  float v[8];
+  float best = -1.0f;
+  for (int c = 0; c < 8; ++c) {
+    const float wx = (c & 1) ? t.x : 1.0f - t.x, wy = ((c >> 1) & 1) ? t.y : 1.0f - t.y,
+                wz = (c >> 2) ? t.z : 1.0f - t.z;
+    const float w = wx * wy * wz;
+    v[c] = 0.0f;
+    if (w == 0.0f) continue;
+    int32_t ptr;
+    int index;
+    bool exact;
+    const Vec3i corner{base.x + (c & 1), base.y + ((c >> 1) & 1), base.z + (c >> 2)};
+    if (!lattice_voxel(map, cache, coarse, corner, &ptr, &index, &exact)) return false;
+    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index];
+    if (static_cast<float>(vox.weight) < min_weight) return false;
+    v[c] = tsdf_to_float(vox.tsdf);
+    if (w > best) {
+      best = w;
+      *nearest_ptr = ptr;
+      *nearest_index = index;
+    }
+  }
+  Vec3f unused;
+  *f = interpolate_trilinear(v, t, &unused);
+  return true;
+}
+
 /// The TSDF at `p_w`, at whatever level stores it.
 HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
                                  int min_weight, TsdfSample* out, int* level) {

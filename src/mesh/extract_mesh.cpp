@@ -4,6 +4,8 @@
 #include <atomic>
 #include <limits>
 #include <memory>
+#include <numeric>
+#include <tuple>
 
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
@@ -21,19 +23,25 @@ struct EdgeRef {
   uint16_t edge;
 };
 constexpr uint16_t kResolved = 0x8000;
-static_assert(kernels::kEdgesPerBlock < kResolved);
 
-/// What one block contributes: the vertices on the edges it owns (ascending local edge id)
-/// and its triangles (3 corners each).
+/// What one block contributes: the vertices on the edges it owns (ascending local edge id),
+/// then those on edges of a level boundary that no block of its level owns, and its triangles
+/// (3 corners each).
 struct BlockMesh {
   std::vector<uint16_t> edges;
   std::vector<kernels::EdgeVertex> vertices;
   std::vector<EdgeRef> corners;
 };
 
+/// Edge ids over the padded block (pad_index * 3 + axis), for edges owned by no block.
+constexpr int kPadEdges = kernels::kPadVoxels * 3;
+static_assert(kernels::kEdgesPerBlock + kPadEdges < kResolved);
+
 struct BlockScratch {
+  kernels::BlockLookupCache cache;
   kernels::PaddedBlock padded;
   int16_t rank[kernels::kEdgesPerBlock];  ///< own edge id -> index in BlockMesh::edges, or -1
+  int16_t boundary_rank[kPadEdges];       ///< padded edge id -> index in BlockMesh::vertices
 };
 
 /// Marching cubes over one block: vertices on its owned edges, triangles of its owned cells.
@@ -41,7 +49,10 @@ void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
                 const std::vector<int32_t>& index_of_ptr, const MeshParams& params, bool with_color,
                 BlockScratch& scratch, BlockMesh& out) {
   kernels::PaddedBlock& pb = scratch.padded;
-  kernels::gather_padded_block(view, b.level, b.pos, b.ptr, params.min_weight, with_color, pb);
+  kernels::gather_padded_block(view, scratch.cache, b.level, b.pos, b.ptr, params.min_weight,
+                               with_color, pb);
+  if (pb.other_levels)
+    std::fill(std::begin(scratch.boundary_rank), std::end(scratch.boundary_rank), int16_t{-1});
   const float voxel_m = view.level[b.level].voxel_size_m;
   std::fill(std::begin(scratch.rank), std::end(scratch.rank), int16_t{-1});
   for (int z = 0; z < kBlockSide; ++z)
@@ -67,18 +78,75 @@ void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
             const int e = mcase.triangles[t][k];
             const Vec3i p = Vec3i{x, y, z} + kernels::corner_offset(mc::mc_edge_corner(e, 0));
             const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + mc::mc_edge_axis(e);
+            const int32_t nb = pb.neighbour_ptr[kernels::pad_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
             if (((p.x | p.y | p.z) >> 3) == 0) {
               out.corners.push_back({self, static_cast<uint16_t>(kResolved | scratch.rank[id])});
-            } else {
-              // The edge starts in a +x/+y/+z neighbour, which owns it. The cell is valid, so
-              // that block is allocated at this level and in the block list.
-              const int32_t nb =
-                  pb.neighbour_ptr[kernels::neighbour_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
+            } else if (nb >= 0) {
+              // The edge starts in a +x/+y/+z neighbour of this level, which owns it.
               out.corners.push_back(
                   {index_of_ptr[static_cast<std::size_t>(nb)], static_cast<uint16_t>(id)});
+            } else {
+              // The edge starts in a region stored at another level: no block of this level
+              // owns it, so every block whose cells use it makes the vertex (the same one:
+              // same samples, same arithmetic) and the copies are merged at the end.
+              int16_t& r =
+                  scratch
+                      .boundary_rank[kernels::pad_index(p.x, p.y, p.z) * 3 + mc::mc_edge_axis(e)];
+              if (r < 0) {
+                r = static_cast<int16_t>(out.vertices.size());
+                out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, p.x, p.y, p.z,
+                                                            mc::mc_edge_axis(e),
+                                                            params.compute_normals, with_color));
+              }
+              out.corners.push_back({self, static_cast<uint16_t>(kResolved | r)});
             }
           }
       }
+}
+
+/// Merges the vertices listed in `candidates` that sit at exactly the same position (copies of
+/// one vertex made by several blocks) into the first copy, and compacts the mesh.
+void merge_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
+  const auto& pos = mesh.positions_w;
+  std::sort(candidates.begin(), candidates.end(), [&](int32_t a, int32_t b) {
+    const Vec3f &p = pos[static_cast<std::size_t>(a)], &q = pos[static_cast<std::size_t>(b)];
+    return std::tie(p.x, p.y, p.z, a) < std::tie(q.x, q.y, q.z, b);
+  });
+  const std::size_t n = pos.size();
+  std::vector<int32_t> target(n);
+  std::iota(target.begin(), target.end(), 0);
+  for (std::size_t k = 1; k < candidates.size(); ++k) {
+    const int32_t a = candidates[k - 1], b = candidates[k];
+    if (pos[static_cast<std::size_t>(a)] == pos[static_cast<std::size_t>(b)])
+      target[static_cast<std::size_t>(b)] = target[static_cast<std::size_t>(a)];
+  }
+  // New indices: kept vertices in order; a copy takes its (earlier) original's.
+  std::vector<int32_t> index(n);
+  int32_t kept = 0;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (target[v] != static_cast<int32_t>(v)) {
+      index[v] = index[static_cast<std::size_t>(target[v])];
+      continue;
+    }
+    index[v] = kept;
+    auto move = [&](auto& attribute) {
+      if (!attribute.empty()) attribute[static_cast<std::size_t>(kept)] = attribute[v];
+    };
+    move(mesh.positions_w);
+    move(mesh.normals_w);
+    move(mesh.colors);
+    move(mesh.levels);
+    ++kept;
+  }
+  auto shrink = [&](auto& attribute) {
+    if (!attribute.empty()) attribute.resize(static_cast<std::size_t>(kept));
+  };
+  shrink(mesh.positions_w);
+  shrink(mesh.normals_w);
+  shrink(mesh.colors);
+  shrink(mesh.levels);
+  for (auto& t : mesh.triangles)
+    for (int32_t& v : t) v = index[static_cast<std::size_t>(v)];
 }
 
 }  // namespace
@@ -166,6 +234,14 @@ TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
   if (unresolved.load() != 0)
     fail(ErrorCode::InvalidData, "mesh: {} triangle corners found no vertex (internal error)",
          unresolved.load());
+
+  std::vector<int32_t> boundary;  // vertices on edges no block owns, made once per user
+  for (int64_t i = 0; i < n; ++i) {
+    const BlockMesh& p = parts[static_cast<std::size_t>(i)];
+    for (std::size_t k = p.edges.size(); k < p.vertices.size(); ++k)
+      boundary.push_back(static_cast<int32_t>(vertex_offset[i] + static_cast<int64_t>(k)));
+  }
+  if (!boundary.empty()) merge_copies(boundary, mesh);
   return mesh;
 }
 

@@ -1,12 +1,13 @@
 #pragma once
 // Marching-cubes math written once for the CPU and CUDA drivers: gathering a block with a
-// one-to-two-voxel apron from its same-level neighbours, the per-cell case, and the per-edge
-// vertex (position, normal, colour).
+// one-to-two-voxel apron from its neighbours (at its level, or sampled from the level that
+// stores them), the per-cell case, and the per-edge vertex (position, normal, colour).
 //
 // A block's cells are its 8x8x8 voxels taken as lower corners; a cell reaches one voxel into
 // the +x/+y/+z neighbours. A block owns the 3 edges leaving each of its voxels in +x, +y, +z
-// (local edge id = voxel_index * 3 + axis), so every edge of the grid has exactly one owner
-// and a vertex on it is computed once.
+// (local edge id = voxel_index * 3 + axis), so every edge of a level's grid inside its blocks
+// has exactly one owner and a vertex on it is computed once. Edges starting in a region of
+// another level have no owner at this level: each block using one computes it (identically).
 
 #include <cstdint>
 
@@ -14,6 +15,7 @@
 #include "hivox/core/image.h"
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
+#include "map/sample_kernels.h"
 #include "mesh/mc_table.h"
 
 namespace hivox::kernels {
@@ -36,63 +38,134 @@ HIVOX_HD inline int pad_index(int x, int y, int z) {
 }
 
 /// Index of neighbour block (dx, dy, dz), each in [-1, 1], in `PaddedBlock::neighbour_ptr`.
-HIVOX_HD inline int neighbour_slot(int dx, int dy, int dz) {
+HIVOX_HD inline int pad_slot(int dx, int dy, int dz) {
   return (dx + 1) + 3 * ((dy + 1) + 3 * (dz + 1));
 }
+
+/// How the region of a neighbouring block position, at the meshed block's level, is stored.
+enum class Region : uint8_t {
+  Same,     ///< a block of this level
+  Finer,    ///< a Split entry: finer levels
+  Coarser,  ///< inside a block of a coarser level
+  None,     ///< nowhere
+};
 
 /// A block's voxels with an apron from its neighbours, as the cells and edges read them.
 struct PaddedBlock {
   float tsdf[kPadVoxels];          ///< normalised TSDF (0 replaced by kZeroTsdf)
-  uint8_t valid[kPadVoxels];       ///< 1: allocated at this level and weight >= min_weight
+  uint8_t valid[kPadVoxels];       ///< 1: known, with weight >= min_weight
   ColorVoxel color[kPadVoxels];    ///< filled only when colour is gathered
-  int32_t neighbour_ptr[27];       ///< pool index of each neighbour block, or < 0 when unusable
-  uint8_t cell_valid[kPadVoxels];  ///< 1: all 8 corners of the cell with this lower corner valid
+  int32_t neighbour_ptr[27];       ///< pool index of each same-level neighbour, or < 0
+  Region neighbour_region[27];     ///< how each neighbour's region is stored
+  int8_t neighbour_level[27];      ///< the level of a Coarser neighbour's block
+  bool other_levels;               ///< some neighbour region is stored at another level
+  uint8_t cell_valid[kPadVoxels];  ///< 1: a cell of this level with all 8 corners valid
 };
 
-/// Pool index of the block whose voxels a cell of a level-`level` block may read at block
-/// `pos`, or a negative value when there is none.
-///
-/// Only blocks of the same level are used. Where the neighbouring region is stored at another
-/// level (a Split entry, or a region held by a coarser parent) the lookup fails, the cells that
-/// reach into it are skipped, and the surface has a gap of up to one cell along the level
-/// boundary. This function is the single place that decides what a cell may sample: a
-/// crack-free scheme (transition cells, or the cross-level interpolation of DESIGN §5) resolves
-/// such voxels on the other level here and marks them as sampled from there.
-HIVOX_HD inline int32_t same_level_neighbour(const MapView& map, int level, const Vec3i& pos) {
-  const int32_t ptr = find_block_ptr(map.level[level], pos);
-  return ptr >= 0 ? ptr : -1;
+/// How block `pos` of `level` is stored (see Region); `ptr` receives its pool index when Same,
+/// `coarse_level` the level of the block covering it when Coarser.
+HIVOX_HD inline Region region_of(const MapView& map, BlockLookupCache& cache, int level,
+                                 const Vec3i& pos, int32_t* ptr, int* coarse_level) {
+  *ptr = cache.find(map, level, pos);
+  if (*ptr >= 0) return Region::Same;
+  if (*ptr == kPtrSplit) return Region::Finer;
+  for (int l = level + 1; l < map.levels; ++l) {
+    const int k = 1 << (l - level);
+    const int32_t p =
+        cache.find(map, l, {floor_div(pos.x, k), floor_div(pos.y, k), floor_div(pos.z, k)});
+    if (p >= 0) {
+      *coarse_level = l;
+      return Region::Coarser;
+    }
+    if (p == kPtrSplit) break;
+  }
+  return Region::None;
 }
 
-/// Fills `out` for the level-`level` block at `pos` stored in pool block `ptr`. A voxel is
-/// valid when its block is allocated at this level and its weight is at least `min_weight`.
-HIVOX_HD inline void gather_padded_block(const MapView& map, int level, const Vec3i& pos,
-                                         int32_t ptr, float min_weight, bool with_color,
-                                         PaddedBlock& out) {
+/// The coarsest level of a Coarser neighbour whose block (closed: faces, edges and corners
+/// included) contains padded point (x, y, z), or -1 when there is none.
+HIVOX_HD inline int coarsest_touching(const PaddedBlock& b, int x, int y, int z) {
+  // Per axis, the neighbour blocks whose closed extent holds the coordinate: one inside a
+  // block, two on a block border (0 and 8).
+  const int lx = (x & 7) == 0 ? (x - 1) >> 3 : x >> 3, ly = (y & 7) == 0 ? (y - 1) >> 3 : y >> 3,
+            lz = (z & 7) == 0 ? (z - 1) >> 3 : z >> 3;
+  int coarse = -1;
+  for (int sz = lz; sz <= z >> 3; ++sz)
+    for (int sy = ly; sy <= y >> 3; ++sy)
+      for (int sx = lx; sx <= x >> 3; ++sx) {
+        const int slot = pad_slot(sx, sy, sz);
+        if (b.neighbour_region[slot] == Region::Coarser && b.neighbour_level[slot] > coarse)
+          coarse = b.neighbour_level[slot];
+      }
+  return coarse;
+}
+
+/// Fills `out` for the level-`level` block at `pos` stored in pool block `ptr`.
+///
+/// Voxels of this level's blocks are read as they are. Where the apron reaches into a region
+/// stored at another level, points are sampled there: a finer level has a voxel exactly at each
+/// point; a coarser one gives its trilinear value on its own lattice. Points on the border of a
+/// coarser region (its faces, edges, corners) take the coarse value too, even where they are
+/// this level's own voxels: both sides of a level boundary then cut the boundary plane along
+/// the same lines, and the surface has no crack there (up to the difference between a coarse
+/// face's bilinear zero set and its straight marching-cubes segment). A point is valid when it
+/// is known with at least `min_weight` observations. Only cells whose lower corner lies in a
+/// block of this level are valid: the others are cells of other levels, meshed there.
+HIVOX_HD inline void gather_padded_block(const MapView& map, BlockLookupCache& cache, int level,
+                                         const Vec3i& pos, int32_t ptr, float min_weight,
+                                         bool with_color, PaddedBlock& out) {
+  bool any_coarser = false;
+  out.other_levels = false;
   for (int dz = -1; dz <= 1; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
-        const int slot = neighbour_slot(dx, dy, dz);
-        out.neighbour_ptr[slot] =
-            (dx | dy | dz) == 0 ? ptr : same_level_neighbour(map, level, pos + Vec3i{dx, dy, dz});
+        const int slot = pad_slot(dx, dy, dz);
+        int coarse = -1;
+        Region r = Region::Same;
+        int32_t nb = ptr;
+        if ((dx | dy | dz) != 0)
+          r = region_of(map, cache, level, pos + Vec3i{dx, dy, dz}, &nb, &coarse);
+        out.neighbour_ptr[slot] = r == Region::Same ? nb : -1;
+        out.neighbour_region[slot] = r;
+        out.neighbour_level[slot] = static_cast<int8_t>(coarse);
+        any_coarser = any_coarser || r == Region::Coarser;
+        out.other_levels = out.other_levels || r == Region::Coarser || r == Region::Finer;
       }
+  const Vec3i origin{pos.x * kBlockSide, pos.y * kBlockSide, pos.z * kBlockSide};
   for (int z = kPadLo; z < kPadLo + kPadSide; ++z)
     for (int y = kPadLo; y < kPadLo + kPadSide; ++y)
       for (int x = kPadLo; x < kPadLo + kPadSide; ++x) {
         const int i = pad_index(x, y, z);
         // x >> 3 is -1, 0 or 1 here (floor division); x & 7 the voxel inside that block.
-        const int32_t nb = out.neighbour_ptr[neighbour_slot(x >> 3, y >> 3, z >> 3)];
-        if (nb < 0) {
+        const int slot = pad_slot(x >> 3, y >> 3, z >> 3);
+        const int coarse = any_coarser ? coarsest_touching(out, x, y, z) : -1;
+        int32_t vptr = out.neighbour_ptr[slot];
+        int vindex = voxel_index(x & 7, y & 7, z & 7);
+        float f = 1.0f;
+        bool ok = false;
+        if (coarse >= 0) {
+          ok = sample_on_coarser_lattice(map, cache, level, origin + Vec3i{x, y, z}, coarse,
+                                         min_weight, &f, &vptr, &vindex);
+        } else {
+          bool exact = true;
+          if (vptr < 0 && out.neighbour_region[slot] == Region::Finer)
+            lattice_voxel(map, cache, level, origin + Vec3i{x, y, z}, &vptr, &vindex, &exact);
+          if (vptr >= 0) {
+            const TsdfVoxel t = map.tsdf[static_cast<int64_t>(vptr) * kBlockVoxels + vindex];
+            f = tsdf_to_float(t.tsdf);
+            ok = static_cast<float>(t.weight) >= min_weight;
+          }
+        }
+        if (!ok) {
           out.tsdf[i] = 1.0f;
           out.valid[i] = 0;
           if (with_color) out.color[i] = ColorVoxel{};
           continue;
         }
-        const int64_t v =
-            static_cast<int64_t>(nb) * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7);
-        const TsdfVoxel t = map.tsdf[v];
-        out.tsdf[i] = t.tsdf == 0 ? kZeroTsdf : tsdf_to_float(t.tsdf);
-        out.valid[i] = static_cast<float>(t.weight) >= min_weight ? 1 : 0;
-        if (with_color) out.color[i] = map.color[v];
+        out.tsdf[i] = f == 0.0f ? kZeroTsdf : f;
+        out.valid[i] = 1;
+        if (with_color)
+          out.color[i] = map.color[static_cast<int64_t>(vptr) * kBlockVoxels + vindex];
       }
   // A cell is valid when its 8 corners are: AND over x, then y, then z neighbours.
   for (int i = 0; i < kPadVoxels; ++i) out.cell_valid[i] = out.valid[i];
@@ -104,6 +177,12 @@ HIVOX_HD inline void gather_padded_block(const MapView& map, int level, const Ve
           const int i = pad_index(x, y, z);
           out.cell_valid[i] &= out.cell_valid[i + step[axis]];
         }
+  if (!out.other_levels) return;
+  for (int z = kPadLo; z < kPadLo + kPadSide; ++z)
+    for (int y = kPadLo; y < kPadLo + kPadSide; ++y)
+      for (int x = kPadLo; x < kPadLo + kPadSide; ++x)
+        if (out.neighbour_region[pad_slot(x >> 3, y >> 3, z >> 3)] != Region::Same)
+          out.cell_valid[pad_index(x, y, z)] = 0;
 }
 
 /// Offset of corner c (numbering of mc_table.h) from the cell's lower corner.

@@ -4,12 +4,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <map>
 #include <set>
 #include <tuple>
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
+#include "hivox/refine/refiner.h"
 #include "mesh/mesh_test_util.h"
 #include "mesh/mesh_topology.h"
 
@@ -182,31 +185,176 @@ TEST(ExtractMesh, UnobservedAndLowWeightVoxelsMakeNoSurface) {
   for (const Vec3f& v : twice.positions_w) EXPECT_GE(v.x, 16 * voxel - 1e-6);
 }
 
-TEST(ExtractMesh, EveryLevelIsMeshedAtItsOwnVoxelSize) {
+/// Splits the level-`level` blocks that `pick` accepts down to level 0 (through the map's own
+/// split, so the hierarchy is consistent) and writes the exact `sdf` into every level-0 block.
+void split_to_finest_exact(VoxelBlockMap& map, int level, double mu_m, const test::Sdf& sdf,
+                           const std::function<bool(const BlockRef&)>& pick) {
+  for (int l = level; l > 0; --l) {
+    std::vector<BlockRef> chosen;
+    for (const BlockRef& b : map.allocated_blocks())
+      if (b.level == l && pick(b)) chosen.push_back(b);
+    ASSERT_EQ(split_blocks(map, chosen, 0.0f).done, static_cast<int64_t>(chosen.size()));
+    level = l - 1;
+  }
+  const double s = map.params().voxel_size_at(0);
+  for (const BlockRef& b : map.allocated_blocks()) {
+    if (b.level != 0) continue;
+    TsdfVoxel* vox = map.block_tsdf(b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      const Vec3i c = voxel_coords(i);
+      const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
+      vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
+      vox[i].weight = 1;
+    }
+  }
+}
+
+TEST(ExtractMesh, EveryLevelIsMeshedAtItsOwnVoxelSizeUpToTheBoundary) {
   // Two levels side by side: level 0 (1 cm) for x < 0, level 1 (2 cm) for x >= 0. Each part
-  // is an exact grid of vertices at its own spacing; cells across the level boundary are
-  // skipped (a gap of up to one cell).
+  // is an exact grid of vertices at its own spacing, and the fine cells reach the boundary
+  // plane x = 0 by sampling the coarse level there: the surface has no gap, the fine grid
+  // ends on the coarse grid's first column.
   const float voxel = 0.01f;
   const double plane_z = 0.0437, mu = 0.08;
   auto plane = [&](const Eigen::Vector3d& p) { return p.z() - plane_z; };
   VoxelBlockMap map(test::mesh_map_params(voxel, 2));
-  test::write_sdf_blocks(map, 0, {-2, 0, 0}, {-1, 1, 0}, mu, plane);  // x in [-0.16, 0)
-  test::write_sdf_blocks(map, 1, {0, 0, 0}, {0, 0, 0}, mu, plane);    // x in [0, 0.16)
+  test::write_sdf_blocks(map, 1, {-1, 0, 0}, {0, 0, 0}, mu, plane);  // x in [-0.16, 0.16)
+  split_to_finest_exact(map, 1, mu, plane, [](const BlockRef& b) { return b.pos.x < 0; });
   const TriangleMesh m = extract_mesh(map);
-  int64_t per_level[2] = {0, 0};
+  int64_t per_level[2] = {0, 0}, on_boundary[2] = {0, 0};
   for (std::size_t i = 0; i < m.positions_w.size(); ++i) {
     const Vec3f& p = m.positions_w[i];
     const int l = m.levels[i];
     ASSERT_LT(l, 2);
     ++per_level[l];
-    EXPECT_EQ(l == 1, p.x >= 0.0f);
+    on_boundary[l] += p.x == 0.0f;
+    EXPECT_TRUE(l == 1 ? p.x >= 0.0f : p.x <= 0.0f) << p.x;
     const float s = voxel * static_cast<float>(1 << l);
     EXPECT_NEAR(p.x / s, std::round(p.x / s), 1e-3);
+    EXPECT_NEAR(p.y / s, std::round(p.y / s), 1e-3);
     EXPECT_NEAR(p.z, plane_z, 1e-4);
   }
-  EXPECT_EQ(per_level[0], 16 * 16);
+  // Fine: 16 columns of own voxels by 16 rows, plus the boundary column x = 0, which takes the
+  // coarse level's values: its rows end where the coarse grid's data does (y = 14 cm; at 15 cm
+  // the coarse edge has no far end), so the last fine cell row stops one cell short there.
+  // Coarse: 8 x 8, cells up to the last column and row.
+  EXPECT_EQ(per_level[0], 16 * 16 + 15);
+  EXPECT_EQ(on_boundary[0], 15);
   EXPECT_EQ(per_level[1], 8 * 8);
-  EXPECT_EQ(m.triangle_count(), 2 * 15 * 15 + 2 * 7 * 7);
+  EXPECT_EQ(on_boundary[1], 8);
+  EXPECT_EQ(m.triangle_count(), 2 * 16 * 15 - 2 + 2 * 7 * 7);
+}
+
+/// The seam where levels meet: for points along every boundary edge (an edge of one triangle)
+/// of one level, the distance to the nearest boundary edge of another level; the largest.
+/// Where the levels' surfaces meet, it is ~0; a crack between them shows as its width.
+double widest_seam_gap(const TriangleMesh& m, const std::function<bool(const Vec3f&)>& on_seam,
+                       int64_t* seam_edges_per_level) {
+  std::map<std::pair<int32_t, int32_t>, int> uses;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k) ++uses[std::minmax(t[k], t[(k + 1) % 3])];
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  for (const auto& [e, n] : uses)
+    if (n == 1 && on_seam(m.positions_w[e.first]) && on_seam(m.positions_w[e.second]))
+      edges.push_back(e);
+  for (const auto& e : edges) ++seam_edges_per_level[m.levels[e.first]];
+  auto distance_to_segment = [](const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                const Eigen::Vector3d& b) {
+    const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    return (a + t * (b - a) - p).norm();
+  };
+  double widest = 0;
+  for (const auto& e : edges) {
+    const Eigen::Vector3d a = to_eigen(m.positions_w[e.first]),
+                          b = to_eigen(m.positions_w[e.second]);
+    for (int k = 0; k <= 4; ++k) {
+      const Eigen::Vector3d p = a + (b - a) * (k / 4.0);
+      double nearest = 1e9;
+      for (const auto& o : edges)
+        if (m.levels[o.first] != m.levels[e.first])
+          nearest = std::min(nearest, distance_to_segment(p, to_eigen(m.positions_w[o.first]),
+                                                          to_eigen(m.positions_w[o.second])));
+      widest = std::max(widest, nearest);
+    }
+  }
+  return widest;
+}
+
+TEST(ExtractMesh, SphereAcrossLevelsHasNoCrackWhereTheyMeet) {
+  // An exact sphere stored at the coarsest level for x < 0 and the finest for x >= 0, with one
+  // and two levels between them. The only boundary edges of the (closed) surface are on the
+  // boundary plane, where both sides cut it along the same curve.
+  for (const int levels : {2, 3}) {
+    SCOPED_TRACE(levels);
+    const float voxel = 0.005f;
+    const double mu = 4 * voxel * (1 << (levels - 1)), r = 0.173;
+    const Eigen::Vector3d centre(0.0123, 0.0311, -0.0207);
+    auto sphere = [&](const Eigen::Vector3d& p) { return (p - centre).norm() - r; };
+    VoxelBlockMap map(test::mesh_map_params(voxel, levels));
+    test::write_sdf_band(map, levels - 1, centre - Eigen::Vector3d::Constant(0.3),
+                         centre + Eigen::Vector3d::Constant(0.3), mu, mu, sphere);
+    split_to_finest_exact(map, levels - 1, mu, sphere,
+                          [](const BlockRef& b) { return b.pos.x >= 0; });
+    const TriangleMesh m = extract_mesh(map);
+    int64_t seam_edges[4] = {0, 0, 0, 0};
+    const double gap = widest_seam_gap(
+        m, [](const Vec3f& p) { return std::abs(p.x) < 1e-6f; }, seam_edges);
+    EXPECT_GT(seam_edges[0], 100);
+    EXPECT_GT(seam_edges[levels - 1], 100 >> (levels - 1));
+    EXPECT_LT(gap, 0.05 * voxel);
+    const test::MeshTopology topo = test::mesh_topology(m.vertex_count(), m.triangles);
+    EXPECT_EQ(topo.boundary_edges, seam_edges[0] + seam_edges[levels - 1]);
+    EXPECT_EQ(topo.nonmanifold_edges + topo.misoriented_edges + topo.degenerate_triangles, 0);
+    EXPECT_EQ(topo.unused_vertices, 0);
+    double max_err = 0;
+    for (const Vec3f& p : m.positions_w) max_err = std::max(max_err, std::abs(sphere(to_eigen(p))));
+    EXPECT_LT(max_err, 0.5 * voxel * (1 << (levels - 1)));
+  }
+}
+
+TEST(ExtractMesh, FusedSceneAcrossLevelsHasNoCrackWhereTheyMeet) {
+  // The sphere on its floor fused from depth images, with the region x >= 0 split to the
+  // finest level (4 mm) and fused again, x < 0 kept at the coarsest (16 mm). Where both levels
+  // hold the sphere, their surfaces meet on the plane x = 0 within a fraction of a fine voxel
+  // (cutting every cell off at the boundary, as before, left a gap of a cell; sampling the
+  // other level without holding the fine side to the coarse lattice there left up to 5 voxels
+  // where the two sides' contours took different shapes). The floor is left out: at its far
+  // edge the fine side's data reaches further than the coarse side's, a border, not a crack.
+  test::SphereOnPlane scene;
+  const float voxel = 0.004f;
+  MapParams mp = test::mesh_map_params(voxel, 3);
+  VoxelBlockMap map(mp);
+  FusionParams fp;
+  fp.truncation_m = 0.048f;
+  fp.max_depth_m = 1.5f;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = test::small_camera();
+  auto fuse_all = [&] {
+    for (const double h : {0.5, 0.2})
+      for (const Pose& T_wc : test::orbit(scene.centre, 0.9, h, 16, 0.3)) {
+        const DepthImage depth = scene.render(cam, T_wc);
+        FusionInput in;
+        in.depth_m = &depth;
+        in.depth_camera = cam;
+        in.T_wc = T_wc;
+        integrator.fuse(map, in);
+      }
+  };
+  fuse_all();
+  for (int level = 2; level > 0; --level) {
+    std::vector<BlockRef> right;
+    for (const BlockRef& b : map.allocated_blocks())
+      if (b.level == level && b.pos.x >= 0) right.push_back(b);
+    ASSERT_EQ(split_blocks(map, right, 0.0f).done, static_cast<int64_t>(right.size()));
+  }
+  fuse_all();
+  const TriangleMesh m = extract_mesh(map);
+  int64_t seam_edges[4] = {0, 0, 0, 0};
+  const double gap = widest_seam_gap(
+      m, [](const Vec3f& p) { return std::abs(p.x) < 1e-6f && p.z > 0.05f; }, seam_edges);
+  EXPECT_GT(seam_edges[0], 100);
+  EXPECT_GT(seam_edges[2], 25);
+  EXPECT_LT(gap, 0.3 * voxel);
 }
 
 TEST(ExtractMesh, ColourNormalsAndLevelsFollowTheParams) {

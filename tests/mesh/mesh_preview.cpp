@@ -2,6 +2,10 @@
 // them as PLY, renders PNG previews with a tiny software rasteriser, and times extraction on a
 // large map. Usage: mesh_preview OUT_DIR
 //
+// `mesh_preview OUT_DIR MESH.ply EX EY EZ TX TY TZ` renders a mesh file instead, seen from eye
+// (EX, EY, EZ) looking at (TX, TY, TZ) with +z up: e.g. a reconstruction, to look for cracks
+// where resolution levels meet (`*_levels.png` colours the levels: 0 green, 1 yellow, 2 red).
+//
 // Renders: grey Lambert shading from the geometric (winding) normal; triangles seen from
 // behind are drawn red, so wrong orientation or a hole that shows the inside stands out.
 // `*_color.png` shows vertex colours, `*_normals.png` the vertex normals as RGB.
@@ -21,7 +25,7 @@
 namespace hivox {
 namespace {
 
-enum class Shade { Geometry, Color, Normals };
+enum class Shade { Geometry, Color, Normals, Levels };
 
 ColorImage render(const TriangleMesh& m, const PinholeCamera& cam, const Pose& T_wc, Shade shade) {
   ColorImage img(cam.width, cam.height, Rgb8{40, 40, 60});
@@ -67,6 +71,13 @@ ColorImage render(const TriangleMesh& m, const PinholeCamera& cam, const Pose& T
                                              w2 * (m.colors[t[2]].*c)));
           };
           out = {ch(&Rgb8::r), ch(&Rgb8::g), ch(&Rgb8::b)};
+        } else if (shade == Shade::Levels && !m.levels.empty()) {
+          static constexpr Rgb8 kLevel[4] = {
+              {60, 200, 60}, {230, 210, 40}, {220, 60, 40}, {150, 60, 200}};
+          const float l = 0.3f + 0.7f * std::abs(facing);
+          const Rgb8 c = kLevel[std::min<int>(m.levels[t[0]], 3)];
+          out = {static_cast<uint8_t>(l * c.r), static_cast<uint8_t>(l * c.g),
+                 static_cast<uint8_t>(l * c.b)};
         } else if (!m.normals_w.empty()) {
           const Vec3f nv =
               normalized(m.normals_w[t[0]] * w0 + m.normals_w[t[1]] * w1 + m.normals_w[t[2]] * w2);
@@ -81,14 +92,15 @@ ColorImage render(const TriangleMesh& m, const PinholeCamera& cam, const Pose& T
 }
 
 void preview(const std::filesystem::path& dir, const std::string& name, const TriangleMesh& m,
-             const std::vector<Pose>& views) {
-  write_ply(dir / (name + ".ply"), m);
+             const std::vector<Pose>& views, bool write_mesh = true) {
+  if (write_mesh) write_ply(dir / (name + ".ply"), m);
   const PinholeCamera cam{500.0f, 500.0f, 319.5f, 239.5f, 640, 480};
   for (std::size_t i = 0; i < views.size(); ++i) {
     const std::string base = (dir / (name + "_" + std::to_string(i))).string();
     write_png(base + ".png", render(m, cam, views[i], Shade::Geometry));
     if (!m.colors.empty()) write_png(base + "_color.png", render(m, cam, views[i], Shade::Color));
     write_png(base + "_normals.png", render(m, cam, views[i], Shade::Normals));
+    if (!m.levels.empty()) write_png(base + "_levels.png", render(m, cam, views[i], Shade::Levels));
   }
   std::printf("%s: %lld vertices, %lld triangles\n", name.c_str(),
               static_cast<long long>(m.vertex_count()), static_cast<long long>(m.triangle_count()));
@@ -164,12 +176,20 @@ void time_large_map() {
 
 int main(int argc, char** argv) {
   using namespace hivox;
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s OUT_DIR\n", argv[0]);
+  if (argc != 2 && argc != 9) {
+    std::fprintf(stderr, "usage: %s OUT_DIR [MESH.ply EX EY EZ TX TY TZ]\n", argv[0]);
     return 2;
   }
   const std::filesystem::path dir = argv[1];
   std::filesystem::create_directories(dir);
+  if (argc == 9) {
+    const TriangleMesh m = read_ply(argv[2]);
+    const Eigen::Vector3d eye(std::atof(argv[3]), std::atof(argv[4]), std::atof(argv[5]));
+    const Eigen::Vector3d target(std::atof(argv[6]), std::atof(argv[7]), std::atof(argv[8]));
+    preview(dir, std::filesystem::path(argv[2]).stem().string() + "_view", m,
+            {look_at(eye, target, Eigen::Vector3d::UnitZ())}, false);
+    return 0;
+  }
   const test::SphereOnPlane scene;
   const std::vector<Pose> views = {
       look_at({0.7, -0.6, 0.6}, scene.centre, Eigen::Vector3d::UnitZ()),

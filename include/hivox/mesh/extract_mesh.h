@@ -24,8 +24,16 @@ namespace hivox {
 /// colour) interpolated from the voxel colours; `levels` holds each vertex's level. Triangles
 /// are counter-clockwise seen from free space.
 ///
-/// Multi-level maps: cells that would need voxels of a neighbouring block stored at another
-/// level are skipped, so the surface has a gap of up to one cell along level boundaries.
+/// Multi-level maps: every block is meshed at its own level, and its cells reach across level
+/// boundaries: a corner in a finer region reads the finer voxel at that point, one in a coarser
+/// region the coarse level's trilinear value there. Points on the border of a coarser region
+/// take the coarse value even on the finer side, so both sides cut the boundary plane along the
+/// same lines and the surfaces meet without a crack (they differ only by how far a coarse
+/// face's bilinear zero set bends away from its straight marching-cubes segment: a few hundredths
+/// of a voxel on an exact sphere, ~0.2 fine voxel on fused data). Vertices on both sides of a
+/// boundary are not merged (T-junctions), so such a mesh is closed geometrically, not
+/// topologically; the vertices on a level's boundary edges, which several of its blocks make,
+/// are merged.
 ///
 /// Runs in parallel over blocks; the output (order included) depends only on the map's content,
 /// not on the thread count or on where blocks sit in the pool. Throws `Error(InvalidArgument)`
