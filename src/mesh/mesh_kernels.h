@@ -52,14 +52,15 @@ enum class Region : uint8_t {
 
 /// A block's voxels with an apron from its neighbours, as the cells and edges read them.
 struct PaddedBlock {
-  float tsdf[kPadVoxels];          ///< normalised TSDF (0 replaced by kZeroTsdf)
-  uint8_t valid[kPadVoxels];       ///< 1: known, with weight >= min_weight
-  ColorVoxel color[kPadVoxels];    ///< filled only when colour is gathered
-  int32_t neighbour_ptr[27];       ///< pool index of each same-level neighbour, or < 0
-  Region neighbour_region[27];     ///< how each neighbour's region is stored
-  int8_t neighbour_level[27];      ///< the level of a Coarser neighbour's block
-  bool other_levels;               ///< some neighbour region is stored at another level
-  uint8_t cell_valid[kPadVoxels];  ///< 1: a cell of this level with all 8 corners valid
+  float tsdf[kPadVoxels];             ///< normalised TSDF (0 replaced by kZeroTsdf)
+  uint8_t valid[kPadVoxels];          ///< 1: known, with weight >= min_weight
+  ColorVoxel color[kPadVoxels];       ///< filled only when colour is gathered
+  int32_t neighbour_ptr[27];          ///< pool index of each same-level neighbour, or < 0
+  Region neighbour_region[27];        ///< how each neighbour's region is stored
+  int8_t neighbour_level[27];         ///< the level of a Coarser neighbour's block
+  bool other_levels;                  ///< some neighbour region is stored at another level
+  uint8_t cell_valid[kPadVoxels];     ///< 1: a cell of this level with all 8 corners valid
+  int8_t touching_level[kPadVoxels];  ///< see mark_coarser_borders
 };
 
 /// How block `pos` of `level` is stored (see Region); `ptr` receives its pool index when Same,
@@ -82,22 +83,27 @@ HIVOX_HD inline Region region_of(const MapView& map, BlockLookupCache& cache, in
   return Region::None;
 }
 
-/// The coarsest level of a Coarser neighbour whose block (closed: faces, edges and corners
-/// included) contains padded point (x, y, z), or -1 when there is none.
-HIVOX_HD inline int coarsest_touching(const PaddedBlock& b, int x, int y, int z) {
-  // Per axis, the neighbour blocks whose closed extent holds the coordinate: one inside a
-  // block, two on a block border (0 and 8).
-  const int lx = (x & 7) == 0 ? (x - 1) >> 3 : x >> 3, ly = (y & 7) == 0 ? (y - 1) >> 3 : y >> 3,
-            lz = (z & 7) == 0 ? (z - 1) >> 3 : z >> 3;
-  int coarse = -1;
-  for (int sz = lz; sz <= z >> 3; ++sz)
-    for (int sy = ly; sy <= y >> 3; ++sy)
-      for (int sx = lx; sx <= x >> 3; ++sx) {
+/// Fills `b.touching_level` (when some neighbour is Coarser): for each padded point, the
+/// coarsest level of a Coarser neighbour whose block, closed (faces, edges and corners
+/// included), contains it, or -1.
+HIVOX_HD inline void mark_coarser_borders(PaddedBlock& b) {
+  for (int i = 0; i < kPadVoxels; ++i) b.touching_level[i] = -1;
+  for (int sz = -1; sz <= 1; ++sz)
+    for (int sy = -1; sy <= 1; ++sy)
+      for (int sx = -1; sx <= 1; ++sx) {
         const int slot = pad_slot(sx, sy, sz);
-        if (b.neighbour_region[slot] == Region::Coarser && b.neighbour_level[slot] > coarse)
-          coarse = b.neighbour_level[slot];
+        if (b.neighbour_region[slot] != Region::Coarser) continue;
+        const int8_t level = b.neighbour_level[slot];
+        // Block s covers [8 s, 8 s + 8] closed, clipped to the padded range [-1, 9].
+        auto lo = [](int s) { return s < 0 ? kPadLo : 8 * s; };
+        auto hi = [](int s) { return s > 0 ? kPadLo + kPadSide - 1 : 8 * s + 8; };
+        for (int z = lo(sz); z <= hi(sz); ++z)
+          for (int y = lo(sy); y <= hi(sy); ++y)
+            for (int x = lo(sx); x <= hi(sx); ++x) {
+              int8_t& t = b.touching_level[pad_index(x, y, z)];
+              if (level > t) t = level;
+            }
       }
-  return coarse;
 }
 
 /// Fills `out` for the level-`level` block at `pos` stored in pool block `ptr`.
@@ -132,13 +138,14 @@ HIVOX_HD inline void gather_padded_block(const MapView& map, BlockLookupCache& c
         out.other_levels = out.other_levels || r == Region::Coarser || r == Region::Finer;
       }
   const Vec3i origin{pos.x * kBlockSide, pos.y * kBlockSide, pos.z * kBlockSide};
+  if (any_coarser) mark_coarser_borders(out);
   for (int z = kPadLo; z < kPadLo + kPadSide; ++z)
     for (int y = kPadLo; y < kPadLo + kPadSide; ++y)
       for (int x = kPadLo; x < kPadLo + kPadSide; ++x) {
         const int i = pad_index(x, y, z);
         // x >> 3 is -1, 0 or 1 here (floor division); x & 7 the voxel inside that block.
         const int slot = pad_slot(x >> 3, y >> 3, z >> 3);
-        const int coarse = any_coarser ? coarsest_touching(out, x, y, z) : -1;
+        const int coarse = any_coarser ? out.touching_level[i] : -1;
         int32_t vptr = out.neighbour_ptr[slot];
         int vindex = voxel_index(x & 7, y & 7, z & 7);
         float f = 1.0f;
