@@ -21,6 +21,7 @@
 #include "hivox/io/ply.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "mesh/mesh_test_util.h"
+#include "mesh/mesh_topology.h"
 
 namespace hivox {
 namespace {
@@ -102,8 +103,10 @@ void preview(const std::filesystem::path& dir, const std::string& name, const Tr
     write_png(base + "_normals.png", render(m, cam, views[i], Shade::Normals));
     if (!m.levels.empty()) write_png(base + "_levels.png", render(m, cam, views[i], Shade::Levels));
   }
-  std::printf("%s: %lld vertices, %lld triangles\n", name.c_str(),
-              static_cast<long long>(m.vertex_count()), static_cast<long long>(m.triangle_count()));
+  const test::MeshTopology topo = test::mesh_topology(m.vertex_count(), m.triangles);
+  std::printf("%s: %lld vertices, %lld triangles, %lld boundary edges\n", name.c_str(),
+              static_cast<long long>(m.vertex_count()), static_cast<long long>(m.triangle_count()),
+              static_cast<long long>(topo.boundary_edges));
 }
 
 /// Fuses the sphere-on-plane scene with a colour checkerboard painted on the world.
