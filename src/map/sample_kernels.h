@@ -320,9 +320,10 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
 /// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
 /// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
 /// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
-/// level's voxel nearest to it (`exact` false). Returns false when no level stores the point.
+/// level's voxel nearest to it (a stand-in where three levels meet). Returns false when no
+/// level stores the point.
 HIVOX_HD inline bool lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
-                                   const Vec3i& g, int32_t* ptr, int* index, bool* exact) {
+                                   const Vec3i& g, int32_t* ptr, int* index) {
   for (int l = level; l >= 0; --l) {
     const int k = 1 << (level - l);
     const Vec3i gl{g.x * k, g.y * k, g.z * k};
@@ -330,7 +331,6 @@ HIVOX_HD inline bool lattice_voxel(const MapView& map, BlockLookupCache& cache, 
     if (p >= 0) {
       *ptr = p;
       *index = local_voxel_index(gl);
-      *exact = true;
       return true;
     }
     if (p != kPtrSplit) break;
@@ -342,7 +342,6 @@ HIVOX_HD inline bool lattice_voxel(const MapView& map, BlockLookupCache& cache, 
     if (p >= 0) {
       *ptr = p;
       *index = local_voxel_index(gl);
-      *exact = false;
       return true;
     }
     if (p == kPtrSplit) break;
@@ -378,9 +377,8 @@ HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCa
     if (w == 0.0f) continue;
     int32_t ptr;
     int index;
-    bool exact;
     const Vec3i corner{base.x + (c & 1), base.y + ((c >> 1) & 1), base.z + (c >> 2)};
-    if (!lattice_voxel(map, cache, coarse, corner, &ptr, &index, &exact)) return false;
+    if (!lattice_voxel(map, cache, coarse, corner, &ptr, &index)) return false;
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index];
     if (static_cast<float>(vox.weight) < min_weight) return false;
     v[c] = tsdf_to_float(vox.tsdf);

@@ -154,9 +154,8 @@ HIVOX_HD inline void gather_padded_block(const MapView& map, BlockLookupCache& c
           ok = sample_on_coarser_lattice(map, cache, level, origin + Vec3i{x, y, z}, coarse,
                                          min_weight, &f, &vptr, &vindex);
         } else {
-          bool exact = true;
           if (vptr < 0 && out.neighbour_region[slot] == Region::Finer)
-            lattice_voxel(map, cache, level, origin + Vec3i{x, y, z}, &vptr, &vindex, &exact);
+            lattice_voxel(map, cache, level, origin + Vec3i{x, y, z}, &vptr, &vindex);
           if (vptr >= 0) {
             const TsdfVoxel t = map.tsdf[static_cast<int64_t>(vptr) * kBlockVoxels + vindex];
             f = tsdf_to_float(t.tsdf);
