@@ -1,8 +1,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
+#include "hivox/map/voxel_block_map.h"
 #include "map/sample_kernels.h"
 
 namespace hivox {
@@ -106,6 +108,90 @@ TEST(IrregularInterpolation, DegenerateConfigurationsAreRejectedWithoutNaN) {
   ASSERT_TRUE(kernels::interpolate_irregular(tricky, tv, {0.4f, 0.6f, 0.5f}, &f, &g));
   EXPECT_NEAR(f, form({0.4f, 0.6f, 0.5f}), 1e-4f);
   EXPECT_FALSE(std::isnan(f));
+}
+
+// Two levels (1 cm / 2 cm): level-1 block (0, 0, 0) stored, level-1 block (1, 0, 0) split into
+// its 8 level-0 children. Every voxel holds the linear function F(X, Y, Z) = 3X - 5Y + 7Z + 11
+// (int16 units) of its position in level-0 voxel units, so any interpolation on either lattice
+// must give F exactly.
+int lattice_f(int x, int y, int z) {
+  return 3 * x - 5 * y + 7 * z + 11;
+}
+
+std::unique_ptr<VoxelBlockMap> split_lattice_map() {
+  MapParams mp;
+  mp.voxel_size_m = 0.01f;
+  mp.levels = 2;
+  mp.max_blocks = 64;
+  auto map = std::make_unique<VoxelBlockMap>(mp);
+  std::vector<BlockKey> keys = {{{0, 0, 0}, 1}, {{1, 0, 0}, 1}};
+  for (int c = 0; c < 8; ++c) keys.push_back({{2 + (c & 1), (c >> 1) & 1, c >> 2}, 0});
+  std::vector<BlockRef> inserted;
+  map->insert_blocks(keys, &inserted);
+  EXPECT_EQ(inserted.size(), keys.size());
+  for (const BlockRef& b : inserted) {
+    const int k = b.level == 1 ? 2 : 1;  // level-0 voxels per voxel of the block's level
+    TsdfVoxel* vox = map->block_tsdf(b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) {
+      const Vec3i c = voxel_coords(i);
+      vox[i].tsdf = static_cast<int16_t>(
+          lattice_f(k * (b.pos.x * 8 + c.x), k * (b.pos.y * 8 + c.y), k * (b.pos.z * 8 + c.z)));
+      vox[i].weight = 2;
+    }
+  }
+  const LevelView lv = map->view().level[1];
+  lv.entries[find_entry(lv, {1, 0, 0})].ptr = kPtrSplit;
+  return map;
+}
+
+TEST(LatticeSampling, CoarseLatticePointsInASplitRegionReadTheFinerVoxel) {
+  const auto map = split_lattice_map();
+  const MapView view = map->view();
+  auto cache = std::make_unique<kernels::BlockLookupCache>();
+  for (int x = 0; x < 16; ++x)  // level-1 coordinates across both level-1 blocks
+    for (int y = 0; y < 8; y += 3) {
+      int32_t ptr = -1;
+      int index = -1;
+      ASSERT_TRUE(kernels::lattice_voxel(view, *cache, 1, {x, y, 5}, &ptr, &index)) << x;
+      const BlockMeta& meta = map->block_meta(ptr);
+      EXPECT_EQ(meta.level, x < 8 ? 1 : 0) << x;
+      EXPECT_EQ(view.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index].tsdf,
+                lattice_f(2 * x, 2 * y, 10));
+    }
+  int32_t ptr;
+  int index;
+  EXPECT_FALSE(kernels::lattice_voxel(view, *cache, 1, {16, 0, 0}, &ptr, &index));
+  EXPECT_FALSE(kernels::lattice_voxel(view, *cache, 1, {-1, 0, 0}, &ptr, &index));
+}
+
+TEST(LatticeSampling, FinePointsTakeTheCoarseLatticesInterpolantExactly) {
+  const auto map = split_lattice_map();
+  const MapView view = map->view();
+  auto cache = std::make_unique<kernels::BlockLookupCache>();
+  for (int x = 0; x < 32; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 16; z += 5) {
+        float f = 0;
+        int32_t ptr = -1;
+        int index = -1;
+        const bool ok = kernels::sample_on_coarser_lattice(view, *cache, 0, {x, y, z}, 1, 1.0f, &f,
+                                                           &ptr, &index);
+        // The coarse cell around an odd coordinate reaches one coarse voxel further, which is
+        // stored only below 32 (x) and 16 (y, z) level-0 units.
+        const bool reachable =
+            (x % 2 == 0 || x < 31) && (y % 2 == 0 || y < 15) && (z % 2 == 0 || z < 15);
+        ASSERT_EQ(ok, reachable) << x << " " << y << " " << z;
+        if (!ok) continue;
+        EXPECT_NEAR(f, tsdf_to_float(static_cast<int16_t>(lattice_f(x, y, z))), 1e-7f)
+            << x << " " << y << " " << z;
+        ASSERT_GE(ptr, 0);
+      }
+  // Not enough observations: a corner that contributes has weight 2 < 3.
+  float f;
+  int32_t ptr;
+  int index;
+  EXPECT_FALSE(
+      kernels::sample_on_coarser_lattice(view, *cache, 0, {3, 4, 4}, 1, 3.0f, &f, &ptr, &index));
 }
 
 }  // namespace
