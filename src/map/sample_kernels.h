@@ -126,36 +126,53 @@ struct TsdfSample {
   int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
 };
 
+/// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
+/// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
+/// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
+/// level's voxel nearest to it (or, when that voxel's block lies elsewhere, the one at the
+/// point's floor in the block holding the point). Returns the level of the voxel, whose block
+/// and global coordinates (at that level) go to `ptr` and `voxel`, or -1 when no level stores
+/// the point.
+HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
+                                  const Vec3i& g, int32_t* ptr, Vec3i* voxel) {
+  for (int l = level; l >= 0; --l) {
+    const int k = 1 << (level - l);
+    const Vec3i gl{g.x * k, g.y * k, g.z * k};
+    const int32_t p = cache.find(map, l, block_of_voxel(gl));
+    if (p >= 0) {
+      *ptr = p;
+      *voxel = gl;
+      return l;
+    }
+    if (p != kPtrSplit) break;
+  }
+  for (int l = level + 1; l < map.levels; ++l) {
+    const int k = 1 << (l - level);
+    const Vec3i below{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
+    const int32_t holder = cache.find(map, l, block_of_voxel(below));
+    if (holder == kPtrSplit) return -1;  // the finer level has nothing there
+    if (holder < 0) continue;
+    const Vec3i nearest{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k),
+                        floor_div(g.z + k / 2, k)};
+    const int32_t p = cache.find(map, l, block_of_voxel(nearest));
+    *ptr = p >= 0 ? p : holder;
+    *voxel = p >= 0 ? nearest : below;
+    return l;
+  }
+  return -1;
+}
+
 /// The sample standing in for voxel `g` (integer coordinates of `level`) when its block is not
-/// stored at `level`: the level that stores the point is found from the coarsest down. A finer
-/// level has a voxel exactly there; a coarser one contributes its voxel nearest to the point (or,
-/// when that voxel's block lies elsewhere, the one at the point's floor in the block holding the
-/// point). `pos` receives the sample's position in voxel units of `level`.
+/// stored at `level`: lattice_voxel's voxel of another level; `pos` receives its position in
+/// voxel units of `level` (`g` itself for a finer level).
 HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCache& cache, int level,
                                              const Vec3i& g, int32_t* ptr, int* index, Vec3f* pos) {
-  const Vec3f p_w = to_float(g) * map.level[level].voxel_size_m;
-  int l2;
-  Vec3i b2;
-  const int32_t ptr2 = locate_block(map, cache, p_w, &l2, &b2);
-  if (ptr2 < 0 || l2 == level) return false;
-  if (l2 < level) {
-    const int f = 1 << (level - l2);
-    const Vec3i g2{g.x * f, g.y * f, g.z * f};
-    *ptr = cache.find(map, l2, block_of_voxel(g2));
-    if (*ptr < 0) return false;
-    *index = local_voxel_index(g2);
-    *pos = to_float(g);
-    return true;
-  }
-  const int f = 1 << (l2 - level);
-  Vec3i g2{floor_div(g.x + f / 2, f), floor_div(g.y + f / 2, f), floor_div(g.z + f / 2, f)};
-  *ptr = cache.find(map, l2, block_of_voxel(g2));
-  if (*ptr < 0) {
-    g2 = {floor_div(g.x, f), floor_div(g.y, f), floor_div(g.z, f)};
-    *ptr = ptr2;
-  }
-  *index = local_voxel_index(g2);
-  *pos = to_float(Vec3i{g2.x * f, g2.y * f, g2.z * f});
+  Vec3i voxel;
+  const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel);
+  if (l2 < 0 || l2 == level) return false;
+  *index = local_voxel_index(voxel);
+  const int f = l2 > level ? 1 << (l2 - level) : 1;
+  *pos = l2 > level ? to_float(Vec3i{voxel.x * f, voxel.y * f, voxel.z * f}) : to_float(g);
   return true;
 }
 
@@ -317,38 +334,6 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
   return true;
 }
 
-/// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
-/// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
-/// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
-/// level's voxel nearest to it (a stand-in where three levels meet). Returns false when no
-/// level stores the point.
-HIVOX_HD inline bool lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
-                                   const Vec3i& g, int32_t* ptr, int* index) {
-  for (int l = level; l >= 0; --l) {
-    const int k = 1 << (level - l);
-    const Vec3i gl{g.x * k, g.y * k, g.z * k};
-    const int32_t p = cache.find(map, l, block_of_voxel(gl));
-    if (p >= 0) {
-      *ptr = p;
-      *index = local_voxel_index(gl);
-      return true;
-    }
-    if (p != kPtrSplit) break;
-  }
-  for (int l = level + 1; l < map.levels; ++l) {
-    const int k = 1 << (l - level);
-    const Vec3i gl{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k), floor_div(g.z + k / 2, k)};
-    const int32_t p = cache.find(map, l, block_of_voxel(gl));
-    if (p >= 0) {
-      *ptr = p;
-      *index = local_voxel_index(gl);
-      return true;
-    }
-    if (p == kPtrSplit) break;
-  }
-  return false;
-}
-
 /// The TSDF at lattice point `g` of `level` as the coarser level `coarse` represents it: the
 /// trilinear interpolant of that level's cell around the point, with exact fractions (a point
 /// on a coarse face or edge reads only the corners of that face or edge, a coarse lattice point
@@ -376,9 +361,10 @@ HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCa
     v[c] = 0.0f;
     if (w == 0.0f) continue;
     int32_t ptr;
-    int index;
+    Vec3i voxel;
     const Vec3i corner{base.x + (c & 1), base.y + ((c >> 1) & 1), base.z + (c >> 2)};
-    if (!lattice_voxel(map, cache, coarse, corner, &ptr, &index)) return false;
+    if (lattice_voxel(map, cache, coarse, corner, &ptr, &voxel) < 0) return false;
+    const int index = local_voxel_index(voxel);
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index];
     if (static_cast<float>(vox.weight) < min_weight) return false;
     v[c] = tsdf_to_float(vox.tsdf);

@@ -154,8 +154,10 @@ HIVOX_HD inline void gather_padded_block(const MapView& map, BlockLookupCache& c
           ok = sample_on_coarser_lattice(map, cache, level, origin + Vec3i{x, y, z}, coarse,
                                          min_weight, &f, &vptr, &vindex);
         } else {
-          if (vptr < 0 && out.neighbour_region[slot] == Region::Finer)
-            lattice_voxel(map, cache, level, origin + Vec3i{x, y, z}, &vptr, &vindex);
+          Vec3i voxel;
+          if (vptr < 0 && out.neighbour_region[slot] == Region::Finer &&
+              lattice_voxel(map, cache, level, origin + Vec3i{x, y, z}, &vptr, &voxel) >= 0)
+            vindex = local_voxel_index(voxel);
           if (vptr >= 0) {
             const TsdfVoxel t = map.tsdf[static_cast<int64_t>(vptr) * kBlockVoxels + vindex];
             f = tsdf_to_float(t.tsdf);

@@ -151,17 +151,21 @@ TEST(LatticeSampling, CoarseLatticePointsInASplitRegionReadTheFinerVoxel) {
   for (int x = 0; x < 16; ++x)  // level-1 coordinates across both level-1 blocks
     for (int y = 0; y < 8; y += 3) {
       int32_t ptr = -1;
-      int index = -1;
-      ASSERT_TRUE(kernels::lattice_voxel(view, *cache, 1, {x, y, 5}, &ptr, &index)) << x;
-      const BlockMeta& meta = map->block_meta(ptr);
-      EXPECT_EQ(meta.level, x < 8 ? 1 : 0) << x;
-      EXPECT_EQ(view.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index].tsdf,
+      Vec3i voxel;
+      const int level = kernels::lattice_voxel(view, *cache, 1, {x, y, 5}, &ptr, &voxel);
+      ASSERT_EQ(level, x < 8 ? 1 : 0) << x;
+      EXPECT_EQ(map->block_meta(ptr).level, level);
+      EXPECT_EQ(voxel, (level == 1 ? Vec3i{x, y, 5} : Vec3i{2 * x, 2 * y, 10}));
+      EXPECT_EQ(view.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + local_voxel_index(voxel)].tsdf,
                 lattice_f(2 * x, 2 * y, 10));
     }
   int32_t ptr;
-  int index;
-  EXPECT_FALSE(kernels::lattice_voxel(view, *cache, 1, {16, 0, 0}, &ptr, &index));
-  EXPECT_FALSE(kernels::lattice_voxel(view, *cache, 1, {-1, 0, 0}, &ptr, &index));
+  Vec3i voxel;
+  EXPECT_EQ(kernels::lattice_voxel(view, *cache, 1, {16, 0, 0}, &ptr, &voxel), -1);
+  EXPECT_EQ(kernels::lattice_voxel(view, *cache, 1, {-1, 0, 0}, &ptr, &voxel), -1);
+  // A level-0 point inside the coarse block: its nearest level-1 voxel.
+  ASSERT_EQ(kernels::lattice_voxel(view, *cache, 0, {5, 2, 9}, &ptr, &voxel), 1);
+  EXPECT_EQ(voxel, (Vec3i{3, 1, 5}));
 }
 
 TEST(LatticeSampling, FinePointsTakeTheCoarseLatticesInterpolantExactly) {
