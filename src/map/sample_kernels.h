@@ -126,6 +126,24 @@ struct TsdfSample {
   int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
 };
 
+/// The block of a coarser level holding the region of block `pos` of `level` (when `level`
+/// itself has no block there): its ptr, its level in `holder_level`; kPtrEmpty when no coarser
+/// level stores the region.
+HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cache, int level,
+                                       const Vec3i& pos, int* holder_level) {
+  for (int l = level + 1; l < map.levels; ++l) {
+    const int k = 1 << (l - level);
+    const int32_t p =
+        cache.find(map, l, {floor_div(pos.x, k), floor_div(pos.y, k), floor_div(pos.z, k)});
+    if (p >= 0) {
+      *holder_level = l;
+      return p;
+    }
+    if (p == kPtrSplit) break;  // the finer level has nothing there
+  }
+  return kPtrEmpty;
+}
+
 /// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
 /// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
 /// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
@@ -146,20 +164,16 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
     }
     if (p != kPtrSplit) break;
   }
-  for (int l = level + 1; l < map.levels; ++l) {
-    const int k = 1 << (l - level);
-    const Vec3i below{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
-    const int32_t holder = cache.find(map, l, block_of_voxel(below));
-    if (holder == kPtrSplit) return -1;  // the finer level has nothing there
-    if (holder < 0) continue;
-    const Vec3i nearest{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k),
-                        floor_div(g.z + k / 2, k)};
-    const int32_t p = cache.find(map, l, block_of_voxel(nearest));
-    *ptr = p >= 0 ? p : holder;
-    *voxel = p >= 0 ? nearest : below;
-    return l;
-  }
-  return -1;
+  int l;
+  const int32_t holder = coarser_holder(map, cache, level, block_of_voxel(g), &l);
+  if (holder < 0) return -1;
+  const int k = 1 << (l - level);
+  const Vec3i nearest{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k),
+                      floor_div(g.z + k / 2, k)};
+  const int32_t p = cache.find(map, l, block_of_voxel(nearest));
+  *ptr = p >= 0 ? p : holder;
+  *voxel = p >= 0 ? nearest : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
+  return l;
 }
 
 /// The sample standing in for voxel `g` (integer coordinates of `level`) when its block is not

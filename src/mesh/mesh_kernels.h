@@ -70,17 +70,7 @@ HIVOX_HD inline Region region_of(const MapView& map, BlockLookupCache& cache, in
   *ptr = cache.find(map, level, pos);
   if (*ptr >= 0) return Region::Same;
   if (*ptr == kPtrSplit) return Region::Finer;
-  for (int l = level + 1; l < map.levels; ++l) {
-    const int k = 1 << (l - level);
-    const int32_t p =
-        cache.find(map, l, {floor_div(pos.x, k), floor_div(pos.y, k), floor_div(pos.z, k)});
-    if (p >= 0) {
-      *coarse_level = l;
-      return Region::Coarser;
-    }
-    if (p == kPtrSplit) break;
-  }
-  return Region::None;
+  return coarser_holder(map, cache, level, pos, coarse_level) >= 0 ? Region::Coarser : Region::None;
 }
 
 /// Fills `b.touching_level` (when some neighbour is Coarser): for each padded point, the
