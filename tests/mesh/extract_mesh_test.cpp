@@ -185,28 +185,23 @@ TEST(ExtractMesh, UnobservedAndLowWeightVoxelsMakeNoSurface) {
   for (const Vec3f& v : twice.positions_w) EXPECT_GE(v.x, 16 * voxel - 1e-6);
 }
 
-/// Splits the level-`level` blocks that `pick` accepts down to level 0 (through the map's own
-/// split, so the hierarchy is consistent) and writes the exact `sdf` into every level-0 block.
-void split_to_finest_exact(VoxelBlockMap& map, int level, double mu_m, const test::Sdf& sdf,
-                           const std::function<bool(const BlockRef&)>& pick) {
+/// Splits the blocks that `pick` accepts, from level `level` down to level 0, through the map's
+/// own split (so the hierarchy is consistent).
+void split_down(VoxelBlockMap& map, int level, const std::function<bool(const BlockRef&)>& pick) {
   for (int l = level; l > 0; --l) {
     std::vector<BlockRef> chosen;
     for (const BlockRef& b : map.allocated_blocks())
       if (b.level == l && pick(b)) chosen.push_back(b);
     ASSERT_EQ(split_blocks(map, chosen, 0.0f).done, static_cast<int64_t>(chosen.size()));
-    level = l - 1;
   }
-  const double s = map.params().voxel_size_at(0);
-  for (const BlockRef& b : map.allocated_blocks()) {
-    if (b.level != 0) continue;
-    TsdfVoxel* vox = map.block_tsdf(b.ptr);
-    for (int i = 0; i < kBlockVoxels; ++i) {
-      const Vec3i c = voxel_coords(i);
-      const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
-      vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
-      vox[i].weight = 1;
-    }
-  }
+}
+
+/// split_down, then the exact `sdf` written into every level-0 block.
+void split_to_finest_exact(VoxelBlockMap& map, int level, double mu_m, const test::Sdf& sdf,
+                           const std::function<bool(const BlockRef&)>& pick) {
+  split_down(map, level, pick);
+  for (const BlockRef& b : map.allocated_blocks())
+    if (b.level == 0) test::write_sdf_voxels(map, b, mu_m, sdf);
 }
 
 TEST(ExtractMesh, EveryLevelIsMeshedAtItsOwnVoxelSizeUpToTheBoundary) {
@@ -321,33 +316,11 @@ TEST(ExtractMesh, FusedSceneAcrossLevelsHasNoCrackWhereTheyMeet) {
   // where the two sides' contours took different shapes). The floor is left out: at its far
   // edge the fine side's data reaches further than the coarse side's, a border, not a crack.
   test::SphereOnPlane scene;
-  const float voxel = 0.004f;
-  MapParams mp = test::mesh_map_params(voxel, 3);
-  VoxelBlockMap map(mp);
-  FusionParams fp;
-  fp.truncation_m = 0.048f;
-  fp.max_depth_m = 1.5f;
-  TsdfIntegrator integrator(fp);
-  const PinholeCamera cam = test::small_camera();
-  auto fuse_all = [&] {
-    for (const double h : {0.5, 0.2})
-      for (const Pose& T_wc : test::orbit(scene.centre, 0.9, h, 16, 0.3)) {
-        const DepthImage depth = scene.render(cam, T_wc);
-        FusionInput in;
-        in.depth_m = &depth;
-        in.depth_camera = cam;
-        in.T_wc = T_wc;
-        integrator.fuse(map, in);
-      }
-  };
-  fuse_all();
-  for (int level = 2; level > 0; --level) {
-    std::vector<BlockRef> right;
-    for (const BlockRef& b : map.allocated_blocks())
-      if (b.level == level && b.pos.x >= 0) right.push_back(b);
-    ASSERT_EQ(split_blocks(map, right, 0.0f).done, static_cast<int64_t>(right.size()));
-  }
-  fuse_all();
+  const float voxel = 0.004f, mu = 0.048f;
+  VoxelBlockMap map(test::mesh_map_params(voxel, 3));
+  test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
+  split_down(map, 2, [](const BlockRef& b) { return b.pos.x >= 0; });
+  test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
   const TriangleMesh m = extract_mesh(map);
   int64_t seam_edges[4] = {0, 0, 0, 0};
   const double gap = widest_seam_gap(

@@ -26,12 +26,24 @@ inline MapParams mesh_map_params(float voxel_m, int levels = 1, bool color = tru
 
 using Sdf = std::function<double(const Eigen::Vector3d&)>;
 
+/// Writes F = clamp(sdf / mu) with weight `weight` into every voxel of block `b`.
+inline void write_sdf_voxels(VoxelBlockMap& map, const BlockRef& b, double mu_m, const Sdf& sdf,
+                             uint16_t weight = 1) {
+  const double s = map.params().voxel_size_at(b.level);
+  TsdfVoxel* vox = map.block_tsdf(b.ptr);
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    const Vec3i c = voxel_coords(i);
+    const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
+    vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
+    vox[i].weight = weight;
+  }
+}
+
 /// Writes F = clamp(sdf / mu) with weight `weight` into every voxel of the level-`level`
 /// blocks in [lo, hi] (block coordinates) that `keep(block)` accepts.
 inline void write_sdf_blocks(VoxelBlockMap& map, int level, const Vec3i& lo, const Vec3i& hi,
                              double mu_m, const Sdf& sdf, uint16_t weight = 1,
                              const std::function<bool(const Vec3i&)>& keep = {}) {
-  const double s = map.params().voxel_size_at(level);
   std::vector<BlockKey> keys;
   for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)
@@ -39,15 +51,7 @@ inline void write_sdf_blocks(VoxelBlockMap& map, int level, const Vec3i& lo, con
         if (!keep || keep({x, y, z})) keys.push_back({{x, y, z}, level});
   std::vector<BlockRef> inserted;
   map.insert_blocks(keys, &inserted);
-  for (const BlockRef& b : inserted) {
-    TsdfVoxel* vox = map.block_tsdf(b.ptr);
-    for (int i = 0; i < kBlockVoxels; ++i) {
-      const Vec3i c = voxel_coords(i);
-      const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
-      vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
-      vox[i].weight = weight;
-    }
-  }
+  for (const BlockRef& b : inserted) write_sdf_voxels(map, b, mu_m, sdf, weight);
 }
 
 /// Writes `sdf` into every block within `band_m` (plus the block's half diagonal) of its zero
@@ -72,15 +76,12 @@ inline PinholeCamera small_camera() {
 }
 
 /// Fuses noise-free renders of `scene` from orbits around it (one per entry of `heights_m`,
-/// `views` poses each, 0.9 m from the centre) into a fresh fixed-grid map. With `color`, every
-/// frame carries a constant colour image. Depth beyond `max_depth_m` is ignored: the floor far
-/// away is seen at grazing angles with pixels larger than a voxel.
-inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, float voxel_m,
-                                                 float mu_m, int views,
-                                                 const std::vector<double>& heights_m,
-                                                 const Rgb8* color = nullptr,
-                                                 float max_depth_m = 1.5f) {
-  auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m));
+/// `views` poses each, 0.9 m from the centre) into `map`. With `color`, every frame carries a
+/// constant colour image. Depth beyond `max_depth_m` is ignored: the floor far away is seen at
+/// grazing angles with pixels larger than a voxel.
+inline void fuse_views(VoxelBlockMap& map, const SphereOnPlane& scene, float mu_m, int views,
+                       const std::vector<double>& heights_m, const Rgb8* color = nullptr,
+                       float max_depth_m = 1.5f) {
   FusionParams fp;
   fp.truncation_m = mu_m;
   fp.max_depth_m = max_depth_m;
@@ -98,8 +99,18 @@ inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, flo
         in.color_camera = cam;
       }
       in.T_wc = T_wc;
-      integrator.fuse(*map, in);
+      integrator.fuse(map, in);
     }
+}
+
+/// fuse_views into a fresh fixed-grid map.
+inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, float voxel_m,
+                                                 float mu_m, int views,
+                                                 const std::vector<double>& heights_m,
+                                                 const Rgb8* color = nullptr,
+                                                 float max_depth_m = 1.5f) {
+  auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m));
+  fuse_views(*map, scene, mu_m, views, heights_m, color, max_depth_m);
   return map;
 }
 
