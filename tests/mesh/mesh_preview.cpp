@@ -4,7 +4,8 @@
 //
 // `mesh_preview OUT_DIR MESH.ply EX EY EZ TX TY TZ` renders a mesh file instead, seen from eye
 // (EX, EY, EZ) looking at (TX, TY, TZ) with +z up: e.g. a reconstruction, to look for cracks
-// where resolution levels meet (`*_levels.png` colours the levels: 0 green, 1 yellow, 2 red).
+// where resolution levels meet (`*_levels.png` colours the levels as the raycast level render
+// does).
 //
 // Renders: grey Lambert shading from the geometric (winding) normal; triangles seen from
 // behind are drawn red, so wrong orientation or a hole that shows the inside stands out.
@@ -20,6 +21,7 @@
 #include "hivox/io/image_io.h"
 #include "hivox/io/ply.h"
 #include "hivox/mesh/extract_mesh.h"
+#include "hivox/raycast/render.h"
 #include "mesh/mesh_test_util.h"
 #include "mesh/mesh_topology.h"
 
@@ -73,10 +75,8 @@ ColorImage render(const TriangleMesh& m, const PinholeCamera& cam, const Pose& T
           };
           out = {ch(&Rgb8::r), ch(&Rgb8::g), ch(&Rgb8::b)};
         } else if (shade == Shade::Levels && !m.levels.empty()) {
-          static constexpr Rgb8 kLevel[4] = {
-              {60, 200, 60}, {230, 210, 40}, {220, 60, 40}, {150, 60, 200}};
           const float l = 0.3f + 0.7f * std::abs(facing);
-          const Rgb8 c = kLevel[std::min<int>(m.levels[t[0]], 3)];
+          const Rgb8 c = level_color(m.levels[t[0]]);
           out = {static_cast<uint8_t>(l * c.r), static_cast<uint8_t>(l * c.g),
                  static_cast<uint8_t>(l * c.b)};
         } else if (!m.normals_w.empty()) {
