@@ -77,11 +77,13 @@ void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
           for (int k = 0; k < 3; ++k) {
             const int e = mcase.triangles[t][k];
             const Vec3i p = Vec3i{x, y, z} + kernels::corner_offset(mc::mc_edge_corner(e, 0));
-            const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + mc::mc_edge_axis(e);
-            const int32_t nb = pb.neighbour_ptr[kernels::pad_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
+            const int axis = mc::mc_edge_axis(e);
+            const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + axis;
             if (((p.x | p.y | p.z) >> 3) == 0) {
               out.corners.push_back({self, static_cast<uint16_t>(kResolved | scratch.rank[id])});
-            } else if (nb >= 0) {
+            } else if (const int32_t nb =
+                           pb.neighbour_ptr[kernels::pad_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
+                       nb >= 0) {
               // The edge starts in a +x/+y/+z neighbour of this level, which owns it.
               out.corners.push_back(
                   {index_of_ptr[static_cast<std::size_t>(nb)], static_cast<uint16_t>(id)});
@@ -89,13 +91,10 @@ void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
               // The edge starts in a region stored at another level: no block of this level
               // owns it, so every block whose cells use it makes the vertex (the same one:
               // same samples, same arithmetic) and the copies are merged at the end.
-              int16_t& r =
-                  scratch
-                      .boundary_rank[kernels::pad_index(p.x, p.y, p.z) * 3 + mc::mc_edge_axis(e)];
+              int16_t& r = scratch.boundary_rank[kernels::pad_index(p.x, p.y, p.z) * 3 + axis];
               if (r < 0) {
                 r = static_cast<int16_t>(out.vertices.size());
-                out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, p.x, p.y, p.z,
-                                                            mc::mc_edge_axis(e),
+                out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, p.x, p.y, p.z, axis,
                                                             params.compute_normals, with_color));
               }
               out.corners.push_back({self, static_cast<uint16_t>(kResolved | r)});
