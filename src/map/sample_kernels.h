@@ -399,7 +399,7 @@ HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, co
   Vec3i pos;
   const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
   if (ptr < 0) return false;
-  return sample_trilinear(map, cache, *level, p_w, min_weight, out);
+  return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr);
 }
 
 }  // namespace hivox::kernels

@@ -226,6 +226,53 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
   return false;
 }
 
+/// Finds the surface at a ray's measured depth `z_hint` (the frame that measured it was just
+/// fused from the ray's pose): Newton steps from a sample at the hint, first along the slope of
+/// the interpolant's gradient, then along the secant of the last two samples, each carried half a
+/// voxel beyond the predicted crossing, until two consecutive samples bracket the crossing; the
+/// secant method refines it. Returns false when no bracket is found within a few samples (the
+/// caller marches instead). Where the gradient does not fall along the ray, the slope of a
+/// projective TSDF fused from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth).
+HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                   const Vec3f& d, float z_hint, const RayMarchConstants& k,
+                                   RayHit* hit) {
+  constexpr int kMaxSamples = 4;
+  TsdfSample s0, s1;
+  int l0, l1;
+  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s0, &l0)) return false;
+  if (s0.f >= 1.0f || s0.f <= -1.0f) return false;  // truncated: no crossing within the band
+  const float inv_len = 1.0f / norm(d);
+  const float half_voxel_z = 0.5f * map.level[l0].voxel_size_m * inv_len;
+  const float max_step = k.mu_m * inv_len;
+  const float projective = -1.0f / k.mu_m;
+  float slope = dot(s0.gradient, d) * map.level[l0].inv_voxel_size;  // dF/dz
+  float z0 = z_hint;
+  for (int n = 1; n < kMaxSamples; ++n) {
+    if (!(slope < 0.1f * projective)) slope = projective;
+    float step = -s0.f / slope;
+    step += step > 0.0f ? half_voxel_z : -half_voxel_z;
+    step = step > max_step ? max_step : (step < -max_step ? -max_step : step);
+    const float z1 = z0 + step;
+    if (!sample_tsdf(map, cache, o + d * z1, k.min_weight, &s1, &l1)) return false;
+    // A crossing from free space in front to the inside behind (never a back face).
+    if (s0.f > 0.0f && s1.f <= 0.0f && z1 > z0) {
+      refine_crossing(map, cache, o, d, z0, s0.f, z1, s1.f, s1, l1, k, hit);
+      return true;
+    }
+    if (s0.f <= 0.0f && s1.f > 0.0f && z1 < z0) {
+      refine_crossing(map, cache, o, d, z1, s1.f, z0, s0.f, s0, l0, k, hit);
+      return true;
+    }
+    if ((s0.f > 0.0f) != (s1.f > 0.0f)) return false;  // a back face
+    if (s1.f == s0.f) return false;
+    slope = (s1.f - s0.f) / (z1 - z0);
+    z0 = z1;
+    s0 = s1;
+    l0 = l1;
+  }
+  return false;
+}
+
 // ---- range image ----------------------------------------------------------------------------
 
 struct RangeTiles {

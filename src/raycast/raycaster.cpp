@@ -98,7 +98,10 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           }
           kernels::RayHit hit;
           bool found = false;
-          if (tile_max_[t] > 0.0f) {
+          if (z_hint > 0.0f &&
+              kernels::hit_near_hint(view, cache, T.t, dir, z_hint + hint_margin, k, &hit)) {
+            found = true;  // the usual case: the surface lies at the depth just fused
+          } else if (tile_max_[t] > 0.0f) {
             bool behind = false;
             found = kernels::march_ray(view, cache, T.t, dir, z_hint > 0.0f ? z_hint : tile_min_[t],
                                        tile_max_[t], k, &hit, &behind);

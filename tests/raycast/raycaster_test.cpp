@@ -2,12 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/fusion/integrator.h"
+#include "raycast/raycast_kernels.h"
 
 namespace hivox {
 namespace {
@@ -206,6 +209,61 @@ TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
   EXPECT_GT(both, 12000);
   const DepthImage small(10, 10);
   EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &small), Error);
+}
+
+// The surface near a ray's measured depth, found from the hint alone: a hint anywhere inside the
+// band around the surface leads to the surface the march finds, and whatever the hint, a hit is
+// on the surface; a hint in unobserved space behind the surface gives up (the caller marches).
+TEST(Raycaster, HitNearHintFindsTheSurfaceFromAnywhereInTheBand) {
+  const Scene s = fused_scene(0.01f);
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];  // a pose that was fused
+  const DepthImage truth = s.shape.render(cam, T_wc);
+  const MapView view = s.map->view();
+  kernels::BlockLookupCache cache;
+  cache.reset();
+  kernels::RayMarchConstants k;
+  k.mu_m = s.mu;
+  k.step_fraction = 0.8f;
+  const Rigid3f T = to_rigid3f(T_wc);
+  int tried = 0, found = 0, far_hits = 0, normals = 0, off_normals = 0;
+  double sum_angle = 0;
+  for (int y = 0; y < cam.height; y += 3)
+    for (int x = 0; x < cam.width; x += 3) {
+      const float d = truth(x, y);
+      if (d <= 0 || d > kWellObservedDepth ||
+          !well_separated(s.shape, cam, T_wc, x, y, d, 2 * s.mu))
+        continue;
+      const Vec3f dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+      kernels::RayHit march;
+      if (!kernels::march_ray(view, cache, T.t, dir, d - 2 * s.mu, d + 2 * s.mu, k, &march))
+        continue;
+      for (const float offset_mu : {-2.0f, -1.0f, -0.6f, -0.2f, 0.0f, 0.3f, 0.6f}) {
+        const bool in_band = std::abs(offset_mu) < 1.0f;
+        tried += in_band;
+        kernels::RayHit hit;
+        if (!kernels::hit_near_hint(view, cache, T.t, dir, d + offset_mu * s.mu, k, &hit)) continue;
+        found += in_band;
+        far_hits += !in_band;
+        const Vec3f p = hit.p_w;
+        EXPECT_LT(std::abs(s.shape.sdf(Eigen::Vector3d(p.x, p.y, p.z))), 0.5 * s.voxel);
+        EXPECT_NEAR(hit.depth_m, march.depth_m, 0.5f * s.voxel);
+        // Normals may differ where the hit moves within a voxel (they follow per-voxel noise, and
+        // where the samples one voxel ahead are unknown they come from a fallback).
+        const float angle = std::acos(std::clamp(dot(hit.normal_w, march.normal_w), -1.0f, 1.0f));
+        off_normals += angle > 10.0f * 3.14159265f / 180.0f;
+        sum_angle += angle;
+        ++normals;
+      }
+      kernels::RayHit none;
+      EXPECT_FALSE(kernels::hit_near_hint(view, cache, T.t, dir, d + 4.0f * s.mu, k, &none));
+    }
+  EXPECT_GT(tried, 3000);
+  EXPECT_GT(found, 0.98 * tried);
+  EXPECT_LT(sum_angle / normals, 1.0 * 3.14159265 / 180.0);
+  EXPECT_LT(off_normals, normals / 1000);
+  std::printf("hint in the band: %d of %d rays hit; a band or two in front: %d hits\n", found,
+              tried, far_hits);
 }
 
 TEST(Raycaster, ParamsAreValidated) {

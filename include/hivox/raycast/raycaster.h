@@ -49,11 +49,12 @@ class Raycaster {
   /// buffers reused) until the next call.
   ///
   /// `start_hint_m` (optional, same size as the camera): a depth per pixel near which the
-  /// surface is expected, e.g. the depth image just fused from this pose. Rays with a hint start
-  /// `hint_margin_mu` truncation bands before it instead of at the front of the depth range;
-  /// this skips the space in front (often many blocks for surfaces seen at grazing angles) but
-  /// also any model surface the hint says is not there. Pixels without a hint (0) search the
-  /// whole range.
+  /// surface is expected, e.g. the depth image just fused from this pose. A ray with a hint
+  /// first looks for the surface at the hint itself (a sample there and a Newton step or two);
+  /// failing that, it starts `hint_margin_mu` truncation bands before the hint instead of at the
+  /// front of the depth range. Either way it skips the space in front (often many blocks for
+  /// surfaces seen at grazing angles) but also any model surface the hint says is not there.
+  /// Pixels without a hint (0) search the whole range.
   const RaycastResult& raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
                                const Pose& T_wc, RaycastStats* stats = nullptr,
                                const DepthImage* start_hint_m = nullptr);
