@@ -99,7 +99,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           kernels::RayHit hit;
           bool found = false;
           if (z_hint > 0.0f &&
-              kernels::hit_near_hint(view, cache, T.t, dir, z_hint + hint_margin, k, &hit)) {
+              kernels::hit_near_hint(view, cache, T.t, dir, z_hint + hint_margin, k, &hit) &&
+              hit.depth_m <= tile_max_[t]) {
             found = true;  // the usual case: the surface lies at the depth just fused
           } else if (tile_max_[t] > 0.0f) {
             bool behind = false;
