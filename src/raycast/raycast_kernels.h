@@ -254,16 +254,15 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
     step = step > max_step ? max_step : (step < -max_step ? -max_step : step);
     const float z1 = z0 + step;
     if (!sample_tsdf(map, cache, o + d * z1, k.min_weight, &s1, &l1)) return false;
-    // A crossing from free space in front to the inside behind (never a back face).
-    if (s0.f > 0.0f && s1.f <= 0.0f && z1 > z0) {
-      refine_crossing(map, cache, o, d, z0, s0.f, z1, s1.f, s1, l1, k, hit);
+    // The slope is negative, so steps go forward from free space and back from behind a
+    // surface: a sign change always brackets a front face, free space in front.
+    if ((s0.f > 0.0f) != (s1.f > 0.0f)) {
+      if (s0.f > 0.0f)
+        refine_crossing(map, cache, o, d, z0, s0.f, z1, s1.f, s1, l1, k, hit);
+      else
+        refine_crossing(map, cache, o, d, z1, s1.f, z0, s0.f, s0, l0, k, hit);
       return true;
     }
-    if (s0.f <= 0.0f && s1.f > 0.0f && z1 < z0) {
-      refine_crossing(map, cache, o, d, z1, s1.f, z0, s0.f, s0, l0, k, hit);
-      return true;
-    }
-    if ((s0.f > 0.0f) != (s1.f > 0.0f)) return false;  // a back face
     if (s1.f == s0.f) return false;
     slope = (s1.f - s0.f) / (z1 - z0);
     z0 = z1;
