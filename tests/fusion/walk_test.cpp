@@ -13,7 +13,7 @@
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/map/voxel_block_map.h"
-#include "hivox/refine/refiner.h"
+#include "refine/split_util.h"
 
 namespace hivox {
 namespace {
@@ -52,12 +52,7 @@ std::unique_ptr<VoxelBlockMap> mixed_levels_map() {
   std::vector<BlockRef> top;
   map.insert_blocks(keys, &top);
   std::mt19937 rng(7);
-  for (int level = 2; level >= 1; --level) {
-    std::vector<BlockRef> chosen;
-    for (const BlockRef& b : map.allocated_blocks())
-      if (b.level == level && rng() % 2 == 0) chosen.push_back(b);
-    EXPECT_EQ(split_blocks(map, chosen).done, static_cast<int64_t>(chosen.size()));
-  }
+  test::split_down(map, 2, [&rng](const BlockRef&) { return rng() % 2 == 0; });
   return owned;
 }
 

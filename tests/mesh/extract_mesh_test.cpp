@@ -12,9 +12,9 @@
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
-#include "hivox/refine/refiner.h"
 #include "mesh/mesh_test_util.h"
 #include "mesh/mesh_topology.h"
+#include "refine/split_util.h"
 
 namespace hivox {
 namespace {
@@ -185,21 +185,10 @@ TEST(ExtractMesh, UnobservedAndLowWeightVoxelsMakeNoSurface) {
   for (const Vec3f& v : twice.positions_w) EXPECT_GE(v.x, 16 * voxel - 1e-6);
 }
 
-/// Splits the blocks that `pick` accepts, from level `level` down to level 0, through the map's
-/// own split (so the hierarchy is consistent).
-void split_down(VoxelBlockMap& map, int level, const std::function<bool(const BlockRef&)>& pick) {
-  for (int l = level; l > 0; --l) {
-    std::vector<BlockRef> chosen;
-    for (const BlockRef& b : map.allocated_blocks())
-      if (b.level == l && pick(b)) chosen.push_back(b);
-    ASSERT_EQ(split_blocks(map, chosen, 0.0f).done, static_cast<int64_t>(chosen.size()));
-  }
-}
-
 /// split_down, then the exact `sdf` written into every level-0 block.
 void split_to_finest_exact(VoxelBlockMap& map, int level, double mu_m, const test::Sdf& sdf,
                            const std::function<bool(const BlockRef&)>& pick) {
-  split_down(map, level, pick);
+  test::split_down(map, level, pick, 0.0f);
   for (const BlockRef& b : map.allocated_blocks())
     if (b.level == 0) test::write_sdf_voxels(map, b, mu_m, sdf);
 }
@@ -319,7 +308,8 @@ TEST(ExtractMesh, FusedSceneAcrossLevelsHasNoCrackWhereTheyMeet) {
   const float voxel = 0.004f, mu = 0.048f;
   VoxelBlockMap map(test::mesh_map_params(voxel, 3));
   test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
-  split_down(map, 2, [](const BlockRef& b) { return b.pos.x >= 0; });
+  test::split_down(
+      map, 2, [](const BlockRef& b) { return b.pos.x >= 0; }, 0.0f);
   test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
   const TriangleMesh m = extract_mesh(map);
   int64_t seam_edges[4] = {0, 0, 0, 0};

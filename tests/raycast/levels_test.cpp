@@ -9,8 +9,8 @@
 #include "analytic_scene.h"
 #include "hivox/fusion/integrator.h"
 #include "hivox/raycast/raycaster.h"
-#include "hivox/refine/refiner.h"
 #include "map/sample_kernels.h"
+#include "refine/split_util.h"
 
 namespace hivox {
 namespace {
@@ -50,12 +50,8 @@ MixedScene make_mixed() {
     }
   };
   fuse_all();
-  for (int level = 2; level > 0; --level) {
-    std::vector<BlockRef> right;
-    for (const BlockRef& b : s.map->allocated_blocks())
-      if (b.level == level && b.pos.x >= 0) right.push_back(b);
-    EXPECT_EQ(split_blocks(*s.map, right, 0.1f).done, static_cast<int64_t>(right.size()));
-  }
+  test::split_down(
+      *s.map, 2, [](const BlockRef& b) { return b.pos.x >= 0; }, 0.1f);
   fuse_all();
   return s;
 }
