@@ -89,29 +89,27 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           const Vec3f dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-          float z_hint = 0.0f;
-          if (start_hint_m != nullptr) {
-            const float hint = (*start_hint_m)(x, y);
-            if (hint > 0.0f && hint - hint_margin > tile_min_[t] &&
-                hint - hint_margin < tile_max_[t])
-              z_hint = hint - hint_margin;
-          }
+          // The hinted depth when a start `hint_margin` in front of it lies inside the ray's
+          // range, else 0.
+          float hint = start_hint_m != nullptr ? (*start_hint_m)(x, y) : 0.0f;
+          if (!(hint > 0.0f && hint - hint_margin > tile_min_[t] &&
+                hint - hint_margin < tile_max_[t]))
+            hint = 0.0f;
           kernels::RayHit hit;
           bool found = false;
-          if (z_hint > 0.0f &&
-              kernels::hit_near_hint(view, cache, T.t, dir, z_hint + hint_margin, k, &hit) &&
+          if (hint > 0.0f && kernels::hit_near_hint(view, cache, T.t, dir, hint, k, &hit) &&
               hit.depth_m <= tile_max_[t]) {
             found = true;  // the usual case: the surface lies at the depth just fused
           } else if (tile_max_[t] > 0.0f) {
             bool behind = false;
-            found = kernels::march_ray(view, cache, T.t, dir, z_hint > 0.0f ? z_hint : tile_min_[t],
+            found = kernels::march_ray(view, cache, T.t, dir,
+                                       hint > 0.0f ? hint - hint_margin : tile_min_[t],
                                        tile_max_[t], k, &hit, &behind);
             // The hint is wrong here (a model surface in front of it, e.g. at a depth edge, or
             // none behind it): search the part in front of the hint as well.
-            if (z_hint > 0.0f && (!found || behind)) {
+            if (hint > 0.0f && (!found || behind)) {
               kernels::RayHit front;
-              if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], z_hint + hint_margin, k,
-                                     &front)) {
+              if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], hint, k, &front)) {
                 hit = front;
                 found = true;
               }
