@@ -95,7 +95,7 @@ void expect_sensible_hierarchy(const Outcome& o, double walls_coarse, double max
 TEST(HierarchyDesk, NoiseFree) {
   const Outcome o = run("none");
   // Measured (120 frames, 640x480): walls ~100 % coarse, floor ~99 %, keyboard ~90 % finest,
-  // blob ~49 %, blocks ~9 % of the fixed 2 mm grid, error ~1.44x fixed 2 mm and ~0.71x fixed
+  // blob ~49 %, blocks ~9 % of the fixed 2 mm grid, error ~1.44-1.52x fixed 2 mm and ~0.71x fixed
   // 8 mm (the issue asks 1.25x: the refinement's noise terms assume a Kinect even here).
   expect_sensible_hierarchy(o, 0.9, 1.6, 0.8);
   EXPECT_GE(o.level_share.at("floor")[2], 0.7);
