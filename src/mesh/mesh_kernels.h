@@ -77,6 +77,9 @@ HIVOX_HD inline Region region_of(const MapView& map, BlockLookupCache& cache, in
 /// coarsest level of a Coarser neighbour whose block, closed (faces, edges and corners
 /// included), contains it, or -1.
 HIVOX_HD inline void mark_coarser_borders(PaddedBlock& b) {
+  // Neighbour s (-1, 0, 1 per axis) covers [8 s, 8 s + 8] closed, clipped to the padded range.
+  auto lo = [](int s) { return s < 0 ? kPadLo : 8 * s; };
+  auto hi = [](int s) { return s > 0 ? kPadLo + kPadSide - 1 : 8 * s + 8; };
   for (int i = 0; i < kPadVoxels; ++i) b.touching_level[i] = -1;
   for (int sz = -1; sz <= 1; ++sz)
     for (int sy = -1; sy <= 1; ++sy)
@@ -84,9 +87,6 @@ HIVOX_HD inline void mark_coarser_borders(PaddedBlock& b) {
         const int slot = pad_slot(sx, sy, sz);
         if (b.neighbour_region[slot] != Region::Coarser) continue;
         const int8_t level = b.neighbour_level[slot];
-        // Block s covers [8 s, 8 s + 8] closed, clipped to the padded range [-1, 9].
-        auto lo = [](int s) { return s < 0 ? kPadLo : 8 * s; };
-        auto hi = [](int s) { return s > 0 ? kPadLo + kPadSide - 1 : 8 * s + 8; };
         for (int z = lo(sz); z <= hi(sz); ++z)
           for (int y = lo(sy); y <= hi(sy); ++y)
             for (int x = lo(sx); x <= hi(sx); ++x) {
