@@ -6,6 +6,7 @@
 //
 //   build/bench/hierarchy_eval DATASET [--voxel 0.002] [--levels 3] [--truncation 0.024]
 //       [--frames N] [--csv blocks.csv] [--refine detail|det-cov]
+//       [--depth-sampling bilinear|nearest] [--split-threshold M] [--merge-threshold M]
 
 #include <cstdio>
 #include <fstream>
@@ -49,7 +50,8 @@ int main(int argc, char** argv) try {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: hierarchy_eval DATASET [--voxel M] [--levels N] [--truncation M] "
-                 "[--frames N] [--csv FILE] [--refine detail|det-cov]\n");
+                 "[--frames N] [--csv FILE] [--refine detail|det-cov] [--depth-sampling "
+                 "bilinear|nearest] [--split-threshold M] [--merge-threshold M]\n");
     return 2;
   }
   const std::string dataset = argv[1];
@@ -66,6 +68,8 @@ int main(int argc, char** argv) try {
   ReconstructionParams base;
   base.map.voxel_size_m = voxel;
   base.fusion.truncation_m = mu;
+  base.fusion.depth_sampling = parse_depth_sampling(arg(
+      argc, argv, "--depth-sampling", std::string(to_string(base.fusion.depth_sampling)).c_str()));
   base.raycast_every_frame = false;
   base.map.max_blocks = 1 << 22;
   base.map.buckets_per_level = 1 << 22;
@@ -74,6 +78,10 @@ int main(int argc, char** argv) try {
   fine.map.levels = 1;
   adaptive.map.levels = levels;
   if (criterion == "det-cov") adaptive.refine = RefineParams::paper();
+  adaptive.refine.split_threshold = std::stof(arg(
+      argc, argv, "--split-threshold", std::to_string(adaptive.refine.split_threshold).c_str()));
+  adaptive.refine.merge_threshold = std::stof(arg(
+      argc, argv, "--merge-threshold", std::to_string(adaptive.refine.merge_threshold).c_str()));
   coarse.map.levels = 1;
   coarse.map.voxel_size_m = voxel * static_cast<float>(1 << (levels - 1));
   std::vector<Run> runs;

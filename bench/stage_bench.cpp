@@ -98,13 +98,17 @@ void BM_Allocate(benchmark::State& state) {
   state.SetLabel(w.name);
 }
 
+/// Argument: the depth sampling (0 nearest pixel, 1 bilinear).
 void BM_Integrate(benchmark::State& state) {
   Workload& w = workload();
-  TsdfIntegrator integrator(w.fusion);
+  FusionParams fp = w.fusion;
+  fp.depth_sampling = state.range(0) == 0 ? DepthSampling::Nearest : DepthSampling::Bilinear;
+  TsdfIntegrator integrator(fp);
   integrator.allocate(*w.map, w.input);
   for (auto _ : state) integrator.integrate(*w.map, w.input);
   w.frame_fused = true;
   state.counters["visible_blocks"] = static_cast<double>(integrator.visible_blocks().size());
+  state.SetLabel(std::string(to_string(fp.depth_sampling)));
 }
 
 void raycast(benchmark::State& state, bool hinted) {
@@ -135,7 +139,7 @@ void BM_ExtractMesh(benchmark::State& state) {
 }
 
 BENCHMARK(BM_Allocate)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Integrate)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Integrate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastHinted)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);

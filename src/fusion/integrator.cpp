@@ -192,6 +192,7 @@ void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
   k.mu_m = params_.truncation_m;
   k.inv_mu = 1.0f / params_.truncation_m;
   k.max_weight = params_.max_weight;
+  k.bilinear_depth = params_.depth_sampling == DepthSampling::Bilinear;
   const std::vector<BlockRef>& blocks = visible_;
   parallel_for_dynamic(static_cast<int64_t>(blocks.size()), 16, [&](int64_t i) {
     const BlockRef& b = blocks[static_cast<std::size_t>(i)];

@@ -10,6 +10,23 @@
 
 namespace hivox {
 
+std::string_view to_string(DepthSampling sampling) {
+  switch (sampling) {
+    case DepthSampling::Nearest:
+      return "nearest";
+    case DepthSampling::Bilinear:
+      return "bilinear";
+  }
+  return "?";
+}
+
+DepthSampling parse_depth_sampling(std::string_view name) {
+  if (name == "nearest") return DepthSampling::Nearest;
+  if (name == "bilinear") return DepthSampling::Bilinear;
+  fail(ErrorCode::InvalidArgument, "depth sampling must be 'nearest' or 'bilinear', got '{}'",
+       name);
+}
+
 void FusionParams::validate() const {
   if (!std::isfinite(truncation_m) || truncation_m <= 0.0f || truncation_m > 1.0f)
     fail(ErrorCode::InvalidArgument, "truncation_m must be in (0, 1] metres, got {}", truncation_m);
@@ -36,9 +53,10 @@ void FusionParams::check_against(const MapParams& map) const {
 }
 
 std::string FusionParams::to_string() const {
-  return fmt::format("truncation {:.1f} mm, max weight {}, depth {:.2f}-{:.2f} m, colour {}",
-                     truncation_m * 1000.0f, max_weight, min_depth_m, max_depth_m,
-                     integrate_color ? "on" : "off");
+  return fmt::format(
+      "truncation {:.1f} mm, max weight {}, depth {:.2f}-{:.2f} m, colour {}, depth sampling {}",
+      truncation_m * 1000.0f, max_weight, min_depth_m, max_depth_m, integrate_color ? "on" : "off",
+      hivox::to_string(depth_sampling));
 }
 
 }  // namespace hivox

@@ -20,6 +20,12 @@ RaycastParams raycast_params_for(const ReconstructionParams& p) {
   return r;
 }
 
+RefineParams refine_params_for(const ReconstructionParams& p, const DatasetInfo& info) {
+  RefineParams r = p.refine;
+  if (r.noise_from_dataset) r.noise = info.depth_noise;
+  return r;
+}
+
 TrackParams track_params_for(const ReconstructionParams& p) {
   TrackParams t = p.track;
   t.min_depth_m = p.fusion.min_depth_m > 0.0f ? p.fusion.min_depth_m : t.min_depth_m;
@@ -49,9 +55,10 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const Dataset
     : params_(params),
       info_(info),
       integrator_(params.fusion),
-      refiner_(params.refine),
+      refiner_(refine_params_for(params, info)),
       raycaster_(raycast_params_for(params)),
       tracker_(track_params_for(params)) {
+  params_.refine = refine_params_for(params, info);
   params_.validate();
   params_.fusion.check_against(params_.map);
   info_.depth_camera.validate("depth camera");

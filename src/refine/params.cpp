@@ -33,6 +33,7 @@ RefineParams RefineParams::paper() {
   p.min_weight = 1;
   p.min_updates = 1;
   p.noise = SensorNoise::none();
+  p.noise_from_dataset = false;
   return p;
 }
 

@@ -55,13 +55,20 @@ Eigen::Vector3d voxel_position(const BlockRef& b, int i, float voxel_m) {
   return Eigen::Vector3d(b.pos.x * 8 + v.x, b.pos.y * 8 + v.y, b.pos.z * 8 + v.z) * voxel_m;
 }
 
-TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
-  // A floor plane seen from 1 m above, within ~35 degrees of its normal. The projective
-  // distance along the optical axis exceeds the Euclidean one by 1/cos(angle) (< 1.22 here)
-  // and the nearest-pixel lookup adds < half a pixel (~3 mm) of lateral offset.
+/// The floor plane z = 0 alone (the sphere shrunk to nothing, out of sight).
+test::SphereOnPlane floor_only() {
   test::SphereOnPlane scene;
   scene.radius = 0.0;
   scene.centre = {0, 0, -5};
+  return scene;
+}
+
+TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
+  // A floor plane seen from 1 m above, within ~35 degrees of its normal. The projective
+  // distance along the optical axis exceeds the Euclidean one by 1/cos(angle) (< 1.22 here)
+  // and the nearest-pixel look-up (where the bilinear one falls back) adds < half a pixel (~3 mm)
+  // of lateral offset.
+  const test::SphereOnPlane scene = floor_only();
   const float voxel = 0.01f, mu = 0.04f;
   VoxelBlockMap map(fixed_grid(voxel));
   FusionParams fp;
@@ -95,6 +102,68 @@ TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
   ASSERT_GT(n, 10000);
   EXPECT_LT(sum_err / n, 0.25 * voxel) << "mean |TSDF - SDF| over " << n << " voxels";
   EXPECT_LT(max_err, 1.0 * voxel);
+}
+
+/// Fuses a floor plane seen at ~65-70 degrees from its normal and returns the mean distance of
+/// the fused surface (the zero crossing along z of each observed voxel column) from the true
+/// plane, in metres, over the near part of the floor (y <= 0.4 m), where the depth steps from
+/// pixel to pixel (up to ~3 cm) stay under mu and bilinear sampling applies; farther away they
+/// exceed mu and both samplings take the nearest pixel.
+double slanted_floor_offset_m(DepthSampling sampling) {
+  const test::SphereOnPlane scene = floor_only();
+  const float voxel = 0.01f, mu = 0.04f;
+  VoxelBlockMap map(fixed_grid(voxel));
+  FusionParams fp;
+  fp.truncation_m = mu;
+  fp.max_depth_m = 3.0f;
+  fp.depth_sampling = sampling;
+  TsdfIntegrator integrator(fp);
+  const PinholeCamera cam = small_camera();
+  for (int i = 0; i < 8; ++i) {
+    const Pose T_wc =
+        look_at({0.02 * i, -1.3, 0.5}, {0.03 * i - 0.1, 0.0, 0.0}, Eigen::Vector3d::UnitZ());
+    const DepthImage depth = scene.render(cam, T_wc);
+    FusionInput in{.depth_m = &depth, .depth_camera = cam};
+    in.T_wc = T_wc;
+    integrator.fuse(map, in);
+  }
+  double sum = 0;
+  int n = 0;
+  for (int y = -100; y <= 40; ++y)
+    for (int x = -40; x <= 40; ++x)
+      for (int z = -3; z < 3; ++z) {
+        const auto lo = map.voxel(0, Vec3i{x, y, z}), hi = map.voxel(0, Vec3i{x, y, z + 1});
+        if (!lo || !hi || lo->weight < 4 || hi->weight < 4) continue;
+        const float f_lo = tsdf_to_float(lo->tsdf), f_hi = tsdf_to_float(hi->tsdf);
+        if (!(f_lo <= 0.0f && f_hi > 0.0f)) continue;
+        sum += std::abs((z + f_lo / (f_lo - f_hi)) * voxel);
+        ++n;
+      }
+  EXPECT_GT(n, 3000) << "crossings found";
+  return sum / std::max(n, 1);
+}
+
+TEST(Integrator, BilinearDepthSamplingRemovesThePixelStaircase) {
+  // Nearest-pixel sampling gives each voxel the depth of a pixel whose ray meets the plane up
+  // to half a pixel away: on a slanted plane that is a staircase of depth steps, which the fused
+  // surface keeps (~1 mm here). Bilinear sampling follows the plane between pixels.
+  const double nearest = slanted_floor_offset_m(DepthSampling::Nearest);
+  const double bilinear = slanted_floor_offset_m(DepthSampling::Bilinear);
+  EXPECT_LT(bilinear, 0.01 * 0.01) << "within 1 % of a voxel";
+  EXPECT_LT(bilinear, 0.2 * nearest)
+      << "nearest " << nearest << " m, bilinear " << bilinear << " m";
+}
+
+TEST(FusionParams, DepthSamplingNamesRoundTripAndBadOnesAreNamed) {
+  for (const DepthSampling d : {DepthSampling::Nearest, DepthSampling::Bilinear})
+    EXPECT_EQ(parse_depth_sampling(to_string(d)), d);
+  try {
+    parse_depth_sampling("linear");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("'linear'"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Integrator, ZeroCrossingsLieOnTheTrueSurface) {

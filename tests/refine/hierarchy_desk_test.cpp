@@ -92,26 +92,34 @@ void expect_sensible_hierarchy(const Outcome& o, double walls_coarse, double max
   EXPECT_LE(o.adaptive_err, max_err_vs_coarse * o.coarse_err);
 }
 
+TEST(Reconstruction, RefinementTakesTheDatasetsNoiseModel) {
+  const SyntheticDataset clean(parse_synthetic_spec("synthetic:desk?frames=2&noise=none"));
+  ReconstructionParams p;
+  const Reconstruction from_dataset(p, clean.info());
+  EXPECT_EQ(from_dataset.params().refine.noise.sigma_m(2.0f), 0.0f);
+  p.refine.noise_from_dataset = false;  // the caller's own model stays
+  const Reconstruction own(p, clean.info());
+  EXPECT_FLOAT_EQ(own.params().refine.noise.sigma_m(2.0f), SensorNoise::kinect().sigma_m(2.0f));
+}
+
 TEST(HierarchyDesk, NoiseFree) {
   const Outcome o = run("none");
-  // Measured (120 frames, 640x480): walls ~100 % coarse, floor ~99 %, keyboard ~90 % finest,
-  // blob ~49 %, blocks ~9 % of the fixed 2 mm grid, error ~1.44-1.52x fixed 2 mm and ~0.71x fixed
-  // 8 mm (the issue asks 1.25x: the refinement's noise terms assume a Kinect even here).
-  expect_sensible_hierarchy(o, 0.9, 1.6, 0.8);
+  // Measured (120 frames, 640x480; the dataset declares no sensor noise, so only the absolute
+  // 0.2 / 0.1 mm levels apply): walls ~97 % coarse, floor ~82 %, keyboard ~100 % finest, blob
+  // ~96 %, blocks ~24 % of the fixed 2 mm grid, error ~1.24x fixed 2 mm and ~0.50x fixed 8 mm
+  // (the issue's 1.25x and 0.6x; asserted with a little room for other CPUs).
+  expect_sensible_hierarchy(o, 0.9, 1.3, 0.6);
   EXPECT_GE(o.level_share.at("floor")[2], 0.7);
 }
 
 TEST(HierarchyDesk, KinectNoise) {
   const Outcome o = run("kinect");
-  // Measured: walls ~81 % coarse (most of the rest at the middle level: the synthetic noise at
-  // 2-3 m, sigma 8-15 mm per pixel, still leaves visible ripple after 120 frames), floor ~57 %,
-  // keyboard ~94 % finest, blob ~51 %, table top ~57 % finest (objects stand on it, and the
-  // synthetic depth quantisation leaves a staircase on the tilted top), blocks ~18 % of fixed
-  // 2 mm, error ~0.94x fixed 2 mm (noise averages out in the coarser voxels) and ~0.92x fixed
-  // 8 mm (itself within 5 % of fixed 2 mm at this noise, so the issue's 0.6x of fixed 8 mm
-  // cannot hold here).
-  expect_sensible_hierarchy(o, 0.78, 1.25,
-                            0.97);  // walls: the issue's 80 %, less 2 points for other CPUs
+  // Measured: walls ~99 % coarse, floor ~73 %, keyboard ~84 % finest, blob ~49 %, table top
+  // ~26 % finest and ~68 % at the middle level (objects stand on it, and the synthetic depth
+  // quantisation leaves a staircase on the tilted top), blocks ~11 % of fixed 2 mm, error ~0.92x
+  // fixed 2 mm (noise averages out in the coarser voxels) and ~0.89x fixed 8 mm (itself within
+  // 5 % of fixed 2 mm at this noise, so the issue's 0.6x of fixed 8 mm cannot hold here).
+  expect_sensible_hierarchy(o, 0.9, 1.0, 0.95);
 }
 
 }  // namespace

@@ -146,5 +146,15 @@ TEST(SyntheticDataset, NoiseFreeDepthIsTheExactRender) {
   EXPECT_GT(checked, 50);
 }
 
+TEST(SyntheticDataset, DeclaresItsDepthNoise) {
+  const SyntheticDataset clean(parse_synthetic_spec("synthetic:spheres?frames=2&noise=none"));
+  EXPECT_EQ(clean.info().depth_noise.sigma_m(0.5f), 0.0f);
+  EXPECT_EQ(clean.info().depth_noise.sigma_m(3.0f), 0.0f);
+  const SyntheticDataset noisy(parse_synthetic_spec("synthetic:spheres?frames=2&noise=kinect"));
+  const NoiseParams kinect = NoiseParams::kinect();
+  for (const float z : {0.5f, 1.0f, 2.0f, 3.5f})
+    EXPECT_NEAR(noisy.info().depth_noise.sigma_m(z), kinect.axial_sigma_m(z), 1e-7) << z;
+}
+
 }  // namespace
 }  // namespace hivox

@@ -11,6 +11,7 @@
 #include "hivox/core/camera.h"
 #include "hivox/core/image.h"
 #include "hivox/core/pose.h"
+#include "hivox/core/sensor_noise.h"
 
 namespace hivox {
 
@@ -49,6 +50,9 @@ struct DatasetInfo {
   /// without reading every frame.
   std::size_t ground_truth_count = 0;
   double first_timestamp_s = 0;
+  /// Axial depth noise of the sensor that recorded the set: Kinect-class for recorded data,
+  /// none for noise-free synthetic depth. The refinement compares surface detail with it.
+  SensorNoise depth_noise = SensorNoise::kinect();
   std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
 };
 

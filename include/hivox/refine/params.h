@@ -28,12 +28,16 @@ struct RefineParams {
   /// Split a block (not at the finest level) whose complexity exceeds
   /// max(split_threshold, split_noise_factor * sigma(z)) at its depth z. Metres for Detail, a
   /// determinant for DetCov (which ignores the noise terms).
-  float split_threshold = 0.0005f;
+  float split_threshold = 0.0002f;
   /// Merge 8 sibling leaves back when each one's complexity is below
   /// max(merge_threshold, merge_noise_ratio * split_noise_factor * sigma(z)) (< the split level:
   /// hysteresis).
-  float merge_threshold = 0.00025f;
+  float merge_threshold = 0.0001f;
+  /// The sensor's axial noise sigma(z). With `noise_from_dataset`, `Reconstruction` replaces it
+  /// by the dataset's own model (`DatasetInfo::depth_noise`: none for noise-free synthetic
+  /// depth), so that detail below the absolute thresholds is all that a perfect sensor needs.
   SensorNoise noise = SensorNoise::kinect();
+  bool noise_from_dataset = true;
   float split_noise_factor = 0.25f;
   /// The merge level's noise term as a fraction of the split level's, in [0, 1]. 0.72 (0.18
   /// sigma(z) with the default split factor): walls seen at 2-3 m with Kinect noise settle at the
