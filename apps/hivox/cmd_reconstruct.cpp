@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -38,6 +39,8 @@ struct ReconstructOptions {
   DatasetOptions data;
   std::string refine_criterion = "detail";
   std::string sensor_noise = "dataset";
+  // Unset: the criterion's own defaults (detail: RefineParams{}, det-cov: the paper's 1e-4).
+  std::optional<float> split_threshold, merge_threshold;
   std::string depth_sampling{to_string(FusionParams{}.depth_sampling)};
   std::string icp_loss = "huber";
   std::string poses = "icp";
@@ -87,7 +90,14 @@ std::string default_out_dir(const std::string& dataset) {
 
 void run_reconstruct(ReconstructOptions options) {
   if (options.threads > 0) set_thread_count(options.threads);
-  options.params.refine.criterion = parse_refine_criterion(options.refine_criterion);
+  RefineParams& r = options.params.refine;
+  r.criterion = parse_refine_criterion(options.refine_criterion);
+  if (r.criterion == RefineCriterion::DetCov) {
+    r.split_threshold = RefineParams::paper().split_threshold;
+    r.merge_threshold = RefineParams::paper().merge_threshold;
+  }
+  r.split_threshold = options.split_threshold.value_or(r.split_threshold);
+  r.merge_threshold = options.merge_threshold.value_or(r.merge_threshold);
   options.params.fusion.depth_sampling = parse_depth_sampling(options.depth_sampling);
   options.params.track.loss = parse_robust_loss(options.icp_loss);
   if (options.no_color) {
@@ -288,12 +298,14 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "TSDF departs from linear near the surface, metres; noise-aware) or 'det-cov' "
                   "(the paper's determinant of the normal covariance)")
       ->capture_default_str();
-  cmd->add_option("--split-threshold", p.refine.split_threshold,
-                  "split a block whose complexity exceeds this (metres for detail)")
-      ->capture_default_str();
-  cmd->add_option("--merge-threshold", p.refine.merge_threshold,
-                  "merge 8 siblings whose complexity is below this (< split threshold)")
-      ->capture_default_str();
+  cmd->add_option("--split-threshold", o.split_threshold,
+                  fmt::format("split a block whose complexity exceeds this (default: {:g} m for "
+                              "detail, {:g} for det-cov)",
+                              p.refine.split_threshold, RefineParams::paper().split_threshold));
+  cmd->add_option("--merge-threshold", o.merge_threshold,
+                  fmt::format("merge 8 siblings whose complexity is below this, < the split "
+                              "threshold (default: {:g} m for detail, {:g} for det-cov)",
+                              p.refine.merge_threshold, RefineParams::paper().merge_threshold));
   cmd->add_option("--refine-every", p.refine.every_n_frames, "split/merge after every N-th frame")
       ->capture_default_str();
   cmd->add_option("--refine-min-weight", p.refine.min_weight,

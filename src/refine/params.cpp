@@ -97,7 +97,7 @@ std::string RefineParams::to_string() const {
   const bool metres = criterion == RefineCriterion::Detail;
   const bool noisy = metres && (noise.sigma_min_m > 0.0f || noise.quadratic_per_m > 0.0f);
   return fmt::format(
-      "criterion {}, split > {}{}{}, merge < {}{}{}, every {} frame{}, min weight {}, min "
+      "criterion {}, split > {:.3g}{}{}, merge < {:.3g}{}{}, every {} frame{}, min weight {}, min "
       "updates {}",
       hivox::to_string(criterion), metres ? split_threshold * 1000.0f : split_threshold,
       metres ? " mm" : "", noisy ? fmt::format(" or {} sigma(z)", split_noise_factor) : "",

@@ -161,6 +161,26 @@ TEST(Reconstruct, BadInputIsOneClearLine) {
   EXPECT_NE(r.output.find("/no/poses.txt"), std::string::npos) << r.output;
 }
 
+TEST(Reconstruct, RefinementSettingsFollowTheCriterionAndTheDataset) {
+  test::TempDir out;
+  const std::string base =
+      "reconstruct 'synthetic:box?frames=2&width=80&height=60&noise=none' --poses gt --out " +
+      out.path().string();
+  // Noise-free synthetic depth declares no sensor noise: only the absolute levels apply.
+  auto r = run_hivox(base);
+  EXPECT_NE(r.output.find("split > 0.2 mm, merge < 0.1 mm"), std::string::npos) << r.output;
+  r = run_hivox(base + " --sensor-noise kinect");
+  EXPECT_NE(r.output.find("split > 0.2 mm or 0.25 sigma(z)"), std::string::npos) << r.output;
+  // det-cov takes the paper's threshold unless one is given.
+  r = run_hivox(base + " --refine det-cov");
+  EXPECT_NE(r.output.find("criterion det-cov, split > 0.0001, merge < 0.0001"), std::string::npos)
+      << r.output;
+  r = run_hivox(base + " --refine det-cov --split-threshold 0.001");
+  EXPECT_NE(r.output.find("split > 0.001, merge < 0.0001"), std::string::npos) << r.output;
+  r = run_hivox(base + " --depth-sampling linear");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+}
+
 TEST(Reconstruct, PoseFileIsUsed) {
   test::TempDir out;
   // Poses from a file: the box scene's own trajectory, exported by `hivox synth`.
