@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,10 +33,15 @@ struct Run {
   std::unique_ptr<Reconstruction> rec;
 };
 
-std::string arg(int argc, char** argv, const char* name, const char* fallback) {
+/// The value after option `name`, if given.
+std::optional<std::string> given(int argc, char** argv, const char* name) {
   for (int i = 1; i + 1 < argc; ++i)
     if (std::string(argv[i]) == name) return argv[i + 1];
-  return fallback;
+  return std::nullopt;
+}
+
+std::string arg(int argc, char** argv, const char* name, const char* fallback) {
+  return given(argc, argv, name).value_or(fallback);
 }
 
 double mean_ms(const Reconstruction& r, double FrameStats::*field) {
@@ -68,8 +74,8 @@ int main(int argc, char** argv) try {
   ReconstructionParams base;
   base.map.voxel_size_m = voxel;
   base.fusion.truncation_m = mu;
-  base.fusion.depth_sampling = parse_depth_sampling(arg(
-      argc, argv, "--depth-sampling", std::string(to_string(base.fusion.depth_sampling)).c_str()));
+  if (const auto d = given(argc, argv, "--depth-sampling"))
+    base.fusion.depth_sampling = parse_depth_sampling(*d);
   base.raycast_every_frame = false;
   base.map.max_blocks = 1 << 22;
   base.map.buckets_per_level = 1 << 22;
@@ -78,10 +84,10 @@ int main(int argc, char** argv) try {
   fine.map.levels = 1;
   adaptive.map.levels = levels;
   if (criterion == "det-cov") adaptive.refine = RefineParams::paper();
-  adaptive.refine.split_threshold = std::stof(arg(
-      argc, argv, "--split-threshold", std::to_string(adaptive.refine.split_threshold).c_str()));
-  adaptive.refine.merge_threshold = std::stof(arg(
-      argc, argv, "--merge-threshold", std::to_string(adaptive.refine.merge_threshold).c_str()));
+  if (const auto t = given(argc, argv, "--split-threshold"))
+    adaptive.refine.split_threshold = std::stof(*t);
+  if (const auto t = given(argc, argv, "--merge-threshold"))
+    adaptive.refine.merge_threshold = std::stof(*t);
   coarse.map.levels = 1;
   coarse.map.voxel_size_m = voxel * static_cast<float>(1 << (levels - 1));
   std::vector<Run> runs;

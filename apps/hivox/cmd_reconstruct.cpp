@@ -98,6 +98,10 @@ void run_reconstruct(ReconstructOptions options) {
   }
   r.split_threshold = options.split_threshold.value_or(r.split_threshold);
   r.merge_threshold = options.merge_threshold.value_or(r.merge_threshold);
+  if (options.sensor_noise != "dataset") {  // else Reconstruction takes the dataset's model
+    r.noise = options.sensor_noise == "none" ? SensorNoise::none() : SensorNoise::kinect();
+    r.noise_from_dataset = false;
+  }
   options.params.fusion.depth_sampling = parse_depth_sampling(options.depth_sampling);
   options.params.track.loss = parse_robust_loss(options.icp_loss);
   if (options.no_color) {
@@ -111,12 +115,6 @@ void run_reconstruct(ReconstructOptions options) {
 
   const std::unique_ptr<DatasetReader> reader = open_dataset(options.data);
   const DatasetInfo& info = reader->info();
-  RefineParams& refine = options.params.refine;
-  if (options.sensor_noise == "dataset")
-    refine.noise = info.depth_noise;
-  else
-    refine.noise = options.sensor_noise == "none" ? SensorNoise::none() : SensorNoise::kinect();
-  refine.noise_from_dataset = false;  // resolved here, so that the printed settings say it
   for (const std::string& w : info.warnings) log::warn("{}", w);
   const bool tracking = options.poses == "icp";
   std::unique_ptr<PoseFile> pose_file;
@@ -140,7 +138,8 @@ void run_reconstruct(ReconstructOptions options) {
 
   const std::size_t total =
       options.frames > 0 ? std::min(options.frames, reader->size()) : reader->size();
-  const std::string params_text = options.params.to_string();
+  Reconstruction rec(options.params, info);
+  const std::string params_text = rec.params().to_string();  // with the dataset's noise model
   if (!options.quiet) {
     fmt::print("hivox reconstruct {}\n", info.source);
     fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", total, reader->size(),
@@ -152,7 +151,6 @@ void run_reconstruct(ReconstructOptions options) {
     fmt::print("{}\noutput: {}\n", params_text, out.string());
   }
 
-  Reconstruction rec(options.params, info);
   const bool tty = isatty(fileno(stdout)) != 0;
   Stopwatch wall;
   // Per-frame renders and the progress line.

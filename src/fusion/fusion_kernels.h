@@ -240,18 +240,17 @@ struct IntegrationConstants {
   bool bilinear_depth = false;  ///< `DepthSampling::Bilinear`
 };
 
-/// Nearest pixel of a camera-frame point: `*index` is always a valid pixel index (clamped to
-/// the image), the return value says whether the point really projects inside the image (and
-/// lies in front of the camera). Branch-free, so that a row of voxels vectorizes.
-HIVOX_HD inline bool project_to_pixel(const PinholeCamera& cam, Vec3f p_c, int* index) {
-  const float inv_z = 1.0f / p_c.z;
-  const float u = cam.fx * p_c.x * inv_z + cam.cx + 0.5f;
-  const float v = cam.fy * p_c.y * inv_z + cam.cy + 0.5f;
+/// Nearest pixel of continuous pixel coordinates `uv` (`PinholeCamera::project`) of a point at
+/// depth `z_m`: `*index` is always a valid pixel index (clamped to the image), the return value
+/// says whether the point really projects inside the image (and lies in front of the camera).
+/// Branch-free, so that a row of voxels vectorizes.
+HIVOX_HD inline bool nearest_pixel(const PinholeCamera& cam, Vec2f uv, float z_m, int* index) {
+  const float u = uv.x + 0.5f, v = uv.y + 0.5f;
   const float w = static_cast<float>(cam.width), h = static_cast<float>(cam.height);
   const float last_u = w - 1.0f, last_v = h - 1.0f;
   // Non-short-circuit '&' and compare-and-select (not fminf/fmaxf, whose NaN rules block
   // vectorization) keep this free of branches.
-  const bool inside = (p_c.z > 0.0f) & (u >= 0.0f) & (v >= 0.0f) & (u < w) & (v < h);
+  const bool inside = (z_m > 0.0f) & (u >= 0.0f) & (v >= 0.0f) & (u < w) & (v < h);
   float uc = u > 0.0f ? u : 0.0f;
   float vc = v > 0.0f ? v : 0.0f;
   uc = uc < last_u ? uc : last_u;
@@ -260,21 +259,23 @@ HIVOX_HD inline bool project_to_pixel(const PinholeCamera& cam, Vec3f p_c, int* 
   return inside;
 }
 
-/// Depth at camera-frame point `p_c` interpolated bilinearly between the 4 pixels around its
-/// projection, where all 4 are valid (>= `min_depth_m`) and within `max_step_m` of each other;
+/// `nearest_pixel` of a camera-frame point.
+HIVOX_HD inline bool project_to_pixel(const PinholeCamera& cam, Vec3f p_c, int* index) {
+  return nearest_pixel(cam, cam.project(p_c), p_c.z, index);
+}
+
+/// Depth at continuous pixel coordinates `uv` interpolated bilinearly between the 4 pixels
+/// around them, where all 4 are valid (>= `min_depth_m`) and within `max_step_m` of each other;
 /// the nearest pixel's depth otherwise (a depth edge must not blend foreground and background).
 /// Branch-free (arithmetic blends), so that a row of voxels vectorizes.
-HIVOX_HD inline float depth_bilinear(const PinholeCamera& cam, const float* depth_m, Vec3f p_c,
+HIVOX_HD inline float depth_bilinear(const PinholeCamera& cam, const float* depth_m, Vec2f uv,
                                      float min_depth_m, float max_step_m) {
-  const float inv_z = 1.0f / p_c.z;
-  float u = cam.fx * p_c.x * inv_z + cam.cx;
-  float v = cam.fy * p_c.y * inv_z + cam.cy;
   // Clamped so that the 2x2 neighbourhood stays inside the image (the caller tests whether the
   // point projects inside at all).
   const float last_u = static_cast<float>(cam.width) - 1.001f;
   const float last_v = static_cast<float>(cam.height) - 1.001f;
-  u = u > 0.0f ? u : 0.0f;
-  v = v > 0.0f ? v : 0.0f;
+  float u = uv.x > 0.0f ? uv.x : 0.0f;
+  float v = uv.y > 0.0f ? uv.y : 0.0f;
   u = u < last_u ? u : last_u;
   v = v < last_v ? v : last_v;
   const int iu = static_cast<int>(u), iv = static_cast<int>(v);
@@ -332,8 +333,9 @@ HIVOX_HD inline void integrate_block_rows(const MapView& map, int level, const V
         for (int x = 0; x < kBlockSide; ++x) {
           const float xf = static_cast<float>(x);
           const Vec3f p{row.x + step_x.x * xf, row.y + step_x.y * xf, row.z + step_x.z * xf};
-          inside_word[x] = project_to_pixel(depth.camera, p, &projected[x]);
-          interpolated[x] = depth_bilinear(depth.camera, depth_m, p, min_d, k.mu_m);
+          const Vec2f uv = depth.camera.project(p);
+          inside_word[x] = nearest_pixel(depth.camera, uv, p.z, &projected[x]);
+          interpolated[x] = depth_bilinear(depth.camera, depth_m, uv, min_d, k.mu_m);
         }
       }
 #if defined(__GNUC__) && !defined(__clang__)

@@ -185,8 +185,11 @@ HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCach
   const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel);
   if (l2 < 0 || l2 == level) return false;
   *index = local_voxel_index(voxel);
-  const int f = l2 > level ? 1 << (l2 - level) : 1;
-  *pos = l2 > level ? to_float(Vec3i{voxel.x * f, voxel.y * f, voxel.z * f}) : to_float(g);
+  *pos = to_float(g);
+  if (l2 > level) {
+    const int f = 1 << (l2 - level);
+    *pos = to_float(Vec3i{voxel.x * f, voxel.y * f, voxel.z * f});
+  }
   return true;
 }
 

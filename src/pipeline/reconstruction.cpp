@@ -20,10 +20,10 @@ RaycastParams raycast_params_for(const ReconstructionParams& p) {
   return r;
 }
 
-RefineParams refine_params_for(const ReconstructionParams& p, const DatasetInfo& info) {
-  RefineParams r = p.refine;
-  if (r.noise_from_dataset) r.noise = info.depth_noise;
-  return r;
+/// `p` with the refinement's noise model taken from the dataset where it asks for that.
+ReconstructionParams with_dataset_noise(ReconstructionParams p, const DatasetInfo& info) {
+  if (p.refine.noise_from_dataset) p.refine.noise = info.depth_noise;
+  return p;
 }
 
 TrackParams track_params_for(const ReconstructionParams& p) {
@@ -52,13 +52,12 @@ std::string ReconstructionParams::to_string() const {
 }
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const DatasetInfo& info)
-    : params_(params),
+    : params_(with_dataset_noise(params, info)),
       info_(info),
-      integrator_(params.fusion),
-      refiner_(refine_params_for(params, info)),
-      raycaster_(raycast_params_for(params)),
-      tracker_(track_params_for(params)) {
-  params_.refine = refine_params_for(params, info);
+      integrator_(params_.fusion),
+      refiner_(params_.refine),
+      raycaster_(raycast_params_for(params_)),
+      tracker_(track_params_for(params_)) {
   params_.validate();
   params_.fusion.check_against(params_.map);
   info_.depth_camera.validate("depth camera");

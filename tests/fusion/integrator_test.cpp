@@ -32,14 +32,13 @@ struct Fused {
   std::vector<AllocationStats> stats;
 };
 
-Fused fuse_orbit(const test::SphereOnPlane& scene, float voxel_m, float mu_m, int views,
-                 double sweep = 2 * M_PI) {
+/// Fuses the scene's depth from each pose into a fixed grid of `voxel_m`.
+Fused fuse_views(const test::SphereOnPlane& scene, float voxel_m, const FusionParams& fp,
+                 const std::vector<Pose>& poses) {
   Fused out{std::make_unique<VoxelBlockMap>(fixed_grid(voxel_m)), {}};
-  FusionParams fp;
-  fp.truncation_m = mu_m;
   TsdfIntegrator integrator(fp);
   const PinholeCamera cam = small_camera();
-  for (const Pose& T_wc : test::orbit(scene.centre, 0.9, 0.5, views, 0.3, sweep)) {
+  for (const Pose& T_wc : poses) {
     const DepthImage depth = scene.render(cam, T_wc);
     FusionInput in;
     in.depth_m = &depth;
@@ -48,6 +47,13 @@ Fused fuse_orbit(const test::SphereOnPlane& scene, float voxel_m, float mu_m, in
     out.stats.push_back(integrator.fuse(*out.map, in));
   }
   return out;
+}
+
+Fused fuse_orbit(const test::SphereOnPlane& scene, float voxel_m, float mu_m, int views,
+                 double sweep = 2 * M_PI) {
+  FusionParams fp;
+  fp.truncation_m = mu_m;
+  return fuse_views(scene, voxel_m, fp, test::orbit(scene.centre, 0.9, 0.5, views, 0.3, sweep));
 }
 
 Eigen::Vector3d voxel_position(const BlockRef& b, int i, float voxel_m) {
@@ -70,21 +76,17 @@ TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
   // of lateral offset.
   const test::SphereOnPlane scene = floor_only();
   const float voxel = 0.01f, mu = 0.04f;
-  VoxelBlockMap map(fixed_grid(voxel));
   FusionParams fp;
   fp.truncation_m = mu;
   fp.max_depth_m = 1.6f;
-  TsdfIntegrator integrator(fp);
-  const PinholeCamera cam = small_camera();
+  std::vector<Pose> poses;
   for (int i = 0; i < 10; ++i) {
     const double a = i * 0.6;
-    const Pose T_wc = look_at({0.3 * std::cos(a), 0.3 * std::sin(a), 1.0}, {0.05 * i - 0.2, 0, 0},
-                              Eigen::Vector3d::UnitY());
-    const DepthImage depth = scene.render(cam, T_wc);
-    FusionInput in{.depth_m = &depth, .depth_camera = cam};
-    in.T_wc = T_wc;
-    integrator.fuse(map, in);
+    poses.push_back(look_at({0.3 * std::cos(a), 0.3 * std::sin(a), 1.0}, {0.05 * i - 0.2, 0, 0},
+                            Eigen::Vector3d::UnitY()));
   }
+  const Fused f = fuse_views(scene, voxel, fp, poses);
+  const VoxelBlockMap& map = *f.map;
   double sum_err = 0, max_err = 0;
   int n = 0;
   for (const BlockRef& b : map.allocated_blocks()) {
@@ -110,23 +112,17 @@ TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
 /// pixel to pixel (up to ~3 cm) stay under mu and bilinear sampling applies; farther away they
 /// exceed mu and both samplings take the nearest pixel.
 double slanted_floor_offset_m(DepthSampling sampling) {
-  const test::SphereOnPlane scene = floor_only();
-  const float voxel = 0.01f, mu = 0.04f;
-  VoxelBlockMap map(fixed_grid(voxel));
   FusionParams fp;
-  fp.truncation_m = mu;
+  fp.truncation_m = 0.04f;
   fp.max_depth_m = 3.0f;
   fp.depth_sampling = sampling;
-  TsdfIntegrator integrator(fp);
-  const PinholeCamera cam = small_camera();
-  for (int i = 0; i < 8; ++i) {
-    const Pose T_wc =
-        look_at({0.02 * i, -1.3, 0.5}, {0.03 * i - 0.1, 0.0, 0.0}, Eigen::Vector3d::UnitZ());
-    const DepthImage depth = scene.render(cam, T_wc);
-    FusionInput in{.depth_m = &depth, .depth_camera = cam};
-    in.T_wc = T_wc;
-    integrator.fuse(map, in);
-  }
+  std::vector<Pose> poses;
+  for (int i = 0; i < 8; ++i)
+    poses.push_back(
+        look_at({0.02 * i, -1.3, 0.5}, {0.03 * i - 0.1, 0.0, 0.0}, Eigen::Vector3d::UnitZ()));
+  const float voxel = 0.01f;
+  const Fused f = fuse_views(floor_only(), voxel, fp, poses);
+  const VoxelBlockMap& map = *f.map;
   double sum = 0;
   int n = 0;
   for (int y = -100; y <= 40; ++y)

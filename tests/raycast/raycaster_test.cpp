@@ -18,13 +18,17 @@ namespace {
 // Beyond this, the test scene's floor is seen only at grazing angles (see the tests).
 constexpr float kWellObservedDepth = 2.0f;
 
+// Camera-frame ray of pixel (x, y), scaled to unit depth.
+Eigen::Vector3d pixel_ray_c(const PinholeCamera& cam, int x, int y) {
+  return {(x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0};
+}
+
 // True when the surface seen at depth `d` along the pixel's ray is more than `gap_m` from the
 // scene's other surface: in the gap under the sphere (thinner than the truncation band) the
 // fused TSDF of the two surfaces overlaps and no raycast is well defined.
 bool well_separated(const test::SphereOnPlane& shape, const PinholeCamera& cam, const Pose& T_wc,
                     int x, int y, float d, double gap_m) {
-  const Eigen::Vector3d p =
-      T_wc * Eigen::Vector3d((x - cam.cx) / cam.fx * d, (y - cam.cy) / cam.fy * d, d);
+  const Eigen::Vector3d p = T_wc * (pixel_ray_c(cam, x, y) * d);
   const double to_sphere = (p - shape.centre).norm() - shape.radius;
   const double to_floor = p.z() - shape.floor_z;
   return std::max(to_sphere, to_floor) > gap_m;
@@ -82,7 +86,7 @@ Eigen::Vector3d exact_normal(const test::SphereOnPlane& shape, const Eigen::Vect
 // surface (a silhouette), where whether a raycast hits depends on where its samples fall.
 double ray_incidence(const test::SphereOnPlane& shape, const PinholeCamera& cam, const Pose& T_wc,
                      int x, int y, float d) {
-  const Eigen::Vector3d ray_c((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0);
+  const Eigen::Vector3d ray_c = pixel_ray_c(cam, x, y);
   const Eigen::Vector3d p = T_wc * (ray_c * d);
   return std::abs(exact_normal(shape, p).dot(T_wc.rotation() * ray_c.normalized()));
 }
@@ -90,8 +94,7 @@ double ray_incidence(const test::SphereOnPlane& shape, const PinholeCamera& cam,
 // Depth along the pixel's ray where it meets the floor plane (+inf if it does not).
 double floor_depth(const test::SphereOnPlane& shape, const PinholeCamera& cam, const Pose& T_wc,
                    int x, int y) {
-  const Eigen::Vector3d dir =
-      T_wc.rotation() * Eigen::Vector3d((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0);
+  const Eigen::Vector3d dir = T_wc.rotation() * pixel_ray_c(cam, x, y);
   if (dir.z() >= 0) return std::numeric_limits<double>::infinity();
   return (shape.floor_z - T_wc.translation().z()) / dir.z();
 }
