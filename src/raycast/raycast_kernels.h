@@ -80,6 +80,67 @@ struct RayHit {
   int color_index = 0;
 };
 
+/// A crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0), refined by secant steps until the
+/// bracket spans at most a voxel (`voxel_z`, in ray parameter) or `kMaxSteps` samples were
+/// taken. `best` is the last sample that succeeded (initially the one at z_hi), `level` its level.
+/// The scalar refinement (`refine_crossing`) and the CPU driver's ray packets take the same steps.
+struct CrossingBracket {
+  static constexpr int kMaxSteps = 4;
+  float z_lo = 0, f_lo = 0, z_hi = 0, f_hi = 0;
+  float voxel_z = 0;
+  TsdfSample best;
+  int level = 0;
+  int steps = 0;
+};
+
+HIVOX_HD inline CrossingBracket make_bracket(const MapView& map, const Vec3f& d, float z_lo,
+                                             float f_lo, float z_hi, float f_hi,
+                                             const TsdfSample& at_hi, int level_hi) {
+  CrossingBracket b;
+  b.z_lo = z_lo;
+  b.f_lo = f_lo;
+  b.z_hi = z_hi;
+  b.f_hi = f_hi;
+  b.voxel_z = map.level[level_hi].voxel_size_m / norm(d);
+  b.best = at_hi;
+  b.level = level_hi;
+  return b;
+}
+
+/// Where the secant through the bracket's ends crosses zero: the next sample, and the hit.
+HIVOX_HD inline float bracket_secant(const CrossingBracket& b) {
+  return b.z_lo + (b.z_hi - b.z_lo) * b.f_lo / (b.f_lo - b.f_hi);
+}
+
+/// Takes the sample at `bracket_secant(b)` (`sampled` false: it failed). Returns true when the
+/// refinement is done. One step is usual: the TSDF is close to linear across a short bracket and
+/// each step costs a full interpolation; more follow when the bracket is long.
+HIVOX_HD inline bool bracket_update(CrossingBracket& b, float zm, bool sampled,
+                                    const TsdfSample& sm, int level_m) {
+  if (!sampled) return true;
+  b.best = sm;
+  b.level = level_m;
+  if (sm.f > 0.0f) {
+    b.z_lo = zm;
+    b.f_lo = sm.f;
+  } else {
+    b.z_hi = zm;
+    b.f_hi = sm.f;
+  }
+  return ++b.steps >= CrossingBracket::kMaxSteps || b.z_hi - b.z_lo <= b.voxel_z;
+}
+
+/// Fills the hit of a refined bracket except its normal.
+HIVOX_HD inline void bracket_hit(const CrossingBracket& b, const Vec3f& o, const Vec3f& d,
+                                 RayHit* hit) {
+  const float z_hit = bracket_secant(b);
+  hit->depth_m = z_hit;
+  hit->p_w = o + d * z_hit;
+  hit->level = b.level;
+  hit->color_ptr = b.best.nearest_ptr;
+  hit->color_index = b.best.nearest_index;
+}
+
 /// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
 /// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
 /// refinement samples fail).
@@ -87,34 +148,17 @@ HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache
                                      const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
                                      const TsdfSample& fallback, int fallback_level,
                                      const RayMarchConstants& k, RayHit* hit) {
-  TsdfSample best = fallback;
-  int hit_level = fallback_level;
-  const float voxel_z = map.level[fallback_level].voxel_size_m / norm(d);
-  // One secant step for the usual short bracket (the TSDF is close to linear across it and each
-  // step costs a full interpolation); more when the bracket is long.
-  for (int it = 0; it < 4; ++it) {
-    const float zm = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
+  CrossingBracket b = make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level);
+  for (;;) {
+    const float zm = bracket_secant(b);
     TsdfSample sm;
     int lm;
-    if (!sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) break;
-    best = sm;
-    hit_level = lm;
-    if (sm.f > 0.0f) {
-      z_lo = zm;
-      f_lo = sm.f;
-    } else {
-      z_hi = zm;
-      f_hi = sm.f;
-    }
-    if (z_hi - z_lo <= voxel_z) break;
+    const bool sampled = sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm);
+    if (bracket_update(b, zm, sampled, sm, lm)) break;
   }
-  const float z_hit = z_lo + (z_hi - z_lo) * f_lo / (f_lo - f_hi);
-  hit->depth_m = z_hit;
-  hit->p_w = o + d * z_hit;
-  hit->normal_w = tsdf_normal(map, cache, hit->p_w, 0.0f, hit_level, k.min_weight, best.gradient);
-  hit->level = hit_level;
-  hit->color_ptr = best.nearest_ptr;
-  hit->color_index = best.nearest_index;
+  bracket_hit(b, o, d, hit);
+  hit->normal_w =
+      tsdf_normal(map, cache, hit->p_w, 0.0f, hit->level, k.min_weight, b.best.gradient);
 }
 
 /// Marches ray `o + z d` for z in [z_start, z_end] to the first crossing of the TSDF from
@@ -226,50 +270,95 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
   return false;
 }
 
-/// Finds the surface at a ray's measured depth `z_hint` (the frame that measured it was just
-/// fused from the ray's pose): Newton steps from a sample at the hint, first along the slope of
-/// the interpolant's gradient, then along the secant of the last two samples, each carried half a
-/// voxel beyond the predicted crossing, until two consecutive samples bracket the crossing; the
-/// secant method refines it. Returns false when no bracket is found within a few samples (the
-/// caller marches instead). Where the gradient does not fall along the ray, the slope of a
-/// projective TSDF fused from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth).
+/// The search for the surface near a ray's measured depth `z_hint` (the frame that measured it
+/// was just fused from the ray's pose): Newton steps from a sample at the hint, first along the
+/// slope of the interpolant's gradient, then along the secant of the last two samples, each
+/// carried half a voxel beyond the predicted crossing, until two consecutive samples bracket the
+/// crossing. Where the gradient does not fall along the ray, the slope of a projective TSDF fused
+/// from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth). `hit_near_hint` runs it
+/// ray by ray; the CPU driver's ray packets take the same steps.
+struct HintSearch {
+  static constexpr int kMaxSamples = 4;
+  float z0 = 0;  ///< the last sample's ray parameter
+  TsdfSample s0;
+  int l0 = 0;
+  float slope = 0;  ///< dF/dz
+  float half_voxel_z = 0, max_step = 0;
+  int samples = 1;
+};
+
+/// Starts the search from the sample `s0` (level `l0`) at the hint; false when that sample is
+/// truncated (no crossing within the band).
+HIVOX_HD inline bool hint_search_begin(const MapView& map, const Vec3f& d, float z_hint,
+                                       const TsdfSample& s0, int l0, const RayMarchConstants& k,
+                                       HintSearch* h) {
+  if (s0.f >= 1.0f || s0.f <= -1.0f) return false;
+  const float inv_len = 1.0f / norm(d);
+  h->z0 = z_hint;
+  h->s0 = s0;
+  h->l0 = l0;
+  h->half_voxel_z = 0.5f * map.level[l0].voxel_size_m * inv_len;
+  h->max_step = k.mu_m * inv_len;
+  h->slope = dot(s0.gradient, d) * map.level[l0].inv_voxel_size;
+  h->samples = 1;
+  return true;
+}
+
+/// The ray parameter of the next sample.
+HIVOX_HD inline float hint_search_next(HintSearch& h, const RayMarchConstants& k) {
+  const float projective = -1.0f / k.mu_m;
+  if (!(h.slope < 0.1f * projective)) h.slope = projective;
+  float step = -h.s0.f / h.slope;
+  step += step > 0.0f ? h.half_voxel_z : -h.half_voxel_z;
+  step = step > h.max_step ? h.max_step : (step < -h.max_step ? -h.max_step : step);
+  return h.z0 + step;
+}
+
+enum class HintStep { Continue, Bracketed, GiveUp };
+
+/// Takes the sample at `z1 = hint_search_next(h)` (`sampled` false: it failed). On `Bracketed`,
+/// `bracket` holds the crossing; on `GiveUp` the caller marches instead.
+HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, const Vec3f& d,
+                                            float z1, bool sampled, const TsdfSample& s1, int l1,
+                                            CrossingBracket* bracket) {
+  if (!sampled) return HintStep::GiveUp;
+  // The slope is negative, so steps go forward from free space and back from behind a
+  // surface: a sign change always brackets a front face, free space in front.
+  if ((h.s0.f > 0.0f) != (s1.f > 0.0f)) {
+    *bracket = h.s0.f > 0.0f ? make_bracket(map, d, h.z0, h.s0.f, z1, s1.f, s1, l1)
+                             : make_bracket(map, d, z1, s1.f, h.z0, h.s0.f, h.s0, h.l0);
+    return HintStep::Bracketed;
+  }
+  if (s1.f == h.s0.f || ++h.samples >= HintSearch::kMaxSamples) return HintStep::GiveUp;
+  h.slope = (s1.f - h.s0.f) / (z1 - h.z0);
+  h.z0 = z1;
+  h.s0 = s1;
+  h.l0 = l1;
+  return HintStep::Continue;
+}
+
+/// Finds the surface at a ray's measured depth `z_hint` (see HintSearch) and refines it by the
+/// secant method. Returns false when no bracket is found within a few samples (the caller
+/// marches instead).
 HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                    const Vec3f& d, float z_hint, const RayMarchConstants& k,
                                    RayHit* hit) {
-  constexpr int kMaxSamples = 4;
-  TsdfSample s0, s1;
-  int l0, l1;
-  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s0, &l0)) return false;
-  if (s0.f >= 1.0f || s0.f <= -1.0f) return false;  // truncated: no crossing within the band
-  const float inv_len = 1.0f / norm(d);
-  const float half_voxel_z = 0.5f * map.level[l0].voxel_size_m * inv_len;
-  const float max_step = k.mu_m * inv_len;
-  const float projective = -1.0f / k.mu_m;
-  float slope = dot(s0.gradient, d) * map.level[l0].inv_voxel_size;  // dF/dz
-  float z0 = z_hint;
-  for (int n = 1; n < kMaxSamples; ++n) {
-    if (!(slope < 0.1f * projective)) slope = projective;
-    float step = -s0.f / slope;
-    step += step > 0.0f ? half_voxel_z : -half_voxel_z;
-    step = step > max_step ? max_step : (step < -max_step ? -max_step : step);
-    const float z1 = z0 + step;
-    if (!sample_tsdf(map, cache, o + d * z1, k.min_weight, &s1, &l1)) return false;
-    // The slope is negative, so steps go forward from free space and back from behind a
-    // surface: a sign change always brackets a front face, free space in front.
-    if ((s0.f > 0.0f) != (s1.f > 0.0f)) {
-      if (s0.f > 0.0f)
-        refine_crossing(map, cache, o, d, z0, s0.f, z1, s1.f, s1, l1, k, hit);
-      else
-        refine_crossing(map, cache, o, d, z1, s1.f, z0, s0.f, s0, l0, k, hit);
-      return true;
-    }
-    if (s1.f == s0.f) return false;
-    slope = (s1.f - s0.f) / (z1 - z0);
-    z0 = z1;
-    s0 = s1;
-    l0 = l1;
+  TsdfSample s;
+  int l;
+  HintSearch h;
+  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l) ||
+      !hint_search_begin(map, d, z_hint, s, l, k, &h))
+    return false;
+  CrossingBracket b;
+  for (;;) {
+    const float z1 = hint_search_next(h, k);
+    const bool sampled = sample_tsdf(map, cache, o + d * z1, k.min_weight, &s, &l);
+    const HintStep step = hint_search_update(h, map, d, z1, sampled, s, l, &b);
+    if (step == HintStep::GiveUp) return false;
+    if (step == HintStep::Bracketed) break;
   }
-  return false;
+  refine_crossing(map, cache, o, d, b.z_lo, b.f_lo, b.z_hi, b.f_hi, b.best, b.level, k, hit);
+  return true;
 }
 
 // ---- range image ----------------------------------------------------------------------------

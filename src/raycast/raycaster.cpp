@@ -2,13 +2,126 @@
 
 #include <algorithm>
 #include <cfloat>
+#include <memory>
 
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 #include "hivox/core/timer.h"
+#include "raycast/ray_packets.h"
 #include "raycast/raycast_kernels.h"
 
 namespace hivox {
+namespace {
+
+constexpr int kPacketRays = 64;
+
+struct PacketRay {
+  int x = 0, y = 0;
+  Vec3f dir;
+  float hint = 0;
+};
+
+/// One thread's packet: its rays, their search state and outcomes, and the cells it samples.
+struct PacketScratch {
+  PacketRay rays[kPacketRays];
+  kernels::RayHit hits[kPacketRays];
+  bool found[kPacketRays];
+  kernels::HintSearch search[kPacketRays];
+  kernels::CrossingBracket bracket[kPacketRays];
+  // Per sample of a step (indexed by the step's list of live rays).
+  int live[kPacketRays];
+  float z[kPacketRays];
+  Vec3f points[kPacketRays];
+  kernels::TsdfSample samples[kPacketRays];
+  int levels[kPacketRays];
+  bool sampled[kPacketRays];
+  Vec3f ahead[kPacketRays];
+  kernels::PacketLookups lookups;
+  kernels::CellBatch<kPacketRays> cells;
+  kernels::CellBatch<3 * kPacketRays> normal_cells;
+};
+
+/// `hit_near_hint` for the `n` rays of a packet, step by step: `found[i]` when ray i's surface
+/// was found near its hint within `z_max` (`hits[i]` filled); the others march.
+void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketScratch& s,
+                  const Vec3f& o, int n, const kernels::RayMarchConstants& k, float z_max) {
+  using namespace kernels;
+  const int min_w = k.min_weight;
+  // The sample at the hint starts the search.
+  for (int i = 0; i < n; ++i) {
+    s.found[i] = false;
+    s.points[i] = o + s.rays[i].dir * s.rays[i].hint;
+  }
+  sample_tsdf_packet(map, cache, s.lookups, n, s.points, min_w, s.cells, s.samples, s.levels,
+                     s.sampled);
+  int live = 0;
+  for (int i = 0; i < n; ++i)
+    if (s.sampled[i] && hint_search_begin(map, s.rays[i].dir, s.rays[i].hint, s.samples[i],
+                                          s.levels[i], k, &s.search[i]))
+      s.live[live++] = i;
+  // Samples the live rays s.live[0, live) at the ray parameters `next(ray)` gives.
+  auto sample_live = [&](int live_rays, auto&& next) {
+    for (int j = 0; j < live_rays; ++j) {
+      const int i = s.live[j];
+      s.z[j] = next(i);
+      s.points[j] = o + s.rays[i].dir * s.z[j];
+    }
+    sample_tsdf_packet(map, cache, s.lookups, live_rays, s.points, min_w, s.cells, s.samples,
+                       s.levels, s.sampled);
+  };
+  // Newton steps until the crossing is bracketed (or the ray gives up).
+  int bracketed[kPacketRays];
+  int n_bracketed = 0;
+  while (live > 0) {
+    sample_live(live, [&](int i) { return hint_search_next(s.search[i], k); });
+    int kept = 0;
+    for (int j = 0; j < live; ++j) {
+      const int i = s.live[j];
+      const HintStep step =
+          hint_search_update(s.search[i], map, s.rays[i].dir, s.z[j], s.sampled[j], s.samples[j],
+                             s.levels[j], &s.bracket[i]);
+      if (step == HintStep::Bracketed) bracketed[n_bracketed++] = i;
+      if (step == HintStep::Continue) s.live[kept++] = i;
+    }
+    live = kept;
+  }
+  // Secant steps until each bracket is short.
+  for (int j = 0; j < n_bracketed; ++j) s.live[j] = bracketed[j];
+  live = n_bracketed;
+  while (live > 0) {
+    sample_live(live, [&](int i) { return bracket_secant(s.bracket[i]); });
+    int kept = 0;
+    for (int j = 0; j < live; ++j) {
+      const int i = s.live[j];
+      if (!bracket_update(s.bracket[i], s.z[j], s.sampled[j], s.samples[j], s.levels[j]))
+        s.live[kept++] = i;
+    }
+    live = kept;
+  }
+  // The hits within range, and their normals.
+  int with_hit = 0;
+  for (int j = 0; j < n_bracketed; ++j) {
+    const int i = bracketed[j];
+    bracket_hit(s.bracket[i], o, s.rays[i].dir, &s.hits[i]);
+    if (s.hits[i].depth_m > z_max) continue;
+    s.live[with_hit] = i;
+    s.points[with_hit] = s.hits[i].p_w;
+    s.levels[with_hit] = s.hits[i].level;
+    ++with_hit;
+  }
+  samples_one_voxel_ahead_packet(map, cache, s.lookups, with_hit, s.points, s.levels, min_w,
+                                 s.normal_cells, s.ahead, s.sampled);
+  for (int j = 0; j < with_hit; ++j) {
+    const int i = s.live[j];
+    RayHit& hit = s.hits[i];
+    hit.normal_w = s.sampled[j] ? normalized(s.ahead[j])
+                                : tsdf_normal(map, cache, hit.p_w, 0.0f, hit.level, min_w,
+                                              s.bracket[i].best.gradient);
+    s.found[i] = true;
+  }
+}
+
+}  // namespace
 
 Vec3f RaycastResult::point_c(int x, int y) const {
   return to_rigid3f(T_wc.inverse()) * points_w(x, y);
@@ -77,15 +190,70 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   const float hint_margin = params_.hint_margin_mu * params_.truncation_m;
   k.min_step_voxels = std::min(
       2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
+  const bool packets =
+      params_.ray_packets && start_hint_m != nullptr && kernels::packets_can_address(view);
   int64_t hits = 0;
 #pragma omp parallel reduction(+ : hits)
   {
     kernels::BlockLookupCache cache;  // per thread, across the rays of its tiles
+    std::unique_ptr<PacketScratch> scratch;
+    if (packets) scratch = std::make_unique<PacketScratch>();
+    auto write_pixel = [&](int x, int y, bool found, const kernels::RayHit& hit) {
+      if (!found) {
+        r.depth_m(x, y) = 0.0f;
+        r.points_w(x, y) = {};
+        r.normals_w(x, y) = {};
+        r.colors(x, y) = {};
+        r.levels(x, y) = -1;
+        return;
+      }
+      ++hits;
+      r.depth_m(x, y) = hit.depth_m;
+      r.points_w(x, y) = hit.p_w;
+      r.normals_w(x, y) = hit.normal_w;
+      r.levels(x, y) = static_cast<int8_t>(hit.level);
+      if (view.color != nullptr && hit.color_ptr >= 0) {
+        const ColorVoxel c =
+            view.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
+        r.colors(x, y) = {c.r, c.g, c.b};
+      } else {
+        r.colors(x, y) = {};
+      }
+    };
+    // The march of a ray whose hint search failed (or that has no hint: `hint` 0).
+    auto march = [&](const Vec3f& dir, float hint, int t, kernels::RayHit* hit) {
+      bool behind = false;
+      bool found =
+          kernels::march_ray(view, cache, T.t, dir, hint > 0.0f ? hint - hint_margin : tile_min_[t],
+                             tile_max_[t], k, hit, &behind);
+      // The hint is wrong here (a model surface in front of it, e.g. at a depth edge, or none
+      // behind it): search the part in front of the hint as well.
+      if (hint > 0.0f && (!found || behind)) {
+        kernels::RayHit front;
+        if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], hint, k, &front)) {
+          *hit = front;
+          found = true;
+        }
+      }
+      return found;
+    };
     // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
 #pragma omp for schedule(dynamic, 8)
     for (int t = 0; t < static_cast<int>(tile_count); ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
+      int packed = 0;  // hinted rays waiting in the packet
+      auto flush_packet = [&] {
+        search_hints(view, cache, *scratch, T.t, packed, k, tile_max_[t]);
+        for (int i = 0; i < packed; ++i) {
+          const PacketRay& ray = scratch->rays[i];
+          kernels::RayHit& hit = scratch->hits[i];
+          const bool found =
+              scratch->found[i] || (tile_max_[t] > 0.0f && march(ray.dir, ray.hint, t, &hit));
+          write_pixel(ray.x, ray.y, found, hit);
+        }
+        packed = 0;
+      };
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           const Vec3f dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
@@ -95,47 +263,22 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           if (!(hint > 0.0f && hint - hint_margin > tile_min_[t] &&
                 hint - hint_margin < tile_max_[t]))
             hint = 0.0f;
+          if (packets && hint > 0.0f) {
+            scratch->rays[packed++] = {x, y, dir, hint};
+            if (packed == kPacketRays) flush_packet();
+            continue;
+          }
           kernels::RayHit hit;
           bool found = false;
           if (hint > 0.0f && kernels::hit_near_hint(view, cache, T.t, dir, hint, k, &hit) &&
               hit.depth_m <= tile_max_[t]) {
             found = true;  // the usual case: the surface lies at the depth just fused
           } else if (tile_max_[t] > 0.0f) {
-            bool behind = false;
-            found = kernels::march_ray(view, cache, T.t, dir,
-                                       hint > 0.0f ? hint - hint_margin : tile_min_[t],
-                                       tile_max_[t], k, &hit, &behind);
-            // The hint is wrong here (a model surface in front of it, e.g. at a depth edge, or
-            // none behind it): search the part in front of the hint as well.
-            if (hint > 0.0f && (!found || behind)) {
-              kernels::RayHit front;
-              if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], hint, k, &front)) {
-                hit = front;
-                found = true;
-              }
-            }
+            found = march(dir, hint, t, &hit);
           }
-          if (!found) {
-            r.depth_m(x, y) = 0.0f;
-            r.points_w(x, y) = {};
-            r.normals_w(x, y) = {};
-            r.colors(x, y) = {};
-            r.levels(x, y) = -1;
-            continue;
-          }
-          ++hits;
-          r.depth_m(x, y) = hit.depth_m;
-          r.points_w(x, y) = hit.p_w;
-          r.normals_w(x, y) = hit.normal_w;
-          r.levels(x, y) = static_cast<int8_t>(hit.level);
-          if (view.color != nullptr && hit.color_ptr >= 0) {
-            const ColorVoxel c =
-                view.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
-            r.colors(x, y) = {c.r, c.g, c.b};
-          } else {
-            r.colors(x, y) = {};
-          }
+          write_pixel(x, y, found, hit);
         }
+      if (packed > 0) flush_packet();
     }
   }
   if (stats != nullptr) {

@@ -10,6 +10,7 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/raycast/raycaster.h"
 #include "map/sample_kernels.h"
+#include "raycast/packet_util.h"
 #include "refine/split_util.h"
 
 namespace hivox {
@@ -214,6 +215,18 @@ TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
   EXPECT_LT(missed, (checked + missed) / 100 + 5);
   ASSERT_GT(normals, 1000);
   EXPECT_LT(sum_angle / normals, 6.0) << "mean normal error, degrees";
+}
+
+// Packets whose cells reach across the level boundary sample those cells ray by ray.
+TEST(Levels, RayPacketsGiveTheRayByRayResultAcrossLevels) {
+  RaycastParams rp;
+  rp.truncation_m = kMu;
+  rp.max_depth_m = 2.0f;
+  const Pose T_wc = look_at({0.0, -0.9, 0.75}, scene().shape.centre, Eigen::Vector3d::UnitZ());
+  const DepthImage truth = scene().shape.render(camera(), T_wc);
+  test::expect_packets_match(*scene().map, rp, camera(), T_wc, truth, 12000);
+  test::expect_packets_match(*scene().map, rp, camera(), T_wc, test::mixed_hints(truth, kMu),
+                             12000);
 }
 
 TEST(Levels, NoSeamInTheRenderedSurface) {

@@ -10,6 +10,7 @@
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/fusion/integrator.h"
+#include "raycast/packet_util.h"
 #include "raycast/raycast_kernels.h"
 
 namespace hivox {
@@ -231,6 +232,19 @@ TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
   EXPECT_GT(both, 12000);
   const DepthImage small(10, 10);
   EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &small), Error);
+}
+
+TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  const PinholeCamera cam = small_camera();
+  for (int view : {3, 7, 15}) {
+    const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[view];
+    const DepthImage truth = s.shape.render(cam, T_wc);
+    test::expect_packets_match(*s.map, rp, cam, T_wc, truth, 12000);
+    test::expect_packets_match(*s.map, rp, cam, T_wc, test::mixed_hints(truth, s.mu), 12000);
+  }
 }
 
 // The surface near a ray's measured depth, found from the hint alone: a hint anywhere inside the

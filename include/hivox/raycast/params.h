@@ -17,6 +17,10 @@ struct RaycastParams {
   int min_weight = 1;  ///< voxels observed fewer times count as unknown
   /// With a start hint, rays begin this many truncation bands in front of the hinted depth.
   float hint_margin_mu = 2.0f;
+  /// The CPU driver searches the hinted rays of a tile together, interpolating their samples in
+  /// vectorized loops; false: ray by ray. Both give the same result up to float rounding (the
+  /// per-ray search is the reference the packets are tested against).
+  bool ray_packets = true;
 
   void validate() const;
   std::string to_string() const;

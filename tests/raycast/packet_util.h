@@ -1,0 +1,76 @@
+#pragma once
+// Shared by the raycast tests: the ray packets checked against the ray-by-ray search.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "hivox/core/image.h"
+#include "hivox/raycast/raycaster.h"
+
+namespace hivox::test {
+
+// Hints as the pipeline passes them, and worse: the true depth with noise of up to a band,
+// missing pixels, and pixels whose hint is far behind every surface.
+inline DepthImage mixed_hints(const DepthImage& truth, float mu) {
+  DepthImage hint = truth;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> offset(-mu, mu);
+  std::uniform_int_distribution<int> kind(0, 9);
+  for (std::size_t i = 0; i < hint.size(); ++i) {
+    float& h = hint.data()[i];
+    if (h <= 0.0f) continue;
+    const int k = kind(rng);
+    h = k == 0 ? 0.0f : (k == 1 ? h + 1.0f : h + offset(rng));
+  }
+  return hint;
+}
+
+// The packets are an evaluation order, not a method: every pixel comes out as the ray-by-ray
+// search gives it, up to float rounding (the vectorized interpolation may fuse multiplies and
+// adds where the scalar one does not), which can at most decide a sample's sign on a knife
+// edge.
+inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, int min_hits) {
+  int hits = 0, differ = 0, pixels = 0;
+  double max_depth = 0, max_normal = 0;
+  for (int y = 0; y < a.depth_m.height(); ++y)
+    for (int x = 0; x < a.depth_m.width(); ++x) {
+      ++pixels;
+      if (a.hit(x, y) != b.hit(x, y) || a.levels(x, y) != b.levels(x, y)) {
+        ++differ;
+        continue;
+      }
+      if (!a.hit(x, y)) continue;
+      ++hits;
+      max_depth = std::max(max_depth, double(std::abs(a.depth_m(x, y) - b.depth_m(x, y))));
+      for (int k = 0; k < 3; ++k)
+        max_normal =
+            std::max(max_normal, double(std::abs(a.normals_w(x, y)[k] - b.normals_w(x, y)[k])));
+    }
+  EXPECT_GT(hits, min_hits);
+  EXPECT_LE(differ, pixels / 2000) << "pixels hit by one and not the other";
+  EXPECT_LT(max_depth, 1e-4) << "metres";  // rounding; the voxels are 4-10 mm
+  EXPECT_LT(max_normal, 1e-3);
+  std::printf(
+      "packets vs ray by ray: %d hits, %d pixels differ, depth within %.2g m, normals "
+      "within %.2g\n",
+      hits, differ, max_depth, max_normal);
+}
+
+/// Raycasts `map` from `T_wc` with `hint` twice, with and without ray packets, and checks the
+/// two results are identical.
+inline void expect_packets_match(const VoxelBlockMap& map, RaycastParams rp,
+                                 const PinholeCamera& cam, const Pose& T_wc, const DepthImage& hint,
+                                 int min_hits) {
+  rp.ray_packets = true;
+  Raycaster packets(rp);
+  rp.ray_packets = false;
+  Raycaster one_by_one(rp);
+  expect_same_raycast(packets.raycast(map, cam, T_wc, nullptr, &hint),
+                      one_by_one.raycast(map, cam, T_wc, nullptr, &hint), min_hits);
+}
+
+}  // namespace hivox::test
