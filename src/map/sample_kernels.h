@@ -118,6 +118,32 @@ HIVOX_HD inline float interpolate_trilinear(const float v[8], const Vec3f& t, Ve
   return y0 + (y1 - y0) * t.z;
 }
 
+/// The interpolation cell of a level around a point: `q` the point in voxel units, `base` the
+/// cell's lowest voxel (global voxel coordinates), `local` that voxel's place in its block,
+/// `block` that block, `t` the point's fractional position in the cell.
+struct CellCoords {
+  Vec3f q;
+  Vec3i base, local, block;
+  Vec3f t;
+  /// Whether the cell's 8 voxels reach beyond the block of its lowest voxel.
+  HIVOX_HD bool spans_blocks() const { return (local.x == 7) | (local.y == 7) | (local.z == 7); }
+};
+
+HIVOX_HD inline CellCoords cell_at(const LevelView& lv, const Vec3f& p_w) {
+  CellCoords c;
+  c.q = p_w * lv.inv_voxel_size;
+  c.base = floor_to_int(c.q);
+  c.local = {c.base.x & 7, c.base.y & 7, c.base.z & 7};
+  c.block = block_of_voxel(c.base);
+  c.t = c.q - to_float(c.base);
+  return c;
+}
+
+/// The corner of a cell nearest to fractional position t (corner c as in read_cell).
+HIVOX_HD inline int nearest_corner(const Vec3f& t) {
+  return (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+}
+
 /// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
 struct TsdfSample {
   float f = 1.0f;
@@ -209,6 +235,15 @@ HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
   return (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
 }
 
+/// Corner `c` of the cell whose lowest voxel is `origin` (coordinates from the origin of
+/// `blocks`' first block, see neighbour_blocks): its block's ptr (negative when not stored at
+/// this level) goes to `ptr`; returns its voxel index in that block.
+HIVOX_HD inline int cell_corner(const int32_t blocks[8], const Vec3i& origin, int c, int32_t* ptr) {
+  const int x = origin.x + (c & 1), y = origin.y + ((c >> 1) & 1), z = origin.z + (c >> 2);
+  *ptr = blocks[neighbour_slot(x, y, z)];
+  return voxel_index(x & 7, y & 7, z & 7);
+}
+
 /// Reads the 8 voxels of the cell whose lowest voxel is `origin` (coordinates from the origin of
 /// `blocks`' first block, see neighbour_blocks) into `v` (corner c = (c & 1, (c >> 1) & 1,
 /// c >> 2)) and their smallest weight into `min_w`; the voxel of corner `nearest` (-1: none) is
@@ -217,10 +252,9 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
                                int nearest, float v[8], int* min_w, TsdfSample* out = nullptr) {
   int w = 65535;
   for (int c = 0; c < 8; ++c) {
-    const int x = origin.x + (c & 1), y = origin.y + ((c >> 1) & 1), z = origin.z + (c >> 2);
-    const int32_t ptr = blocks[neighbour_slot(x, y, z)];
+    int32_t ptr;
+    const int i = cell_corner(blocks, origin, c, &ptr);
     if (ptr < 0) return false;
-    const int i = voxel_index(x & 7, y & 7, z & 7);
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
     w = vox.weight < w ? vox.weight : w;
     v[c] = tsdf_to_float(vox.tsdf);
@@ -233,23 +267,24 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
   return true;
 }
 
-/// The general case of `sample_trilinear`: the 8 voxels around `p_w` span several blocks, and
-/// some may be stored at another level.
+/// The general case of `sample_trilinear`: the 8 voxels of `cell` span several blocks, and some
+/// may be stored at another level.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView& map,
                                                                    BlockLookupCache& cache,
-                                                                   int level, const Vec3f& p_w,
+                                                                   int level,
+                                                                   const CellCoords& cell,
                                                                    int min_weight,
                                                                    TsdfSample* out) {
-  const Vec3f q = p_w * map.level[level].inv_voxel_size;
-  const Vec3i base = floor_to_int(q);
-  const Vec3f t = q - to_float(base);
+  const Vec3f& q = cell.q;
+  const Vec3i& base = cell.base;
+  const Vec3f& t = cell.t;
+  const Vec3i& local = cell.local;
   float v[8];
-  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-  const Vec3i block = block_of_voxel(base);
-  const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+  const int nearest = nearest_corner(t);
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
   int32_t blocks[8];
-  neighbour_blocks(map, cache, level, block, {local.x == 7, local.y == 7, local.z == 7}, blocks);
+  neighbour_blocks(map, cache, level, cell.block, {local.x == 7, local.y == 7, local.z == 7},
+                   blocks);
   // Usually every block the cell reaches into is stored at this level too.
   int min_w;
   if (read_cell(map, blocks, local, nearest, v, &min_w, out)) {
@@ -262,8 +297,8 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
   for (int c = 0; c < 8; ++c) {
     const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
     const Vec3i g{base.x + ox, base.y + oy, base.z + oz};
-    int32_t ptr = blocks[neighbour_slot(local.x + ox, local.y + oy, local.z + oz)];
-    int i = voxel_index((local.x + ox) & 7, (local.y + oy) & 7, (local.z + oz) & 7);
+    int32_t ptr;
+    int i = cell_corner(blocks, local, c, &ptr);
     pos[c] = to_float(g);
     if (ptr < 0) {  // this corner's region is stored at another level (or nowhere)
       Vec3f where;
@@ -295,14 +330,12 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
                                       const Vec3f& p_w, int min_weight, TsdfSample* out,
                                       const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
                                       int32_t known_ptr = kPtrEmpty) {
-  const Vec3f q = p_w * map.level[level].inv_voxel_size;
-  const Vec3i base = floor_to_int(q);
-  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-  if ((local.x < 7) & (local.y < 7) & (local.z < 7)) {
+  const CellCoords cell = cell_at(map.level[level], p_w);
+  if (!cell.spans_blocks()) {
     // Most samples: the 8 voxels lie in one block (often the caller's).
-    const Vec3i block = block_of_voxel(base);
-    const Vec3f t = q - to_float(base);
-    const int nearest = (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
+    const Vec3i& block = cell.block;
+    const Vec3i& local = cell.local;
+    const int nearest = nearest_corner(cell.t);
     float v[8];
     const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
     if (ptr < 0) return false;
@@ -319,10 +352,10 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
     if (min_w < min_weight) return false;
     out->nearest_ptr = ptr;
     out->nearest_index = i0 + offsets[nearest];
-    out->f = interpolate_trilinear(v, t, &out->gradient);
+    out->f = interpolate_trilinear(v, cell.t, &out->gradient);
     return true;
   }
-  return sample_trilinear_across_blocks(map, cache, level, p_w, min_weight, out);
+  return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out);
 }
 
 /// F(p + h e_k) for k = x, y, z (h: the voxel size of `level`): the trilinear samples one voxel
@@ -332,21 +365,19 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
 /// than `min_weight` observations.
 HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCache& cache, int level,
                                              const Vec3f& p_w, int min_weight, Vec3f* ahead) {
-  const Vec3f q = p_w * map.level[level].inv_voxel_size;
-  const Vec3i base = floor_to_int(q);
-  const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-  const Vec3i block = block_of_voxel(base);
+  const CellCoords cell = cell_at(map.level[level], p_w);
+  const Vec3i& local = cell.local;
   // The voxels base + [0, 2]^3 span one or two blocks per axis.
   int32_t blocks[8];
-  neighbour_blocks(map, cache, level, block, {local.x >= 6, local.y >= 6, local.z >= 6}, blocks);
-  const Vec3f t = q - to_float(base);
+  neighbour_blocks(map, cache, level, cell.block, {local.x >= 6, local.y >= 6, local.z >= 6},
+                   blocks);
   for (int k = 0; k < 3; ++k) {
     float v[8];
     int min_w;
     const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
     if (!read_cell(map, blocks, origin, -1, v, &min_w) || min_w < min_weight) return false;
     Vec3f unused;
-    (*ahead)[k] = interpolate_trilinear(v, t, &unused);
+    (*ahead)[k] = interpolate_trilinear(v, cell.t, &unused);
   }
   return true;
 }
@@ -405,4 +436,4 @@ HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, co
   return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr);
 }
 
-}  // namespace hivox::kernels
+ }  // namespace hivox::kernels

@@ -37,10 +37,10 @@ struct CellBatch {
   bool set_across(int i, const int32_t blocks[8], const Vec3i& origin, const Vec3f& t) {
     int32_t missing = 0;
     for (int c = 0; c < 8; ++c) {
-      const int x = origin.x + (c & 1), y = origin.y + ((c >> 1) & 1), z = origin.z + (c >> 2);
-      const int32_t ptr = blocks[neighbour_slot(x, y, z)];
+      int32_t ptr;
+      const int index = cell_corner(blocks, origin, c, &ptr);
       missing |= ptr;  // negative when any is
-      voxel[c][i] = ptr * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7);
+      voxel[c][i] = ptr * kBlockVoxels + index;
     }
     set_t(i, t);
     return missing >= 0;
@@ -160,20 +160,16 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
       continue;
     }
     const int l = level[i];
-    // As sample_trilinear: the cell's lowest voxel, and the blocks its 8 voxels lie in.
-    const Vec3f q = points[i] * map.level[l].inv_voxel_size;
-    const Vec3i base = floor_to_int(q);
-    const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-    const Vec3f t = q - to_float(base);
-    const Vec3i block = block_of_voxel(base);
-    const int32_t* blocks = lookups.neighbours(map, cache, l, block);
-    gathered[i] = cells.set_across(i, blocks, local, t);
+    // As sample_trilinear: the cell, and the blocks its 8 voxels lie in.
+    const CellCoords cell = cell_at(map.level[l], points[i]);
+    const int32_t* blocks = lookups.neighbours(map, cache, l, cell.block);
+    gathered[i] = cells.set_across(i, blocks, cell.local, cell.t);
     if (gathered[i]) continue;
     cells.set_unused(i);
     // A cell inside one block that is absent is unknown; one that reaches into a region
     // stored at another level (or nowhere) is sampled there.
-    if ((local.x == 7) | (local.y == 7) | (local.z == 7))
-      sampled[i] = sample_trilinear_across_blocks(map, cache, l, points[i], min_weight, &out[i]);
+    if (cell.spans_blocks())
+      sampled[i] = sample_trilinear_across_blocks(map, cache, l, cell, min_weight, &out[i]);
   }
   cells.interpolate(map.tsdf, n, min_weight);
   for (int i = 0; i < n; ++i) {
@@ -191,16 +187,13 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
                                     const int* level, int min_weight, CellBatch<kCapacity>& cells,
                                     Vec3f* ahead, bool* ok) {
   for (int i = 0; i < n; ++i) {
-    const int l = level[i];
-    const Vec3f q = points[i] * map.level[l].inv_voxel_size;
-    const Vec3i base = floor_to_int(q);
-    const Vec3i local{base.x & 7, base.y & 7, base.z & 7};
-    const int32_t* blocks = lookups.neighbours(map, cache, l, block_of_voxel(base));
-    const Vec3f t = q - to_float(base);
+    const CellCoords cell = cell_at(map.level[level[i]], points[i]);
+    const int32_t* blocks = lookups.neighbours(map, cache, level[i], cell.block);
+    const Vec3i& local = cell.local;
     ok[i] = true;
     for (int k = 0; k < 3; ++k) {
       const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
-      if (!ok[i] || !cells.set_across(3 * i + k, blocks, origin, t)) {
+      if (!ok[i] || !cells.set_across(3 * i + k, blocks, origin, cell.t)) {
         ok[i] = false;
         cells.set_unused(3 * i + k);
       }

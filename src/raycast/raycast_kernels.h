@@ -40,19 +40,21 @@ HIVOX_HD inline float box_exit(const Vec3f& o, const Vec3f& d, const Vec3f& inv_
   return t;
 }
 
-/// Surface normal at a surface point `p_w` (unit, pointing to free space) from differences of
-/// the interpolated TSDF one voxel apart. At a surface point F = 0, so forward differences need
-/// only 3 samples; spanning a voxel they are smoother than the gradient of a single
-/// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
-/// unknown.
-HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
-                                  float f_at_p, int level, int min_weight, const Vec3f& fallback) {
-  Vec3f g;
-  if (samples_one_voxel_ahead(map, cache, level, p_w, min_weight, &g)) {
-    g = g - Vec3f{f_at_p, f_at_p, f_at_p};
-    return normalized(g);
-  }
+/// The unit normal from the TSDF one voxel ahead along each axis (samples_one_voxel_ahead) and
+/// the value `f_at_p` at the point: forward differences; at a surface point F = 0.
+HIVOX_HD inline Vec3f normal_from_ahead(const Vec3f& ahead, float f_at_p) {
+  return normalized(ahead - Vec3f{f_at_p, f_at_p, f_at_p});
+}
+
+/// tsdf_normal where the voxels one voxel ahead are not all stored at `level`: three samples at
+/// whatever level stores them; `fallback` where one of them is unknown.
+HIVOX_HD HIVOX_NOINLINE inline Vec3f tsdf_normal_across_levels(const MapView& map,
+                                                               BlockLookupCache& cache,
+                                                               const Vec3f& p_w, float f_at_p,
+                                                               int level, int min_weight,
+                                                               const Vec3f& fallback) {
   const float h = map.level[level].voxel_size_m;
+  Vec3f g;
   for (int k = 0; k < 3; ++k) {
     Vec3f a = p_w;
     a[k] += h;
@@ -62,6 +64,19 @@ HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache, c
     g[k] = sa.f - f_at_p;
   }
   return normalized(g);
+}
+
+/// Surface normal at a surface point `p_w` (unit, pointing to free space) from differences of
+/// the interpolated TSDF one voxel apart. At a surface point F = 0, so forward differences need
+/// only 3 samples; spanning a voxel they are smoother than the gradient of a single
+/// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
+/// unknown.
+HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
+                                  float f_at_p, int level, int min_weight, const Vec3f& fallback) {
+  Vec3f ahead;
+  if (samples_one_voxel_ahead(map, cache, level, p_w, min_weight, &ahead))
+    return normal_from_ahead(ahead, f_at_p);
+  return tsdf_normal_across_levels(map, cache, p_w, f_at_p, level, min_weight, fallback);
 }
 
 struct RayMarchConstants {
@@ -141,14 +156,10 @@ HIVOX_HD inline void bracket_hit(const CrossingBracket& b, const Vec3f& o, const
   hit->color_index = b.best.nearest_index;
 }
 
-/// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
-/// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
-/// refinement samples fail).
-HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                                     const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
-                                     const TsdfSample& fallback, int fallback_level,
-                                     const RayMarchConstants& k, RayHit* hit) {
-  CrossingBracket b = make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level);
+/// Refines bracket `b` with secant steps (see CrossingBracket) and fills the hit.
+HIVOX_HD inline void refine_bracket(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                    const Vec3f& d, CrossingBracket b, const RayMarchConstants& k,
+                                    RayHit* hit) {
   for (;;) {
     const float zm = bracket_secant(b);
     TsdfSample sm;
@@ -159,6 +170,17 @@ HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache
   bracket_hit(b, o, d, hit);
   hit->normal_w =
       tsdf_normal(map, cache, hit->p_w, 0.0f, hit->level, k.min_weight, b.best.gradient);
+}
+
+/// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
+/// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
+/// refinement samples fail).
+HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                     const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
+                                     const TsdfSample& fallback, int fallback_level,
+                                     const RayMarchConstants& k, RayHit* hit) {
+  refine_bracket(map, cache, o, d,
+                 make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level), k, hit);
 }
 
 /// Marches ray `o + z d` for z in [z_start, z_end] to the first crossing of the TSDF from
@@ -357,7 +379,7 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
     if (step == HintStep::GiveUp) return false;
     if (step == HintStep::Bracketed) break;
   }
-  refine_crossing(map, cache, o, d, b.z_lo, b.f_lo, b.z_hi, b.f_hi, b.best, b.level, k, hit);
+  refine_bracket(map, cache, o, d, b, k, hit);
   return true;
 }
 

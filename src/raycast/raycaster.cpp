@@ -114,9 +114,9 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
   for (int j = 0; j < with_hit; ++j) {
     const int i = s.live[j];
     RayHit& hit = s.hits[i];
-    hit.normal_w = s.sampled[j] ? normalized(s.ahead[j])
-                                : tsdf_normal(map, cache, hit.p_w, 0.0f, hit.level, min_w,
-                                              s.bracket[i].best.gradient);
+    hit.normal_w = s.sampled[j] ? normal_from_ahead(s.ahead[j], 0.0f)
+                                : tsdf_normal_across_levels(map, cache, hit.p_w, 0.0f, hit.level,
+                                                            min_w, s.bracket[i].best.gradient);
     s.found[i] = true;
   }
 }
@@ -248,8 +248,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         for (int i = 0; i < packed; ++i) {
           const PacketRay& ray = scratch->rays[i];
           kernels::RayHit& hit = scratch->hits[i];
-          const bool found =
-              scratch->found[i] || (tile_max_[t] > 0.0f && march(ray.dir, ray.hint, t, &hit));
+          // A packed ray has a hint inside the tile's range, so the range is not empty.
+          const bool found = scratch->found[i] || march(ray.dir, ray.hint, t, &hit);
           write_pixel(ray.x, ray.y, found, hit);
         }
         packed = 0;
