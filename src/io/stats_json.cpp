@@ -35,6 +35,7 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
                          {"refine_waiting", f.refine_waiting},
                          {"valid_pixels", f.valid_pixels},
                          {"raycast_hits", f.raycast_hits},
+                         {"raycast_hits_at_hint", f.raycast_hits_at_hint},
                          {"tracking", std::string(to_string(f.tracking))},
                          {"fused", f.fused},
                          {"track_inlier_ratio", f.track_inlier_ratio},

@@ -181,9 +181,20 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
           hint_(x, y) = frame.depth_m(n * x + n / 2, n * y + n / 2);
       hint = &hint_;
     }
+    // Where the frame has no depth, the surface the previous raycast saw, seen from here.
+    const RaycastResult& previous = raycaster_.result();
+    if (params_.previous_raycast_hints && previous.camera.width == camera.width &&
+        previous.camera.height == camera.height && !previous.depth_m.empty()) {
+      if (hint != &hint_) hint_ = frame.depth_m;
+      warp_raycast_depth(previous, camera, T_wc, params_.fusion.truncation_m, &warped_);
+      for (std::size_t i = 0; i < hint_.size(); ++i)
+        if (!(hint_.data()[i] > 0.0f)) hint_.data()[i] = warped_.data()[i];
+      hint = &hint_;
+    }
     raycaster_.raycast(*map_, camera, T_wc, &rs, hint);
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
+    s.raycast_hits_at_hint = rs.found_at_hint;
   }
 }
 

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cfloat>
+#include <cmath>
 #include <memory>
 
+#include "hivox/core/atomic.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 #include "hivox/core/timer.h"
@@ -131,6 +133,43 @@ Vec3f RaycastResult::normal_c(int x, int y) const {
   return to_rigid3f(T_wc.inverse()).rotate(normals_w(x, y));
 }
 
+void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
+                        float max_gap_m, DepthImage* out) {
+  camera.validate("warp camera");
+  if (!(max_gap_m > 0.0f))
+    fail(ErrorCode::InvalidArgument, "warp max_gap_m {} must be > 0", max_gap_m);
+  const int w = camera.width, h = camera.height;
+  // The nearest depth landing on each pixel (FLT_MAX: none yet).
+  DepthImage nearest(w, h, FLT_MAX);
+  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
+  const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
+#pragma omp parallel for schedule(static)
+  for (int y = 0; y < from_h; ++y)
+    for (int x = 0; x < from_w; ++x) {
+      if (!from.hit(x, y)) continue;
+      const Vec3f p = T_cw * from.points_w(x, y);
+      if (!(p.z > 0.0f)) continue;
+      const Vec2f uv = camera.project(p);
+      const int u = static_cast<int>(std::floor(uv.x + 0.5f));
+      const int v = static_cast<int>(std::floor(uv.y + 0.5f));
+      if (u < 0 || v < 0 || u >= w || v >= h) continue;
+      atomic_min_positive(&nearest(u, v), p.z);
+    }
+  out->resize(w, h);
+#pragma omp parallel for schedule(static)
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float z = nearest(x, y);
+      float front = z;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int u = x + dx, v = y + dy;
+          if (u >= 0 && v >= 0 && u < w && v < h) front = std::min(front, nearest(u, v));
+        }
+      (*out)(x, y) = z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
+    }
+}
+
 Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
   params_.validate();
 }
@@ -192,8 +231,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
   const bool packets =
       params_.ray_packets && start_hint_m != nullptr && kernels::packets_can_address(view);
-  int64_t hits = 0;
-#pragma omp parallel reduction(+ : hits)
+  int64_t hits = 0, found_at_hint = 0;
+#pragma omp parallel reduction(+ : hits, found_at_hint)
   {
     kernels::BlockLookupCache cache;  // per thread, across the rays of its tiles
     std::unique_ptr<PacketScratch> scratch;
@@ -249,6 +288,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           const PacketRay& ray = scratch->rays[i];
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
+          found_at_hint += scratch->found[i];
           const bool found = scratch->found[i] || march(ray.dir, ray.hint, t, &hit);
           write_pixel(ray.x, ray.y, found, hit);
         }
@@ -273,6 +313,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           if (hint > 0.0f && kernels::hit_near_hint(view, cache, T.t, dir, hint, k, &hit) &&
               hit.depth_m <= tile_max_[t]) {
             found = true;  // the usual case: the surface lies at the depth just fused
+            ++found_at_hint;
           } else if (tile_max_[t] > 0.0f) {
             found = march(dir, hint, t, &hit);
           }
@@ -284,6 +325,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   if (stats != nullptr) {
     stats->blocks_projected = projected;
     stats->hits = hits;
+    stats->found_at_hint = found_at_hint;
     stats->range_ms = range_ms;
     stats->march_ms = watch.lap_ms();
   }

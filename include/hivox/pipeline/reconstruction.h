@@ -30,6 +30,10 @@ struct ReconstructionParams {
   /// Raycast the model from each frame's pose after integrating it (tracking needs it; with
   /// given poses it only feeds renders and can be switched off for speed).
   bool raycast_every_frame = true;
+  /// The per-frame raycast starts each ray at the depth just fused; where the frame has no
+  /// depth, at the depth of the previous frame's raycast warped into this view (such rays
+  /// otherwise search their whole depth range). false: those rays search the whole range.
+  bool previous_raycast_hints = true;
 
   /// Validates every part; the raycast's truncation and depth range follow the fusion's.
   void validate() const;
@@ -57,6 +61,7 @@ struct FrameStats {
   int64_t merges = 0;
   int64_t refine_waiting = 0;  ///< splits/merges postponed for lack of room
   int64_t raycast_hits = 0;
+  int64_t raycast_hits_at_hint = 0;  ///< of them, found near their start hint (no march)
   /// Tracking (frames from track_and_integrate; others are Good with no ICP numbers).
   TrackingQuality tracking = TrackingQuality::Good;
   bool fused = true;  ///< false for a lost frame: not integrated, previous pose kept
@@ -126,7 +131,9 @@ class Reconstruction {
                            FrameStats& s);
   /// The camera of the per-frame raycast (the depth camera, subsampled for tracking).
   PinholeCamera model_camera() const;
-  DepthImage hint_;  ///< the fused depth at the model camera's resolution
+  DepthImage hint_;    ///< the raycast's start hints: the fused depth at the model camera's
+                       ///< resolution, holes filled from the previous raycast
+  DepthImage warped_;  ///< the previous raycast's depth seen from the current pose
 
   Tracker tracker_;
   TrackResult last_track_;

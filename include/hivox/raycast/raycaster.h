@@ -36,9 +36,19 @@ struct RaycastResult {
 struct RaycastStats {
   int64_t blocks_projected = 0;  ///< blocks whose bounding box landed in the view
   int64_t hits = 0;              ///< pixels with a surface
+  int64_t found_at_hint = 0;     ///< of them, found near their start hint (without a march)
   double range_ms = 0;           ///< building the min/max depth range image
   double march_ms = 0;           ///< marching the rays
 };
+
+/// The depth at which the surface points of raycast `from` are seen by `camera` from pose
+/// `T_wc` (a forward warp): each hit lands on its nearest pixel and the nearest surface wins.
+/// Pixels no hit lands on get 0, and so do pixels that may show a surface through a gap in the
+/// warped foreground (a pixel within one pixel of them holds a surface nearer by more than
+/// `max_gap_m`). The previous frame's raycast warped this way gives the rays of pixels without
+/// a measured depth a start hint (see Raycaster::raycast).
+void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
+                        float max_gap_m, DepthImage* out);
 
 class Raycaster {
  public:
