@@ -297,16 +297,19 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
 /// slope of the interpolant's gradient, then along the secant of the last two samples, each
 /// carried half a voxel beyond the predicted crossing, until two consecutive samples bracket the
 /// crossing. Where the gradient does not fall along the ray, the slope of a projective TSDF fused
-/// from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth). `hit_near_hint` runs it
-/// ray by ray; the CPU driver's ray packets take the same steps.
+/// from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth). A sample that fails
+/// (unobserved voxels, typically just behind a surface seen from one side only) is taken again
+/// halfway back towards the last good one. `hit_near_hint` runs it ray by ray; the CPU driver's
+/// ray packets take the same steps.
 struct HintSearch {
-  static constexpr int kMaxSamples = 4;
+  static constexpr int kMaxSamples = 8;
   float z0 = 0;  ///< the last sample's ray parameter
   TsdfSample s0;
   int l0 = 0;
   float slope = 0;  ///< dF/dz
   float half_voxel_z = 0, max_step = 0;
   int samples = 1;
+  float retry_z = -1.0f;  ///< where to sample next after a failed sample (negative: none)
 };
 
 /// Starts the search from the sample `s0` (level `l0`) at the hint; false when that sample is
@@ -323,11 +326,13 @@ HIVOX_HD inline bool hint_search_begin(const MapView& map, const Vec3f& d, float
   h->max_step = k.mu_m * inv_len;
   h->slope = dot(s0.gradient, d) * map.level[l0].inv_voxel_size;
   h->samples = 1;
+  h->retry_z = -1.0f;
   return true;
 }
 
 /// The ray parameter of the next sample.
 HIVOX_HD inline float hint_search_next(HintSearch& h, const RayMarchConstants& k) {
+  if (h.retry_z >= 0.0f) return h.retry_z;
   const float projective = -1.0f / k.mu_m;
   if (!(h.slope < 0.1f * projective)) h.slope = projective;
   float step = -h.s0.f / h.slope;
@@ -343,7 +348,13 @@ enum class HintStep { Continue, Bracketed, GiveUp };
 HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, const Vec3f& d,
                                             float z1, bool sampled, const TsdfSample& s1, int l1,
                                             CrossingBracket* bracket) {
-  if (!sampled) return HintStep::GiveUp;
+  ++h.samples;
+  if (!sampled) {
+    if (h.samples >= HintSearch::kMaxSamples) return HintStep::GiveUp;
+    h.retry_z = 0.5f * (h.z0 + z1);
+    return HintStep::Continue;
+  }
+  h.retry_z = -1.0f;
   // The slope is negative, so steps go forward from free space and back from behind a
   // surface: a sign change always brackets a front face, free space in front.
   if ((h.s0.f > 0.0f) != (s1.f > 0.0f)) {
@@ -351,7 +362,7 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
                              : make_bracket(map, d, z1, s1.f, h.z0, h.s0.f, h.s0, h.l0);
     return HintStep::Bracketed;
   }
-  if (s1.f == h.s0.f || ++h.samples >= HintSearch::kMaxSamples) return HintStep::GiveUp;
+  if (s1.f == h.s0.f || h.samples >= HintSearch::kMaxSamples) return HintStep::GiveUp;
   h.slope = (s1.f - h.s0.f) / (z1 - h.z0);
   h.z0 = z1;
   h.s0 = s1;
