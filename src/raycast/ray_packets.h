@@ -2,12 +2,16 @@
 // The CPU driver's ray packets. The hinted rays of a tile advance together, one step of the
 // per-ray search at a time (HintSearch, CrossingBracket, the normal's samples one voxel ahead),
 // and each step's TSDF samples are interpolated in one loop over the packet that the compiler
-// vectorizes with gathers, instead of one branchy call per ray. Addressing (which block, which
-// voxels) stays scalar and uses the per-ray kernels' look-ups; a cell that reaches into another
-// level is sampled by the per-ray kernel itself. A packet therefore finds what the per-ray search
-// finds, up to float rounding (the vectorized loop may fuse multiplies and adds where the scalar
-// code does not). A GPU driver runs the per-ray kernels, one ray per thread.
+// vectorizes with gathers, instead of one branchy call per ray. In a single-level map the cells
+// are addressed (which block, which voxels) in vectorized loops as well, from a box of blocks
+// looked up once; with several levels addressing stays scalar and uses the per-ray kernels'
+// look-ups, and a cell that reaches into another level is sampled by the per-ray kernel itself. A
+// packet therefore finds what the per-ray search finds, up to float rounding (the vectorized loop
+// may fuse multiplies and adds where the scalar code does not). A GPU driver runs the per-ray
+// kernels, one ray per thread.
 
+#include <climits>
+#include <cmath>
 #include <cstdint>
 
 #include "hivox/map/map_view.h"
@@ -111,6 +115,113 @@ inline bool packets_can_address(const MapView& map) {
   return static_cast<int64_t>(map.block_capacity) * kBlockVoxels <= INT32_MAX;
 }
 
+/// The blocks of one level in a box of block coordinates [lo, lo + size), looked up once for
+/// many cells: a packet's cells then find their blocks by index arithmetic, in vectorized loops.
+struct BlockBox {
+  static constexpr int kCapacity = 64;
+  int level = -1;  ///< -1: empty
+  Vec3i lo, size;
+  alignas(64) int32_t ptr[kCapacity];
+
+  /// Makes the box hold blocks [lo2, hi2] (inclusive) of level `l`: true when it already does
+  /// or now does; false when they are more than kCapacity.
+  bool cover(const MapView& map, BlockLookupCache& cache, int l, const Vec3i& lo2,
+             const Vec3i& hi2) {
+    if (l == level && lo2.x >= lo.x && lo2.y >= lo.y && lo2.z >= lo.z && hi2.x < lo.x + size.x &&
+        hi2.y < lo.y + size.y && hi2.z < lo.z + size.z)
+      return true;
+    const Vec3i s{hi2.x - lo2.x + 1, hi2.y - lo2.y + 1, hi2.z - lo2.z + 1};
+    if (s.x > kCapacity || s.y > kCapacity || s.z > kCapacity || s.x * s.y * s.z > kCapacity)
+      return false;
+    level = l;
+    lo = lo2;
+    size = s;
+    for (int z = 0; z < s.z; ++z)
+      for (int y = 0; y < s.y; ++y)
+        for (int x = 0; x < s.x; ++x)
+          ptr[(z * s.y + y) * s.x + x] = cache.find(map, l, {lo.x + x, lo.y + y, lo.z + z});
+    return true;
+  }
+};
+
+/// Addresses the cells of `n` points of a single-level map together, in vectorized loops: per
+/// point `kPerPoint` cells go to `cells`, cell k of point i at k * n + i (1: the cell around the
+/// point; 3: the cells one voxel ahead along x, y, z, as samples_one_voxel_ahead reads them);
+/// `complete[j]` is false where a corner's block is absent (the cell is then addressed at voxel
+/// 0, to be ignored). Returns false, addressing nothing, when the cells reach into more blocks
+/// than a BlockBox holds.
+template <int kPerPoint, int kCapacity>
+bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockBox& box, int n,
+                             const Vec3f* points, CellBatch<kCapacity>& cells, uint8_t* complete) {
+  static_assert(kPerPoint == 1 || kPerPoint == 3);
+  constexpr int kPoints = kCapacity / kPerPoint;
+  const float inv_voxel = map.level[0].inv_voxel_size;
+  alignas(64) int32_t bx[kPoints], by[kPoints], bz[kPoints];
+  alignas(64) int32_t lx[kPoints], ly[kPoints], lz[kPoints];
+  int32_t lo_x = INT_MAX, lo_y = INT_MAX, lo_z = INT_MAX;
+  int32_t hi_x = INT_MIN, hi_y = INT_MIN, hi_z = INT_MIN;
+  // As cell_at: the cell's lowest voxel, its block and place there, the fractional position.
+  const float* xyz = &points[0].x;  // Vec3f is three packed floats
+  for (int i = 0; i < n; ++i) {
+    const float qx = xyz[3 * i] * inv_voxel, qy = xyz[3 * i + 1] * inv_voxel,
+                qz = xyz[3 * i + 2] * inv_voxel;
+    const int32_t gx = static_cast<int32_t>(std::floor(qx));
+    const int32_t gy = static_cast<int32_t>(std::floor(qy));
+    const int32_t gz = static_cast<int32_t>(std::floor(qz));
+    cells.tx[i] = qx - static_cast<float>(gx);
+    cells.ty[i] = qy - static_cast<float>(gy);
+    cells.tz[i] = qz - static_cast<float>(gz);
+    bx[i] = gx >> 3;
+    by[i] = gy >> 3;
+    bz[i] = gz >> 3;
+    lx[i] = gx & 7;
+    ly[i] = gy & 7;
+    lz[i] = gz & 7;
+    lo_x = bx[i] < lo_x ? bx[i] : lo_x;
+    lo_y = by[i] < lo_y ? by[i] : lo_y;
+    lo_z = bz[i] < lo_z ? bz[i] : lo_z;
+    hi_x = bx[i] > hi_x ? bx[i] : hi_x;
+    hi_y = by[i] > hi_y ? by[i] : hi_y;
+    hi_z = bz[i] > hi_z ? bz[i] : hi_z;
+  }
+  for (int k = 1; k < kPerPoint; ++k)
+    for (int i = 0; i < n; ++i) {
+      cells.tx[k * n + i] = cells.tx[i];
+      cells.ty[k * n + i] = cells.ty[i];
+      cells.tz[k * n + i] = cells.tz[i];
+    }
+  // A cell's voxels reach at most one block beyond the block of its lowest voxel (the cells
+  // ahead start one voxel further, at most at local 8 + 1).
+  if (!box.cover(map, cache, 0, {lo_x, lo_y, lo_z}, {hi_x + 1, hi_y + 1, hi_z + 1})) return false;
+  const int32_t sx = box.size.x, sxy = box.size.x * box.size.y;
+  const int32_t origin = box.lo.x + box.lo.y * sx + box.lo.z * sxy;
+  const int32_t* ptrs = box.ptr;
+  for (int k = 0; k < kPerPoint; ++k) {
+    const int32_t dx = kPerPoint == 3 && k == 0, dy = kPerPoint == 3 && k == 1,
+                  dz = kPerPoint == 3 && k == 2;
+    int32_t* voxel[8];
+    for (int c = 0; c < 8; ++c) voxel[c] = cells.voxel[c] + k * n;
+    uint8_t* done = complete + k * n;
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
+    for (int i = 0; i < n; ++i) {
+      const int32_t row = bx[i] + by[i] * sx + bz[i] * sxy - origin;
+      const int32_t ox = lx[i] + dx, oy = ly[i] + dy, oz = lz[i] + dz;
+      int32_t missing = 0;
+#pragma GCC unroll 8
+      for (int c = 0; c < 8; ++c) {
+        const int32_t x = ox + (c & 1), y = oy + ((c >> 1) & 1), z = oz + (c >> 2);
+        const int32_t ptr = ptrs[row + (x >> 3) + (y >> 3) * sx + (z >> 3) * sxy];
+        missing |= ptr;  // negative when any is
+        voxel[c][i] = (ptr < 0 ? 0 : ptr) * kBlockVoxels + voxel_index(x & 7, y & 7, z & 7);
+      }
+      done[i] = missing >= 0;
+    }
+  }
+  return true;
+}
+
 /// The look-ups of consecutive samples of a packet, which mostly fall into the block of the
 /// sample before (neighbouring rays, steps along one ray): where the last point was found, and
 /// the 2x2x2 blocks from the last cell's block up (see neighbour_blocks).
@@ -121,6 +232,7 @@ struct PacketLookups {
   int cells_level = -1;  ///< of `cells_block` (-1: none yet)
   Vec3i cells_block;
   int32_t cells_ptrs[8];
+  BlockBox box;  ///< the blocks around the last step's cells (single-level maps)
 
   /// locate_block, remembering the last result: a point in the same block at the level where
   /// the last search ended has the same coarser blocks above it, so the search ends there too.
@@ -149,6 +261,18 @@ template <int kCapacity>
 void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLookups& lookups, int n,
                         const Vec3f* points, int min_weight, CellBatch<kCapacity>& cells,
                         TsdfSample* out, int* level, bool* sampled) {
+  uint8_t complete[kCapacity];
+  if (map.levels == 1 &&
+      address_cells_one_level<1>(map, cache, lookups.box, n, points, cells, complete)) {
+    // One level: a cell with a corner in an absent block is unknown, as sample_trilinear finds.
+    cells.interpolate(map.tsdf, n, min_weight);
+    for (int i = 0; i < n; ++i) {
+      level[i] = 0;
+      sampled[i] = complete[i] && cells.observed[i];
+      if (sampled[i]) out[i] = cells.sample(i);
+    }
+    return;
+  }
   bool gathered[kCapacity];
   for (int i = 0; i < n; ++i) {
     Vec3i pos;
@@ -186,6 +310,19 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
                                     PacketLookups& lookups, int n, const Vec3f* points,
                                     const int* level, int min_weight, CellBatch<kCapacity>& cells,
                                     Vec3f* ahead, bool* ok) {
+  uint8_t complete[kCapacity];
+  if (map.levels == 1 &&
+      address_cells_one_level<3>(map, cache, lookups.box, n, points, cells, complete)) {
+    cells.interpolate(map.tsdf, 3 * n, min_weight);
+    for (int i = 0; i < n; ++i) {
+      ok[i] = true;
+      for (int k = 0; k < 3; ++k) {
+        ok[i] = ok[i] && complete[k * n + i] && cells.observed[k * n + i];
+        ahead[i][k] = cells.f[k * n + i];
+      }
+    }
+    return;
+  }
   for (int i = 0; i < n; ++i) {
     const CellCoords cell = cell_at(map.level[level[i]], points[i]);
     const int32_t* blocks = lookups.neighbours(map, cache, level[i], cell.block);
