@@ -2,13 +2,13 @@
 // The CPU driver's ray packets. The hinted rays of a tile advance together, one step of the
 // per-ray search at a time (HintSearch, CrossingBracket, the normal's samples one voxel ahead),
 // and each step's TSDF samples are interpolated in one loop over the packet that the compiler
-// vectorizes with gathers, instead of one branchy call per ray. In a single-level map the cells
-// are addressed (which block, which voxels) in vectorized loops as well, from a box of blocks
-// looked up once; with several levels addressing stays scalar and uses the per-ray kernels'
-// look-ups, and a cell that reaches into another level is sampled by the per-ray kernel itself. A
-// packet therefore finds what the per-ray search finds, up to float rounding (the vectorized loop
-// may fuse multiplies and adds where the scalar code does not). A GPU driver runs the per-ray
-// kernels, one ray per thread.
+// vectorizes with gathers, instead of one branchy call per ray. Where a step's points are stored
+// at one level (always, in a single-level map), their cells are addressed (which block, which
+// voxels) in vectorized loops as well, from a box of blocks looked up once; otherwise addressing
+// is scalar and uses the per-ray kernels' look-ups. A cell that reaches into another level is
+// sampled by the per-ray kernel itself. A packet therefore finds what the per-ray search finds,
+// up to float rounding (the vectorized loop may fuse multiplies and adds where the scalar code
+// does not). A GPU driver runs the per-ray kernels, one ray per thread.
 
 #include <climits>
 #include <cmath>
@@ -144,18 +144,19 @@ struct BlockBox {
   }
 };
 
-/// Addresses the cells of `n` points of a single-level map together, in vectorized loops: per
-/// point `kPerPoint` cells go to `cells`, cell k of point i at k * n + i (1: the cell around the
-/// point; 3: the cells one voxel ahead along x, y, z, as samples_one_voxel_ahead reads them);
-/// `complete[j]` is false where a corner's block is absent (the cell is then addressed at voxel
-/// 0, to be ignored). Returns false, addressing nothing, when the cells reach into more blocks
-/// than a BlockBox holds.
+/// Addresses the cells of level `l` around `n` points together, in vectorized loops: per point
+/// `kPerPoint` cells go to `cells`, cell k of point i at k * n + i (1: the cell around the point;
+/// 3: the cells one voxel ahead along x, y, z, as samples_one_voxel_ahead reads them);
+/// `complete[j]` is false where a corner's block is not stored at `l` (the cell is then addressed
+/// at voxel 0, to be ignored). Returns false, addressing nothing, when the cells reach into more
+/// blocks than a BlockBox holds.
 template <int kPerPoint, int kCapacity>
-bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockBox& box, int n,
-                             const Vec3f* points, CellBatch<kCapacity>& cells, uint8_t* complete) {
+bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockBox& box, int l,
+                             int n, const Vec3f* points, CellBatch<kCapacity>& cells,
+                             uint8_t* complete) {
   static_assert(kPerPoint == 1 || kPerPoint == 3);
   constexpr int kPoints = kCapacity / kPerPoint;
-  const float inv_voxel = map.level[0].inv_voxel_size;
+  const float inv_voxel = map.level[l].inv_voxel_size;
   alignas(64) int32_t bx[kPoints], by[kPoints], bz[kPoints];
   alignas(64) int32_t lx[kPoints], ly[kPoints], lz[kPoints];
   int32_t lo_x = INT_MAX, lo_y = INT_MAX, lo_z = INT_MAX;
@@ -192,7 +193,7 @@ bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockB
     }
   // A cell's voxels reach at most one block beyond the block of its lowest voxel (the cells
   // ahead start one voxel further, at most at local 8 + 1).
-  if (!box.cover(map, cache, 0, {lo_x, lo_y, lo_z}, {hi_x + 1, hi_y + 1, hi_z + 1})) return false;
+  if (!box.cover(map, cache, l, {lo_x, lo_y, lo_z}, {hi_x + 1, hi_y + 1, hi_z + 1})) return false;
   const int32_t sx = box.size.x, sxy = box.size.x * box.size.y;
   const int32_t origin = box.lo.x + box.lo.y * sx + box.lo.z * sxy;
   const int32_t* ptrs = box.ptr;
@@ -232,7 +233,7 @@ struct PacketLookups {
   int cells_level = -1;  ///< of `cells_block` (-1: none yet)
   Vec3i cells_block;
   int32_t cells_ptrs[8];
-  BlockBox box;  ///< the blocks around the last step's cells (single-level maps)
+  BlockBox box;  ///< the blocks around the last step's cells, when they share a level
 
   /// locate_block, remembering the last result: a point in the same block at the level where
   /// the last search ended has the same coarser blocks above it, so the search ends there too.
@@ -261,15 +262,39 @@ template <int kCapacity>
 void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLookups& lookups, int n,
                         const Vec3f* points, int min_weight, CellBatch<kCapacity>& cells,
                         TsdfSample* out, int* level, bool* sampled) {
+  // The level storing each point (where the search from the coarsest level ends); when the
+  // points found share one, their cells are addressed together.
+  int32_t located[kCapacity];
+  int common = map.levels == 1 ? 0 : -1;
+  if (map.levels > 1)
+    for (int i = 0; i < n; ++i) {
+      Vec3i pos;
+      located[i] = lookups.locate(map, cache, points[i], &level[i], &pos);
+      if (located[i] < 0) continue;
+      common = common == -1 || common == level[i] ? level[i] : -2;
+    }
   uint8_t complete[kCapacity];
-  if (map.levels == 1 &&
-      address_cells_one_level<1>(map, cache, lookups.box, n, points, cells, complete)) {
-    // One level: a cell with a corner in an absent block is unknown, as sample_trilinear finds.
+  if (common >= 0 &&
+      address_cells_one_level<1>(map, cache, lookups.box, common, n, points, cells, complete)) {
     cells.interpolate(map.tsdf, n, min_weight);
     for (int i = 0; i < n; ++i) {
-      level[i] = 0;
-      sampled[i] = complete[i] && cells.observed[i];
-      if (sampled[i]) out[i] = cells.sample(i);
+      sampled[i] = false;
+      if (map.levels == 1) {
+        level[i] = 0;
+      } else if (located[i] < 0) {
+        continue;
+      }
+      if (complete[i]) {
+        sampled[i] = cells.observed[i] != 0;
+        if (sampled[i]) out[i] = cells.sample(i);
+      } else if (map.levels > 1) {
+        // As below: a cell reaching into a region stored at another level is sampled there.
+        const CellCoords cell = cell_at(map.level[common], points[i]);
+        if (cell.spans_blocks())
+          sampled[i] =
+              sample_trilinear_across_blocks(map, cache, common, cell, min_weight, &out[i]);
+      }
+      // In a single-level map a cell with a corner in an absent block is unknown.
     }
     return;
   }
@@ -310,9 +335,11 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
                                     PacketLookups& lookups, int n, const Vec3f* points,
                                     const int* level, int min_weight, CellBatch<kCapacity>& cells,
                                     Vec3f* ahead, bool* ok) {
+  bool common = true;
+  for (int i = 1; i < n; ++i) common = common && level[i] == level[0];
   uint8_t complete[kCapacity];
-  if (map.levels == 1 &&
-      address_cells_one_level<3>(map, cache, lookups.box, n, points, cells, complete)) {
+  if (n > 0 && common &&
+      address_cells_one_level<3>(map, cache, lookups.box, level[0], n, points, cells, complete)) {
     cells.interpolate(map.tsdf, 3 * n, min_weight);
     for (int i = 0; i < n; ++i) {
       ok[i] = true;
