@@ -235,6 +235,23 @@ HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
   return (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
 }
 
+/// The 2x2x2 blocks of a level from a block up (neighbour_blocks with span 1 on every axis),
+/// looked up again only when asked for another block: consecutive cells that reach beyond one
+/// block (along a ray, across a packet) mostly reach from the same block.
+struct NeighbourBlocks {
+  int level = -1;  ///< of `block` (-1: none yet)
+  Vec3i block;
+  int32_t ptrs[8];
+  HIVOX_HD const int32_t* get(const MapView& map, BlockLookupCache& cache, int l, const Vec3i& b) {
+    if (l != level || !(b == block)) {
+      neighbour_blocks(map, cache, l, b, {1, 1, 1}, ptrs);
+      level = l;
+      block = b;
+    }
+    return ptrs;
+  }
+};
+
 /// Corner `c` of the cell whose lowest voxel is `origin` (coordinates from the origin of
 /// `blocks`' first block, see neighbour_blocks): its block's ptr (negative when not stored at
 /// this level) goes to `ptr`; returns its voxel index in that block.
@@ -269,12 +286,9 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
 
 /// The general case of `sample_trilinear`: the 8 voxels of `cell` span several blocks, and some
 /// may be stored at another level.
-HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView& map,
-                                                                   BlockLookupCache& cache,
-                                                                   int level,
-                                                                   const CellCoords& cell,
-                                                                   int min_weight,
-                                                                   TsdfSample* out) {
+HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
+    const MapView& map, BlockLookupCache& cache, int level, const CellCoords& cell, int min_weight,
+    TsdfSample* out) {
   const Vec3f& q = cell.q;
   const Vec3i& base = cell.base;
   const Vec3f& t = cell.t;
@@ -329,7 +343,8 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(const MapView
 HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
                                       const Vec3f& p_w, int min_weight, TsdfSample* out,
                                       const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
-                                      int32_t known_ptr = kPtrEmpty) {
+                                      int32_t known_ptr = kPtrEmpty,
+                                      NeighbourBlocks* neighbours = nullptr) {
   const CellCoords cell = cell_at(map.level[level], p_w);
   if (!cell.spans_blocks()) {
     // Most samples: the 8 voxels lie in one block (often the caller's).
@@ -354,6 +369,18 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
     out->nearest_index = i0 + offsets[nearest];
     out->f = interpolate_trilinear(v, cell.t, &out->gradient);
     return true;
+  }
+  if (neighbours != nullptr) {
+    // Usually every block the cell reaches into is stored at this level too.
+    const int32_t* blocks = neighbours->get(map, cache, level, cell.block);
+    float v[8];
+    int min_w;
+    if (read_cell(map, blocks, cell.local, nearest_corner(cell.t), v, &min_w, out)) {
+      if (min_w < min_weight) return false;
+      out->f = interpolate_trilinear(v, cell.t, &out->gradient);
+      return true;
+    }
+    if (map.levels == 1) return false;  // a corner's block is absent, and no other level has it
   }
   return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out);
 }
@@ -436,4 +463,4 @@ HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, co
   return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr);
 }
 
- }  // namespace hivox::kernels
+}  // namespace hivox::kernels

@@ -224,16 +224,14 @@ bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockB
 }
 
 /// The look-ups of consecutive samples of a packet, which mostly fall into the block of the
-/// sample before (neighbouring rays, steps along one ray): where the last point was found, and
-/// the 2x2x2 blocks from the last cell's block up (see neighbour_blocks).
+/// sample before (neighbouring rays, steps along one ray): where the last point was found, the
+/// 2x2x2 blocks from the last cell's block up, and the box of blocks of the last step's cells.
 struct PacketLookups {
   int level = -1;  ///< of the last located point (-1: none yet)
   Vec3i pos;
   int32_t ptr = kPtrEmpty;
-  int cells_level = -1;  ///< of `cells_block` (-1: none yet)
-  Vec3i cells_block;
-  int32_t cells_ptrs[8];
-  BlockBox box;  ///< the blocks around the last step's cells, when they share a level
+  NeighbourBlocks cells;  ///< around the last cell's block
+  BlockBox box;           ///< the blocks around the last step's cells, when they share a level
 
   /// locate_block, remembering the last result: a point in the same block at the level where
   /// the last search ended has the same coarser blocks above it, so the search ends there too.
@@ -243,16 +241,6 @@ struct PacketLookups {
     *l = level;
     *b = pos;
     return ptr;
-  }
-  /// The blocks of `l` from `block` up by 0 or 1 along each axis.
-  const int32_t* neighbours(const MapView& map, BlockLookupCache& cache, int l,
-                            const Vec3i& block) {
-    if (l != cells_level || !(block == cells_block)) {
-      neighbour_blocks(map, cache, l, block, {1, 1, 1}, cells_ptrs);
-      cells_level = l;
-      cells_block = block;
-    }
-    return cells_ptrs;
   }
 };
 
@@ -311,7 +299,7 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
     const int l = level[i];
     // As sample_trilinear: the cell, and the blocks its 8 voxels lie in.
     const CellCoords cell = cell_at(map.level[l], points[i]);
-    const int32_t* blocks = lookups.neighbours(map, cache, l, cell.block);
+    const int32_t* blocks = lookups.cells.get(map, cache, l, cell.block);
     gathered[i] = cells.set_across(i, blocks, cell.local, cell.t);
     if (gathered[i]) continue;
     cells.set_unused(i);
@@ -352,7 +340,7 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
   }
   for (int i = 0; i < n; ++i) {
     const CellCoords cell = cell_at(map.level[level[i]], points[i]);
-    const int32_t* blocks = lookups.neighbours(map, cache, level[i], cell.block);
+    const int32_t* blocks = lookups.cells.get(map, cache, level[i], cell.block);
     const Vec3i& local = cell.local;
     ok[i] = true;
     for (int k = 0; k < 3; ++k) {

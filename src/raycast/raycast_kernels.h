@@ -207,6 +207,7 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
   Vec3i pos;
   int32_t ptr = kPtrEmpty;
   Vec3f lo{1.0f, 1.0f, 1.0f}, hi{0.0f, 0.0f, 0.0f};  // empty: forces the first look-up
+  NeighbourBlocks neighbours;                        // of the cells that reach beyond the block
   while (z <= z_end) {
     const Vec3f p = o + d * z;
     if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
@@ -227,7 +228,7 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
       continue;
     }
     const float voxel_m = map.level[level].voxel_size_m;
-    if (!sample_trilinear(map, cache, level, p, k.min_weight, &s, pos, ptr)) {
+    if (!sample_trilinear(map, cache, level, p, k.min_weight, &s, pos, ptr, &neighbours)) {
       if (prev_valid && prev_f > 0.0f) {
         // The step left known space: the negative band behind a surface can be thinner than a
         // step where the back is unobserved. Bisect back towards the last positive sample.
