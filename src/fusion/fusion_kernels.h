@@ -180,13 +180,18 @@ HIVOX_HD inline bool band_segment(const DepthFrameView& frame, const Rigid3f& T_
 
 /// Running weighted average of the truncated signed distance (KinectFusion):
 /// F <- (W F + f) / (W + 1), W <- min(W + 1, W_max), with f = min(1, eta / mu), eta >= -mu.
+/// The int16 TSDF of a voxel's 32-bit word (int16 TSDF low, uint16 weight high), sign-extended
+/// in 32 bits: no 16-bit type in a row's loop, which would hold it to 16-byte vectors.
+HIVOX_HD inline int32_t tsdf_of_word(uint32_t word) {
+  return static_cast<int32_t>(word << 16) >> 16;
+}
+
 /// Works on the voxel's 32-bit word (int16 TSDF low, uint16 weight high) so that a row of
 /// voxels vectorizes.
 HIVOX_HD inline uint32_t fuse_tsdf_word(uint32_t word, float eta_m, float inv_mu, int max_weight) {
   const float f = clampf(eta_m * inv_mu, -1.0f, 1.0f);
   const int w = static_cast<int>(word >> 16);
-  const float old_f =
-      static_cast<float>(static_cast<int16_t>(word & 0xFFFFu)) * (1.0f / kTsdfScale);
+  const float old_f = static_cast<float>(tsdf_of_word(word)) * (1.0f / kTsdfScale);
   const float fused = (old_f * static_cast<float>(w) + f) / static_cast<float>(w + 1);
   // Round half away from zero by truncation (vectorizes, unlike lrintf/floorf calls).
   const float scaled = clampf(fused, -1.0f, 1.0f) * kTsdfScale;
@@ -367,8 +372,7 @@ HIVOX_HD inline void integrate_block_rows(const MapView& map, int level, const V
         pixel[x] = px | static_cast<int>(keep);
         any_pixel[x] = px;
         near_mask[x] = 0u - static_cast<uint32_t>(observed & (eta[x] < k.mu_m));
-        const int t = (result >> 16) != 0u ? static_cast<int16_t>(result & 0xFFFFu)
-                                           : static_cast<int>(kTsdfScale);
+        const int t = (result >> 16) != 0u ? tsdf_of_word(result) : static_cast<int>(kTsdfScale);
         min_tsdf = t < min_tsdf ? t : min_tsdf;
       }
       if (colors == nullptr) continue;
