@@ -302,12 +302,14 @@ HIVOX_HD inline float depth_bilinear(const PinholeCamera& cam, const float* dept
   return nearest + (bilinear - nearest) * smooth;
 }
 
-/// `integrate_block` for one way of sampling the depth image.
+/// `integrate_block` for one way of sampling the depth image. The voxels are taken a z-slice
+/// (64 voxels, contiguous in memory) at a time, so that the loops fill the widest vectors.
 template <bool kBilinearDepth>
-HIVOX_HD inline void integrate_block_rows(const MapView& map, int level, const Vec3i& pos,
-                                          int32_t ptr, const DepthFrameView& depth,
-                                          const ColorFrameView& color,
-                                          const IntegrationConstants& k) {
+HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const Vec3i& pos,
+                                            int32_t ptr, const DepthFrameView& depth,
+                                            const ColorFrameView& color,
+                                            const IntegrationConstants& k) {
+  constexpr int kSlice = kBlockSide * kBlockSide;
   const float s = map.level[level].voxel_size_m;
   const Vec3f origin_w = to_float(pos) * (static_cast<float>(kBlockSide) * s);
   const Vec3f origin_c = k.T_cw * origin_w;
@@ -322,84 +324,86 @@ HIVOX_HD inline void integrate_block_rows(const MapView& map, int level, const V
   const float min_d = depth.min_depth_m, max_d = depth.max_depth_m;
   int min_tsdf = static_cast<int>(kTsdfScale);  // over observed voxels, for the block summary
   for (int z = 0; z < kBlockSide; ++z) {
-    for (int y = 0; y < kBlockSide; ++y) {
-      const Vec3f row = origin_c + step_y * static_cast<float>(y) + step_z * static_cast<float>(z);
-      // The voxel's TSDF and weight as one 32-bit word (layout checked in voxel.h).
-      uint32_t* out = reinterpret_cast<uint32_t*>(voxels + voxel_index(0, y, z));
-      int pixel[kBlockSide];           // depth pixel of observed voxels, -1 otherwise
-      int any_pixel[kBlockSide];       // always a valid pixel index (branch-free gathers)
-      uint32_t near_mask[kBlockSide];  // all ones where colour is fused (observed, near surface)
-      float eta[kBlockSide];
-      [[maybe_unused]] float interpolated[kBlockSide];
-      [[maybe_unused]] int projected[kBlockSide];
-      [[maybe_unused]] uint32_t inside_word[kBlockSide];
+    const float zf = static_cast<float>(z);
+    // The camera-frame position of voxel i of the slice (x = i % 8, y = i / 8).
+    auto voxel_c = [&](int i) {
+      const float xf = static_cast<float>(i & (kBlockSide - 1));
+      const float yf = static_cast<float>(i / kBlockSide);
+      return Vec3f{origin_c.x + step_y.x * yf + step_z.x * zf + step_x.x * xf,
+                   origin_c.y + step_y.y * yf + step_z.y * zf + step_x.y * xf,
+                   origin_c.z + step_y.z * yf + step_z.z * zf + step_x.z * xf};
+    };
+    // The voxel's TSDF and weight as one 32-bit word (layout checked in voxel.h).
+    uint32_t* out = reinterpret_cast<uint32_t*>(voxels + voxel_index(0, 0, z));
+    int pixel[kSlice];           // depth pixel of observed voxels, -1 otherwise
+    int any_pixel[kSlice];       // always a valid pixel index (branch-free gathers)
+    uint32_t near_mask[kSlice];  // all ones where colour is fused (observed, near surface)
+    float eta[kSlice];
+    [[maybe_unused]] float interpolated[kSlice];
+    [[maybe_unused]] int projected[kSlice];
+    [[maybe_unused]] uint32_t inside_word[kSlice];
+    if constexpr (kBilinearDepth) {
+      // A loop of its own: folded into the loop below, it keeps that loop from vectorizing.
+      for (int i = 0; i < kSlice; ++i) {
+        const Vec3f p = voxel_c(i);
+        const Vec2f uv = depth.camera.project(p);
+        inside_word[i] = nearest_pixel(depth.camera, uv, p.z, &projected[i]);
+        interpolated[i] = depth_bilinear(depth.camera, depth_m, uv, min_d, k.mu_m);
+      }
+    }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
+    for (int i = 0; i < kSlice; ++i) {
+      const Vec3f p = voxel_c(i);
+      int px;
+      bool inside;
+      float d;
       if constexpr (kBilinearDepth) {
-        // A loop of its own: folded into the loop below, it keeps that loop from vectorizing.
-        for (int x = 0; x < kBlockSide; ++x) {
-          const float xf = static_cast<float>(x);
-          const Vec3f p{row.x + step_x.x * xf, row.y + step_x.y * xf, row.z + step_x.z * xf};
-          const Vec2f uv = depth.camera.project(p);
-          inside_word[x] = nearest_pixel(depth.camera, uv, p.z, &projected[x]);
-          interpolated[x] = depth_bilinear(depth.camera, depth_m, uv, min_d, k.mu_m);
-        }
+        px = projected[i];
+        inside = inside_word[i] != 0u;
+        d = interpolated[i];
+      } else {
+        inside = project_to_pixel(depth.camera, p, &px);
+        d = depth_m[px];
       }
+      const bool observed = inside & (d >= min_d) & (d <= max_d) & (d - p.z >= -k.mu_m);
+      eta[i] = d - p.z;
+      const uint32_t word = out[i];
+      const uint32_t fused = fuse_tsdf_word(word, eta[i], k.inv_mu, k.max_weight);
+      // Selects written as bit operations: a ternary lets the compiler sink the update into
+      // a branch, which blocks vectorization.
+      const uint32_t keep = static_cast<uint32_t>(observed) - 1u;  // all ones when unobserved
+      const uint32_t result = (fused & ~keep) | (word & keep);
+      out[i] = result;
+      pixel[i] = px | static_cast<int>(keep);
+      any_pixel[i] = px;
+      near_mask[i] = 0u - static_cast<uint32_t>(observed & (eta[i] < k.mu_m));
+      const int t = (result >> 16) != 0u ? tsdf_of_word(result) : static_cast<int>(kTsdfScale);
+      min_tsdf = t < min_tsdf ? t : min_tsdf;
+    }
+    if (colors == nullptr) continue;
+    if (color.packed != nullptr) {  // registered colour: the same pixel, vectorized
+      uint32_t* out_c = reinterpret_cast<uint32_t*>(colors + voxel_index(0, 0, z));
+      const uint32_t* packed = color.packed;
+      // Voxels and image never overlap: say so, or the gather blocks vectorization.
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC ivdep
 #endif
-      for (int x = 0; x < kBlockSide; ++x) {
-        const float xf = static_cast<float>(x);
-        const Vec3f p{row.x + step_x.x * xf, row.y + step_x.y * xf, row.z + step_x.z * xf};
-        int px;
-        bool inside;
-        float d;
-        if constexpr (kBilinearDepth) {
-          px = projected[x];
-          inside = inside_word[x] != 0u;
-          d = interpolated[x];
-        } else {
-          inside = project_to_pixel(depth.camera, p, &px);
-          d = depth_m[px];
-        }
-        const bool observed = inside & (d >= min_d) & (d <= max_d) & (d - p.z >= -k.mu_m);
-        eta[x] = d - p.z;
-        const uint32_t word = out[x];
-        const uint32_t fused = fuse_tsdf_word(word, eta[x], k.inv_mu, k.max_weight);
-        // Selects written as bit operations: a ternary lets the compiler sink the update into
-        // a branch, which blocks vectorization.
-        const uint32_t keep = static_cast<uint32_t>(observed) - 1u;  // all ones when unobserved
-        const uint32_t result = (fused & ~keep) | (word & keep);
-        out[x] = result;
-        pixel[x] = px | static_cast<int>(keep);
-        any_pixel[x] = px;
-        near_mask[x] = 0u - static_cast<uint32_t>(observed & (eta[x] < k.mu_m));
-        const int t = (result >> 16) != 0u ? tsdf_of_word(result) : static_cast<int>(kTsdfScale);
-        min_tsdf = t < min_tsdf ? t : min_tsdf;
+      for (int i = 0; i < kSlice; ++i) {
+        const uint32_t word = out_c[i];
+        const uint32_t fused = fuse_color_word(word, packed[any_pixel[i]], k.max_weight);
+        out_c[i] = (fused & near_mask[i]) | (word & ~near_mask[i]);
       }
-      if (colors == nullptr) continue;
-      if (color.packed != nullptr) {  // registered colour: the same pixel, vectorized
-        uint32_t* out_c = reinterpret_cast<uint32_t*>(colors + voxel_index(0, y, z));
-        const uint32_t* packed = color.packed;
-        // Voxels and image never overlap: say so, or the gather blocks vectorization.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC ivdep
-#endif
-        for (int x = 0; x < kBlockSide; ++x) {
-          const uint32_t word = out_c[x];
-          const uint32_t fused = fuse_color_word(word, packed[any_pixel[x]], k.max_weight);
-          out_c[x] = (fused & near_mask[x]) | (word & ~near_mask[x]);
-        }
-        continue;
+      continue;
+    }
+    for (int i = 0; i < kSlice; ++i) {
+      if (pixel[i] < 0 || eta[i] >= k.mu_m) continue;  // colour only near the surface
+      int c = pixel[i];
+      if (!color.registered) {
+        if (!project_to_pixel(color.camera, color.T_color_depth * voxel_c(i), &c)) continue;
       }
-      for (int x = 0; x < kBlockSide; ++x) {
-        if (pixel[x] < 0 || eta[x] >= k.mu_m) continue;  // colour only near the surface
-        int c = pixel[x];
-        if (!color.registered) {
-          if (!project_to_pixel(color.camera,
-                                color.T_color_depth * (row + step_x * static_cast<float>(x)), &c))
-            continue;
-        }
-        fuse_color(colors[voxel_index(x, y, z)], color.image.data[c], k.max_weight);
-      }
+      fuse_color(colors[voxel_index(0, 0, z) + i], color.image.data[c], k.max_weight);
     }
   }
   BlockMeta& meta = map.meta[ptr];
@@ -415,9 +419,9 @@ HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i&
                                      const DepthFrameView& depth, const ColorFrameView& color,
                                      const IntegrationConstants& k) {
   if (k.bilinear_depth)
-    integrate_block_rows<true>(map, level, pos, ptr, depth, color, k);
+    integrate_block_slices<true>(map, level, pos, ptr, depth, color, k);
   else
-    integrate_block_rows<false>(map, level, pos, ptr, depth, color, k);
+    integrate_block_slices<false>(map, level, pos, ptr, depth, color, k);
 }
 
 }  // namespace hivox::kernels
