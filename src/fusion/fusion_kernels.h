@@ -180,12 +180,6 @@ HIVOX_HD inline bool band_segment(const DepthFrameView& frame, const Rigid3f& T_
 
 /// Running weighted average of the truncated signed distance (KinectFusion):
 /// F <- (W F + f) / (W + 1), W <- min(W + 1, W_max), with f = min(1, eta / mu), eta >= -mu.
-/// The int16 TSDF of a voxel's 32-bit word (int16 TSDF low, uint16 weight high), sign-extended
-/// in 32 bits: no 16-bit type in a row's loop, which would hold it to 16-byte vectors.
-HIVOX_HD inline int32_t tsdf_of_word(uint32_t word) {
-  return static_cast<int32_t>(word << 16) >> 16;
-}
-
 /// Works on the voxel's 32-bit word (int16 TSDF low, uint16 weight high) so that a row of
 /// voxels vectorizes.
 HIVOX_HD inline uint32_t fuse_tsdf_word(uint32_t word, float eta_m, float inv_mu, int max_weight) {

@@ -284,11 +284,29 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
   return true;
 }
 
+enum class CellRead { Sampled, Unobserved, Absent };
+
+/// The trilinear sample of `cell` from `blocks` (the blocks around its block, see
+/// neighbour_blocks) when all 8 voxels are stored there: Sampled (`out` filled), Unobserved (a
+/// voxel has fewer than `min_weight` observations) or Absent (a corner's block is not stored at
+/// this level).
+HIVOX_HD inline CellRead read_trilinear(const MapView& map, const int32_t blocks[8],
+                                        const CellCoords& cell, int min_weight, TsdfSample* out) {
+  float v[8];
+  int min_w;
+  if (!read_cell(map, blocks, cell.local, nearest_corner(cell.t), v, &min_w, out))
+    return CellRead::Absent;
+  if (min_w < min_weight) return CellRead::Unobserved;
+  out->f = interpolate_trilinear(v, cell.t, &out->gradient);
+  return CellRead::Sampled;
+}
+
 /// The general case of `sample_trilinear`: the 8 voxels of `cell` span several blocks, and some
-/// may be stored at another level.
+/// may be stored at another level. `neighbours` (optional) remembers the blocks around the cell's
+/// block between calls.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     const MapView& map, BlockLookupCache& cache, int level, const CellCoords& cell, int min_weight,
-    TsdfSample* out) {
+    TsdfSample* out, NeighbourBlocks* neighbours = nullptr) {
   const Vec3f& q = cell.q;
   const Vec3i& base = cell.base;
   const Vec3f& t = cell.t;
@@ -296,16 +314,17 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
   float v[8];
   const int nearest = nearest_corner(t);
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
-  int32_t blocks[8];
-  neighbour_blocks(map, cache, level, cell.block, {local.x == 7, local.y == 7, local.z == 7},
-                   blocks);
+  int32_t own[8];
+  const int32_t* blocks = own;
+  if (neighbours != nullptr)
+    blocks = neighbours->get(map, cache, level, cell.block);
+  else
+    neighbour_blocks(map, cache, level, cell.block, {local.x == 7, local.y == 7, local.z == 7},
+                     own);
   // Usually every block the cell reaches into is stored at this level too.
-  int min_w;
-  if (read_cell(map, blocks, local, nearest, v, &min_w, out)) {
-    if (min_w < min_weight) return false;
-    out->f = interpolate_trilinear(v, t, &out->gradient);
-    return true;
-  }
+  const CellRead read = read_trilinear(map, blocks, cell, min_weight, out);
+  if (read != CellRead::Absent) return read == CellRead::Sampled;
+  if (map.levels == 1) return false;  // a corner's block is absent, and no other level has it
   Vec3f pos[8];
   bool regular = true;
   for (int c = 0; c < 8; ++c) {
@@ -370,19 +389,12 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
     out->f = interpolate_trilinear(v, cell.t, &out->gradient);
     return true;
   }
-  if (neighbours != nullptr) {
-    // Usually every block the cell reaches into is stored at this level too.
-    const int32_t* blocks = neighbours->get(map, cache, level, cell.block);
-    float v[8];
-    int min_w;
-    if (read_cell(map, blocks, cell.local, nearest_corner(cell.t), v, &min_w, out)) {
-      if (min_w < min_weight) return false;
-      out->f = interpolate_trilinear(v, cell.t, &out->gradient);
-      return true;
-    }
-    if (map.levels == 1) return false;  // a corner's block is absent, and no other level has it
+  if (neighbours != nullptr) {  // the usual case, inline: every corner stored at this level
+    const CellRead read =
+        read_trilinear(map, neighbours->get(map, cache, level, cell.block), cell, min_weight, out);
+    if (read != CellRead::Absent) return read == CellRead::Sampled;
   }
-  return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out);
+  return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out, neighbours);
 }
 
 /// F(p + h e_k) for k = x, y, z (h: the voxel size of `level`): the trilinear samples one voxel

@@ -80,7 +80,7 @@ struct CellBatch {
         const uint32_t word = words[index[c]];
         const uint32_t w = word >> 16;
         min_w = w < min_w ? w : min_w;
-        v[c] = tsdf_to_float(static_cast<int16_t>(word & 0xFFFFu));
+        v[c] = static_cast<float>(tsdf_of_word(word)) * (1.0f / kTsdfScale);
       }
       const Vec3f t{tx[i], ty[i], tz[i]};
       Vec3f g;
@@ -250,112 +250,85 @@ template <int kCapacity>
 void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLookups& lookups, int n,
                         const Vec3f* points, int min_weight, CellBatch<kCapacity>& cells,
                         TsdfSample* out, int* level, bool* sampled) {
-  // The level storing each point (where the search from the coarsest level ends); when the
-  // points found share one, their cells are addressed together.
+  // The block storing each point (where the search from the coarsest level ends; negative:
+  // none). On one level there is nothing to search: a point whose block is absent has a cell
+  // with an absent corner.
   int32_t located[kCapacity];
-  int common = map.levels == 1 ? 0 : -1;
-  if (map.levels > 1)
+  int common = map.levels == 1 ? 0 : -1;  // the level of every point found (-2: they differ)
+  for (int i = 0; i < n; ++i) {
+    level[i] = 0;
+    located[i] = 0;
+    if (map.levels == 1) continue;
+    Vec3i pos;
+    located[i] = lookups.locate(map, cache, points[i], &level[i], &pos);
+    if (located[i] >= 0) common = common == -1 || common == level[i] ? level[i] : -2;
+  }
+  // The cells: together where the points found share a level, else one by one.
+  uint8_t complete[kCapacity];
+  if (common < 0 ||
+      !address_cells_one_level<1>(map, cache, lookups.box, common, n, points, cells, complete)) {
     for (int i = 0; i < n; ++i) {
       Vec3i pos;
       located[i] = lookups.locate(map, cache, points[i], &level[i], &pos);
-      if (located[i] < 0) continue;
-      common = common == -1 || common == level[i] ? level[i] : -2;
-    }
-  uint8_t complete[kCapacity];
-  if (common >= 0 &&
-      address_cells_one_level<1>(map, cache, lookups.box, common, n, points, cells, complete)) {
-    cells.interpolate(map.tsdf, n, min_weight);
-    for (int i = 0; i < n; ++i) {
-      sampled[i] = false;
-      if (map.levels == 1) {
-        level[i] = 0;
-      } else if (located[i] < 0) {
-        continue;
+      complete[i] = false;
+      if (located[i] >= 0) {
+        // As sample_trilinear: the cell, and the blocks its 8 voxels lie in.
+        const CellCoords cell = cell_at(map.level[level[i]], points[i]);
+        complete[i] = cells.set_across(i, lookups.cells.get(map, cache, level[i], cell.block),
+                                       cell.local, cell.t);
       }
-      if (complete[i]) {
-        sampled[i] = cells.observed[i] != 0;
-        if (sampled[i]) out[i] = cells.sample(i);
-      } else if (map.levels > 1) {
-        // As below: a cell reaching into a region stored at another level is sampled there.
-        const CellCoords cell = cell_at(map.level[common], points[i]);
-        if (cell.spans_blocks())
-          sampled[i] =
-              sample_trilinear_across_blocks(map, cache, common, cell, min_weight, &out[i]);
-      }
-      // In a single-level map a cell with a corner in an absent block is unknown.
+      if (!complete[i]) cells.set_unused(i);
     }
-    return;
-  }
-  bool gathered[kCapacity];
-  for (int i = 0; i < n; ++i) {
-    Vec3i pos;
-    const int32_t ptr = lookups.locate(map, cache, points[i], &level[i], &pos);
-    gathered[i] = false;
-    sampled[i] = false;
-    if (ptr < 0) {
-      cells.set_unused(i);
-      continue;
-    }
-    const int l = level[i];
-    // As sample_trilinear: the cell, and the blocks its 8 voxels lie in.
-    const CellCoords cell = cell_at(map.level[l], points[i]);
-    const int32_t* blocks = lookups.cells.get(map, cache, l, cell.block);
-    gathered[i] = cells.set_across(i, blocks, cell.local, cell.t);
-    if (gathered[i]) continue;
-    cells.set_unused(i);
-    // A cell inside one block that is absent is unknown; one that reaches into a region
-    // stored at another level (or nowhere) is sampled there.
-    if (cell.spans_blocks())
-      sampled[i] = sample_trilinear_across_blocks(map, cache, l, cell, min_weight, &out[i]);
   }
   cells.interpolate(map.tsdf, n, min_weight);
   for (int i = 0; i < n; ++i) {
-    if (!gathered[i]) continue;
-    sampled[i] = cells.observed[i] != 0;
-    if (sampled[i]) out[i] = cells.sample(i);
+    sampled[i] = false;
+    if (located[i] < 0) continue;
+    if (complete[i]) {
+      sampled[i] = cells.observed[i] != 0;
+      if (sampled[i]) out[i] = cells.sample(i);
+      continue;
+    }
+    // A cell inside one block that is absent is unknown; one that reaches into a region stored
+    // at another level (or nowhere) is sampled there.
+    const CellCoords cell = cell_at(map.level[level[i]], points[i]);
+    if (cell.spans_blocks())
+      sampled[i] = sample_trilinear_across_blocks(map, cache, level[i], cell, min_weight, &out[i],
+                                                  &lookups.cells);
   }
 }
 
 /// `samples_one_voxel_ahead` for `n` surface points at once (point `points[i]` at level
-/// `level[i]`): `ok[i]` and `ahead[i]` are what it gives. `cells` holds 3 cells per point.
+/// `level[i]`): `ok[i]` and `ahead[i]` are what it gives. `cells` holds 3 cells per point, cell
+/// k of point i at k * n + i.
 template <int kCapacity>
 void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
                                     PacketLookups& lookups, int n, const Vec3f* points,
                                     const int* level, int min_weight, CellBatch<kCapacity>& cells,
                                     Vec3f* ahead, bool* ok) {
+  if (n == 0) return;
   bool common = true;
   for (int i = 1; i < n; ++i) common = common && level[i] == level[0];
   uint8_t complete[kCapacity];
-  if (n > 0 && common &&
-      address_cells_one_level<3>(map, cache, lookups.box, level[0], n, points, cells, complete)) {
-    cells.interpolate(map.tsdf, 3 * n, min_weight);
+  if (!common ||
+      !address_cells_one_level<3>(map, cache, lookups.box, level[0], n, points, cells, complete)) {
     for (int i = 0; i < n; ++i) {
-      ok[i] = true;
+      const CellCoords cell = cell_at(map.level[level[i]], points[i]);
+      const int32_t* blocks = lookups.cells.get(map, cache, level[i], cell.block);
+      const Vec3i& local = cell.local;
       for (int k = 0; k < 3; ++k) {
-        ok[i] = ok[i] && complete[k * n + i] && cells.observed[k * n + i];
-        ahead[i][k] = cells.f[k * n + i];
-      }
-    }
-    return;
-  }
-  for (int i = 0; i < n; ++i) {
-    const CellCoords cell = cell_at(map.level[level[i]], points[i]);
-    const int32_t* blocks = lookups.cells.get(map, cache, level[i], cell.block);
-    const Vec3i& local = cell.local;
-    ok[i] = true;
-    for (int k = 0; k < 3; ++k) {
-      const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
-      if (!ok[i] || !cells.set_across(3 * i + k, blocks, origin, cell.t)) {
-        ok[i] = false;
-        cells.set_unused(3 * i + k);
+        const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
+        complete[k * n + i] = cells.set_across(k * n + i, blocks, origin, cell.t);
+        if (!complete[k * n + i]) cells.set_unused(k * n + i);
       }
     }
   }
   cells.interpolate(map.tsdf, 3 * n, min_weight);
   for (int i = 0; i < n; ++i) {
+    ok[i] = true;
     for (int k = 0; k < 3; ++k) {
-      ok[i] = ok[i] && cells.observed[3 * i + k] != 0;
-      ahead[i][k] = cells.f[3 * i + k];
+      ok[i] = ok[i] && complete[k * n + i] && cells.observed[k * n + i];
+      ahead[i][k] = cells.f[k * n + i];
     }
   }
 }

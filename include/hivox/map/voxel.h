@@ -42,6 +42,13 @@ HIVOX_HD inline int16_t tsdf_from_float(float f) {
   return static_cast<int16_t>(floorf(f * kTsdfScale + 0.5f));
 }
 
+/// A TsdfVoxel read as one 32-bit word (int16 TSDF low, uint16 weight high), as the vectorized
+/// kernels read it: its TSDF sign-extended in 32 bits (a 16-bit type in a loop would hold the
+/// loop to narrower vectors).
+HIVOX_HD inline int32_t tsdf_of_word(uint32_t word) {
+  return static_cast<int32_t>(word << 16) >> 16;
+}
+
 /// Linear index of voxel (x, y, z) inside a block; x runs fastest.
 HIVOX_HD inline int voxel_index(int x, int y, int z) {
   return x + kBlockSide * (y + kBlockSide * z);
