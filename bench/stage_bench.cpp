@@ -33,7 +33,8 @@ struct Workload {
   std::unique_ptr<DatasetReader> reader;
   std::unique_ptr<VoxelBlockMap> map;
   FusionParams fusion;
-  RgbdFrame frame;  // the frame each benchmark processes
+  RgbdFrame frame;                        // the frame each benchmark processes
+  Pose previous_T_wc = Pose::Identity();  // the pose of the frame before it
   FusionInput input;
   std::string name;
   bool frame_fused = false;
@@ -54,6 +55,7 @@ struct Workload {
       const RgbdFrame f = reader->read(i);
       if (!f.T_wc_gt) continue;
       const FusionInput in = make_input(f);
+      previous_T_wc = in.T_wc;
       integrator.fuse(*map, in);
       if (mp.levels > 1)
         refiner.refine(*map, integrator.visible_blocks(), fusion.truncation_m, in.T_wc);
@@ -111,24 +113,42 @@ void BM_Integrate(benchmark::State& state) {
   state.SetLabel(std::string(to_string(fp.depth_sampling)));
 }
 
-void raycast(benchmark::State& state, bool hinted) {
+enum class RaycastHints { None, Depth, DepthAndWarped };
+
+void raycast(benchmark::State& state, RaycastHints hints) {
   Workload& w = workload();
   w.fuse_frame_once();  // as in the pipeline: the frame is fused, then raycast
   RaycastParams rp;
   rp.truncation_m = w.fusion.truncation_m;
   Raycaster raycaster(rp);
+  DepthImage hint = w.frame.depth_m;
+  if (hints == RaycastHints::DepthAndWarped) {
+    // As in the pipeline: where the frame has no depth, the previous frame's raycast warped.
+    Raycaster previous(rp);
+    previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
+    DepthImage warped;
+    warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
+                       &warped);
+    for (std::size_t i = 0; i < hint.size(); ++i)
+      if (!(hint.data()[i] > 0.0f)) hint.data()[i] = warped.data()[i];
+  }
   RaycastStats s;
   for (auto _ : state)
     raycaster.raycast(*w.map, w.input.depth_camera, w.input.T_wc, &s,
-                      hinted ? &w.frame.depth_m : nullptr);
+                      hints == RaycastHints::None ? nullptr : &hint);
   state.counters["hits"] = static_cast<double>(s.hits);
+  state.counters["at_hint"] = static_cast<double>(s.found_at_hint);
   state.counters["blocks"] = static_cast<double>(w.map->blocks_in_use());
 }
 void BM_Raycast(benchmark::State& state) {
-  raycast(state, false);
+  raycast(state, RaycastHints::None);
 }
 void BM_RaycastHinted(benchmark::State& state) {
-  raycast(state, true);
+  raycast(state, RaycastHints::Depth);
+}
+/// The pipeline's raycast: hints from the depth just fused and the previous raycast, warped.
+void BM_RaycastPipeline(benchmark::State& state) {
+  raycast(state, RaycastHints::DepthAndWarped);
 }
 
 void BM_ExtractMesh(benchmark::State& state) {
@@ -142,6 +162,7 @@ BENCHMARK(BM_Allocate)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Integrate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastHinted)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RaycastPipeline)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 }  // namespace

@@ -118,6 +118,84 @@ HIVOX_HD inline float interpolate_trilinear(const float v[8], const Vec3f& t, Ve
   return y0 + (y1 - y0) * t.z;
 }
 
+/// Where a ray crosses the surface from its front (the interpolant going from positive to
+/// non-positive) inside one trilinear cell of values `v`. The ray passes fractional position `t`
+/// with direction `dv` (cell units per unit of ray parameter; `inv_dv` its reciprocal per axis,
+/// any value of the right sign beyond 1e20 where a component is 0). It looks on the side of `t`
+/// the sign of the interpolant there calls for (ahead of a positive value, behind a
+/// non-positive one) as far as the ray stays in the cell. Along a ray the interpolant is a cubic
+/// in the ray parameter; its root in that bracket is found by false position with the Illinois
+/// rule (7 steps, then a secant), which is exact for the linear TSDF of a plane and within
+/// ~0.005 voxel even for cubics far more curved than a TSDF's. Returns false when that part of the
+/// ray has no sign change; otherwise the root's offset from `t` in ray parameter goes to `dz` and
+/// its fractional position to `t_hit`. Without branches, so that the cells of a ray packet solve in
+/// one vectorized loop.
+HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& t, const Vec3f& dv,
+                                                 const Vec3f& inv_dv, float* dz, Vec3f* t_hit) {
+  // The interpolant as a polynomial in the cell's coordinates, then along the ray:
+  // F(t + s dv) = p0 + s (p1 + s (p2 + s p3)).
+  const float cx = v[1] - v[0], cy = v[2] - v[0], cz = v[4] - v[0];
+  const float cxy = v[3] - v[2] - cx, cxz = v[5] - v[4] - cx, cyz = v[6] - v[4] - cy;
+  const float cxyz = v[7] - v[6] - v[5] + v[4] - v[3] + v[2] + cx;
+  const float fxy = cxy + cxyz * t.z, fxz = cxz + cxyz * t.y, fyz = cyz + cxyz * t.x;
+  const float fx = cx + cxy * t.y + cxz * t.z + cxyz * t.y * t.z;
+  const float fy = cy + cxy * t.x + cyz * t.z + cxyz * t.x * t.z;
+  const float fz = cz + cxz * t.x + cyz * t.y + cxyz * t.x * t.y;
+  const float p0 = v[0] + cx * t.x + cy * t.y + cz * t.z + cxy * t.x * t.y + cxz * t.x * t.z +
+                   cyz * t.y * t.z + cxyz * t.x * t.y * t.z;
+  const float p1 = fx * dv.x + fy * dv.y + fz * dv.z;
+  const float p2 = fxy * dv.x * dv.y + fxz * dv.x * dv.z + fyz * dv.y * dv.z;
+  const float p3 = cxyz * dv.x * dv.y * dv.z;
+  auto value_at = [&](float s) { return p0 + s * (p1 + s * (p2 + s * p3)); };
+  // The ray's segment inside the cell, [s_in, s_out] around t (s_in <= 0 <= s_out).
+  float s_in = -FLT_MAX, s_out = FLT_MAX;
+#pragma GCC unroll 3
+  for (int k = 0; k < 3; ++k) {
+    const float a = -t[k] * inv_dv[k], b = (1.0f - t[k]) * inv_dv[k];
+    const float lo = a < b ? a : b, hi = a < b ? b : a;
+    s_in = lo > s_in ? lo : s_in;
+    s_out = hi < s_out ? hi : s_out;
+  }
+  const bool ahead = p0 > 0.0f;
+  const float s_end = ahead ? s_out : s_in;
+  const float f_end = value_at(s_end);
+  // The bracket: a on the positive side, b on the other.
+  float a = ahead ? 0.0f : s_end, fa = ahead ? p0 : f_end;
+  float b = ahead ? s_end : 0.0f, fb = ahead ? f_end : p0;
+  const bool found = fa > 0.0f && fb <= 0.0f;
+  // The secant through the bracket's ends (fa > 0 >= fb keeps the denominator positive; the
+  // division is unconditional, its operand guarded: a vectorized loop cannot branch).
+  auto secant = [&] { return a + (b - a) * (fa / (found ? fa - fb : 1.0f)); };
+  int kept = 0;  // which end the last two steps kept (1: a, -1: b), for the Illinois rule
+#pragma GCC unroll 8
+  for (int i = 0; i < 7; ++i) {
+    const float m = secant();
+    const float fm = value_at(m);
+    const bool positive = fm > 0.0f;
+    // Replacing the same end twice in a row halves the other end's value (Illinois).
+    fb = positive && kept == -1 ? 0.5f * fb : fb;
+    fa = !positive && kept == 1 ? 0.5f * fa : fa;
+    kept = positive ? -1 : 1;
+    a = positive ? m : a;
+    fa = positive ? fm : fa;
+    b = positive ? b : m;
+    fb = positive ? fb : fm;
+  }
+  const float s = secant();
+  *dz = s;
+  *t_hit = Vec3f{clampf(t.x + dv.x * s, 0.0f, 1.0f), clampf(t.y + dv.y * s, 0.0f, 1.0f),
+                 clampf(t.z + dv.z * s, 0.0f, 1.0f)};
+  return found;
+}
+
+/// Per axis 1 / d, and a value of the right sign beyond 1e20 where d is 0 (crossing_in_cell's
+/// `inv_dv`).
+HIVOX_HD inline Vec3f inverse_direction(const Vec3f& d) {
+  Vec3f inv;
+  for (int k = 0; k < 3; ++k) inv[k] = 1.0f / (fabsf(d[k]) > 1e-20f ? d[k] : 1e-30f);
+  return inv;
+}
+
 /// The interpolation cell of a level around a point: `q` the point in voxel units, `base` the
 /// cell's lowest voxel (global voxel coordinates), `local` that voxel's place in its block,
 /// `block` that block, `t` the point's fractional position in the cell.
@@ -144,13 +222,40 @@ HIVOX_HD inline int nearest_corner(const Vec3f& t) {
   return (t.x >= 0.5f ? 1 : 0) | (t.y >= 0.5f ? 2 : 0) | (t.z >= 0.5f ? 4 : 0);
 }
 
+/// TsdfSample::crossing_dz of a sample without a crossing.
+constexpr float kNoCrossing = FLT_MAX;
+
 /// A TSDF sample: value, gradient (per voxel of its level) and the voxel nearest to the point.
 struct TsdfSample {
   float f = 1.0f;
   Vec3f gradient;  ///< dF / d(voxel) of the interpolant at the point
   int32_t nearest_ptr = kPtrEmpty;
   int nearest_index = 0;  ///< voxel index inside `nearest_ptr`
+  /// Samplers given a ray also look for its crossing inside the sample's trilinear cell
+  /// (crossing_in_cell): where they find one, this is its offset in ray parameter from the
+  /// sampled point, and the sample describes the crossing (value ~0, its gradient and nearest
+  /// voxel) instead of the point; otherwise kNoCrossing.
+  float crossing_dz = kNoCrossing;
+  HIVOX_HD bool at_crossing() const { return crossing_dz != kNoCrossing; }
 };
+
+/// Fills `out` from cell values `v` at fractional position `t`; given a ray (`dv`, its direction
+/// in cell units per unit of ray parameter) that crosses the surface inside the cell, at that
+/// crossing instead (see TsdfSample::crossing_dz). Returns the corner nearest to the point
+/// described (corner c as in read_cell).
+HIVOX_HD inline int sample_cell(const float v[8], const Vec3f& t, const Vec3f* dv,
+                                TsdfSample* out) {
+  Vec3f at = t;
+  out->crossing_dz = kNoCrossing;
+  float dz;
+  Vec3f t_hit;
+  if (dv != nullptr && crossing_in_cell(v, t, *dv, inverse_direction(*dv), &dz, &t_hit)) {
+    at = t_hit;
+    out->crossing_dz = dz;
+  }
+  out->f = interpolate_trilinear(v, at, &out->gradient);
+  return nearest_corner(at);
+}
 
 /// The block of a coarser level holding the region of block `pos` of `level` (when `level`
 /// itself has no block there): its ptr, its level in `holder_level`; kPtrEmpty when no coarser
@@ -263,10 +368,10 @@ HIVOX_HD inline int cell_corner(const int32_t blocks[8], const Vec3i& origin, in
 
 /// Reads the 8 voxels of the cell whose lowest voxel is `origin` (coordinates from the origin of
 /// `blocks`' first block, see neighbour_blocks) into `v` (corner c = (c & 1, (c >> 1) & 1,
-/// c >> 2)) and their smallest weight into `min_w`; the voxel of corner `nearest` (-1: none) is
-/// noted in `out`. Returns false when a corner's block is not stored at this level.
+/// c >> 2)) and their smallest weight into `min_w`. Returns false when a corner's block is not
+/// stored at this level.
 HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], const Vec3i& origin,
-                               int nearest, float v[8], int* min_w, TsdfSample* out = nullptr) {
+                               float v[8], int* min_w) {
   int w = 65535;
   for (int c = 0; c < 8; ++c) {
     int32_t ptr;
@@ -275,10 +380,6 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
     w = vox.weight < w ? vox.weight : w;
     v[c] = tsdf_to_float(vox.tsdf);
-    if (c == nearest) {
-      out->nearest_ptr = ptr;
-      out->nearest_index = i;
-    }
   }
   *min_w = w;
   return true;
@@ -287,26 +388,28 @@ HIVOX_HD inline bool read_cell(const MapView& map, const int32_t blocks[8], cons
 enum class CellRead { Sampled, Unobserved, Absent };
 
 /// The trilinear sample of `cell` from `blocks` (the blocks around its block, see
-/// neighbour_blocks) when all 8 voxels are stored there: Sampled (`out` filled), Unobserved (a
-/// voxel has fewer than `min_weight` observations) or Absent (a corner's block is not stored at
-/// this level).
+/// neighbour_blocks) when all 8 voxels are stored there: Sampled (`out` filled, see sample_cell
+/// for `dv`), Unobserved (a voxel has fewer than `min_weight` observations) or Absent (a corner's
+/// block is not stored at this level).
 HIVOX_HD inline CellRead read_trilinear(const MapView& map, const int32_t blocks[8],
-                                        const CellCoords& cell, int min_weight, TsdfSample* out) {
+                                        const CellCoords& cell, int min_weight, TsdfSample* out,
+                                        const Vec3f* dv = nullptr) {
   float v[8];
   int min_w;
-  if (!read_cell(map, blocks, cell.local, nearest_corner(cell.t), v, &min_w, out))
-    return CellRead::Absent;
+  if (!read_cell(map, blocks, cell.local, v, &min_w)) return CellRead::Absent;
   if (min_w < min_weight) return CellRead::Unobserved;
-  out->f = interpolate_trilinear(v, cell.t, &out->gradient);
+  const int nearest = sample_cell(v, cell.t, dv, out);
+  out->nearest_index = cell_corner(blocks, cell.local, nearest, &out->nearest_ptr);
   return CellRead::Sampled;
 }
 
 /// The general case of `sample_trilinear`: the 8 voxels of `cell` span several blocks, and some
 /// may be stored at another level. `neighbours` (optional) remembers the blocks around the cell's
-/// block between calls.
+/// block between calls. `dv` (optional): as in sample_cell; only a cell whose voxels are all
+/// stored at `level` is searched for a crossing.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     const MapView& map, BlockLookupCache& cache, int level, const CellCoords& cell, int min_weight,
-    TsdfSample* out, NeighbourBlocks* neighbours = nullptr) {
+    TsdfSample* out, NeighbourBlocks* neighbours = nullptr, const Vec3f* dv = nullptr) {
   const Vec3f& q = cell.q;
   const Vec3i& base = cell.base;
   const Vec3f& t = cell.t;
@@ -322,9 +425,10 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     neighbour_blocks(map, cache, level, cell.block, {local.x == 7, local.y == 7, local.z == 7},
                      own);
   // Usually every block the cell reaches into is stored at this level too.
-  const CellRead read = read_trilinear(map, blocks, cell, min_weight, out);
+  const CellRead read = read_trilinear(map, blocks, cell, min_weight, out, dv);
   if (read != CellRead::Absent) return read == CellRead::Sampled;
   if (map.levels == 1) return false;  // a corner's block is absent, and no other level has it
+  out->crossing_dz = kNoCrossing;
   Vec3f pos[8];
   bool regular = true;
   for (int c = 0; c < 8; ++c) {
@@ -358,18 +462,23 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
 /// samples and the irregular-grid interpolant through their actual positions is used
 /// (trilinear on their values if the positions are degenerate). Fails (returns false) when a
 /// corner is not stored at any level or has fewer than `min_weight` observations: unknown space
-/// must never look like surface.
+/// must never look like surface. Given the direction `ray_d` (metres per unit of ray parameter)
+/// of a ray through `p_w`, a trilinear cell also gives the ray's crossing inside it (see
+/// TsdfSample::crossing_dz).
 HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
                                       const Vec3f& p_w, int min_weight, TsdfSample* out,
                                       const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
                                       int32_t known_ptr = kPtrEmpty,
-                                      NeighbourBlocks* neighbours = nullptr) {
+                                      NeighbourBlocks* neighbours = nullptr,
+                                      const Vec3f* ray_d = nullptr) {
   const CellCoords cell = cell_at(map.level[level], p_w);
+  Vec3f dv;
+  if (ray_d != nullptr) dv = *ray_d * map.level[level].inv_voxel_size;
+  const Vec3f* dv_or_null = ray_d != nullptr ? &dv : nullptr;
   if (!cell.spans_blocks()) {
     // Most samples: the 8 voxels lie in one block (often the caller's).
     const Vec3i& block = cell.block;
     const Vec3i& local = cell.local;
-    const int nearest = nearest_corner(cell.t);
     float v[8];
     const int32_t ptr = block == known_block ? known_ptr : cache.find(map, level, block);
     if (ptr < 0) return false;
@@ -385,16 +494,16 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
     }
     if (min_w < min_weight) return false;
     out->nearest_ptr = ptr;
-    out->nearest_index = i0 + offsets[nearest];
-    out->f = interpolate_trilinear(v, cell.t, &out->gradient);
+    out->nearest_index = i0 + offsets[sample_cell(v, cell.t, dv_or_null, out)];
     return true;
   }
   if (neighbours != nullptr) {  // the usual case, inline: every corner stored at this level
-    const CellRead read =
-        read_trilinear(map, neighbours->get(map, cache, level, cell.block), cell, min_weight, out);
+    const CellRead read = read_trilinear(map, neighbours->get(map, cache, level, cell.block), cell,
+                                         min_weight, out, dv_or_null);
     if (read != CellRead::Absent) return read == CellRead::Sampled;
   }
-  return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out, neighbours);
+  return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out, neighbours,
+                                        dv_or_null);
 }
 
 /// F(p + h e_k) for k = x, y, z (h: the voxel size of `level`): the trilinear samples one voxel
@@ -414,7 +523,7 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
     float v[8];
     int min_w;
     const Vec3i origin{local.x + (k == 0), local.y + (k == 1), local.z + (k == 2)};
-    if (!read_cell(map, blocks, origin, -1, v, &min_w) || min_w < min_weight) return false;
+    if (!read_cell(map, blocks, origin, v, &min_w) || min_w < min_weight) return false;
     Vec3f unused;
     (*ahead)[k] = interpolate_trilinear(v, cell.t, &unused);
   }
@@ -466,13 +575,14 @@ HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCa
   return true;
 }
 
-/// The TSDF at `p_w`, at whatever level stores it.
+/// The TSDF at `p_w`, at whatever level stores it (with `ray_d`: see sample_trilinear).
 HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
-                                 int min_weight, TsdfSample* out, int* level) {
+                                 int min_weight, TsdfSample* out, int* level,
+                                 const Vec3f* ray_d = nullptr) {
   Vec3i pos;
   const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
   if (ptr < 0) return false;
-  return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr);
+  return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr, nullptr, ray_d);
 }
 
 }  // namespace hivox::kernels

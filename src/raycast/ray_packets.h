@@ -28,13 +28,22 @@ struct CellBatch {
   alignas(64) float tx[kCapacity];
   alignas(64) float ty[kCapacity];
   alignas(64) float tz[kCapacity];
+  // The ray through each cell's point, in cell units per unit of ray parameter, and its inverse
+  // (for interpolate<true>, see crossing_in_cell).
+  alignas(64) float dvx[kCapacity];
+  alignas(64) float dvy[kCapacity];
+  alignas(64) float dvz[kCapacity];
+  alignas(64) float inv_dvx[kCapacity];
+  alignas(64) float inv_dvy[kCapacity];
+  alignas(64) float inv_dvz[kCapacity];
   // Outputs of interpolate().
   alignas(64) float f[kCapacity];
   alignas(64) float gx[kCapacity];
   alignas(64) float gy[kCapacity];
   alignas(64) float gz[kCapacity];
-  alignas(64) int32_t nearest[kCapacity];   ///< pool index of the voxel nearest to the point
-  alignas(64) uint8_t observed[kCapacity];  ///< every corner has the minimum weight
+  alignas(64) int32_t nearest[kCapacity];    ///< pool index of the voxel nearest to the point
+  alignas(64) int32_t observed[kCapacity];   ///< every corner has the minimum weight (0 or 1)
+  alignas(64) float crossing_dz[kCapacity];  ///< TsdfSample::crossing_dz
 
   /// Cell `i` with its lowest voxel at `origin`, counted from the first of `blocks` (see
   /// neighbour_blocks). Returns false when a corner's block is not stored at this level.
@@ -53,6 +62,16 @@ struct CellBatch {
   void set_unused(int i) {
     for (int c = 0; c < 8; ++c) voxel[c][i] = 0;
     set_t(i, Vec3f{});
+    set_ray(i, Vec3f{});
+  }
+  void set_ray(int i, const Vec3f& dv) {
+    dvx[i] = dv.x;
+    dvy[i] = dv.y;
+    dvz[i] = dv.z;
+    const Vec3f inv = inverse_direction(dv);
+    inv_dvx[i] = inv.x;
+    inv_dvy[i] = inv.y;
+    inv_dvz[i] = inv.z;
   }
   void set_t(int i, const Vec3f& t) {
     tx[i] = t.x;
@@ -61,7 +80,9 @@ struct CellBatch {
   }
 
   /// Interpolates cells [0, n): the values, gradients and nearest voxels `sample_trilinear`
-  /// gives, in one vectorized loop.
+  /// gives, in one vectorized loop; `kWithRay`: given the rays (set_ray), as it gives them with
+  /// a ray (at the crossing inside the cell where there is one).
+  template <bool kWithRay>
   void interpolate(const TsdfVoxel* pool, int n, int min_weight) {
     // Whole vectors only: the loop's scalar remainder would cost more than the padding.
     static_assert(kCapacity % kLanes == 0);
@@ -82,7 +103,18 @@ struct CellBatch {
         min_w = w < min_w ? w : min_w;
         v[c] = static_cast<float>(tsdf_of_word(word)) * (1.0f / kTsdfScale);
       }
-      const Vec3f t{tx[i], ty[i], tz[i]};
+      Vec3f t{tx[i], ty[i], tz[i]};
+      crossing_dz[i] = kNoCrossing;
+      if constexpr (kWithRay) {
+        float dz;
+        Vec3f t_hit;
+        const bool crossing = crossing_in_cell(v, t, {dvx[i], dvy[i], dvz[i]},
+                                               {inv_dvx[i], inv_dvy[i], inv_dvz[i]}, &dz, &t_hit);
+        crossing_dz[i] = crossing ? dz : kNoCrossing;
+        t.x = crossing ? t_hit.x : t.x;
+        t.y = crossing ? t_hit.y : t.y;
+        t.z = crossing ? t_hit.z : t.z;
+      }
       Vec3f g;
       f[i] = interpolate_trilinear(v, t, &g);
       gx[i] = g.x;
@@ -106,6 +138,7 @@ struct CellBatch {
     s.gradient = {gx[i], gy[i], gz[i]};
     s.nearest_ptr = nearest[i] / kBlockVoxels;
     s.nearest_index = nearest[i] % kBlockVoxels;
+    s.crossing_dz = crossing_dz[i];
     return s;
   }
 };
@@ -153,7 +186,7 @@ struct BlockBox {
 template <int kPerPoint, int kCapacity>
 bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockBox& box, int l,
                              int n, const Vec3f* points, CellBatch<kCapacity>& cells,
-                             uint8_t* complete) {
+                             int32_t* complete) {
   static_assert(kPerPoint == 1 || kPerPoint == 3);
   constexpr int kPoints = kCapacity / kPerPoint;
   const float inv_voxel = map.level[l].inv_voxel_size;
@@ -202,7 +235,7 @@ bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockB
                   dz = kPerPoint == 3 && k == 2;
     int32_t* voxel[8];
     for (int c = 0; c < 8; ++c) voxel[c] = cells.voxel[c] + k * n;
-    uint8_t* done = complete + k * n;
+    int32_t* done = complete + k * n;
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC ivdep
 #endif
@@ -245,11 +278,11 @@ struct PacketLookups {
 };
 
 /// `sample_tsdf` at `n` points at once: `sampled[i]`, `out[i]` and `level[i]` are what
-/// sample_tsdf(points[i]) gives.
+/// sample_tsdf(points[i], &dirs[i]) gives (without `dirs`, nullptr: sample_tsdf(points[i])).
 template <int kCapacity>
 void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLookups& lookups, int n,
-                        const Vec3f* points, int min_weight, CellBatch<kCapacity>& cells,
-                        TsdfSample* out, int* level, bool* sampled) {
+                        const Vec3f* points, const Vec3f* dirs, int min_weight,
+                        CellBatch<kCapacity>& cells, TsdfSample* out, int* level, bool* sampled) {
   // The block storing each point (where the search from the coarsest level ends; negative:
   // none). On one level there is nothing to search: a point whose block is absent has a cell
   // with an absent corner.
@@ -264,7 +297,7 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
     if (located[i] >= 0) common = common == -1 || common == level[i] ? level[i] : -2;
   }
   // The cells: together where the points found share a level, else one by one.
-  uint8_t complete[kCapacity];
+  int32_t complete[kCapacity];
   if (common < 0 ||
       !address_cells_one_level<1>(map, cache, lookups.box, common, n, points, cells, complete)) {
     for (int i = 0; i < n; ++i) {
@@ -280,7 +313,12 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
       if (!complete[i]) cells.set_unused(i);
     }
   }
-  cells.interpolate(map.tsdf, n, min_weight);
+  if (dirs != nullptr) {
+    for (int i = 0; i < n; ++i) cells.set_ray(i, dirs[i] * map.level[level[i]].inv_voxel_size);
+    cells.template interpolate<true>(map.tsdf, n, min_weight);
+  } else {
+    cells.template interpolate<false>(map.tsdf, n, min_weight);
+  }
   for (int i = 0; i < n; ++i) {
     sampled[i] = false;
     if (located[i] < 0) continue;
@@ -292,9 +330,11 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
     // A cell inside one block that is absent is unknown; one that reaches into a region stored
     // at another level (or nowhere) is sampled there.
     const CellCoords cell = cell_at(map.level[level[i]], points[i]);
-    if (cell.spans_blocks())
+    if (cell.spans_blocks()) {
+      const Vec3f dv = dirs != nullptr ? dirs[i] * map.level[level[i]].inv_voxel_size : Vec3f{};
       sampled[i] = sample_trilinear_across_blocks(map, cache, level[i], cell, min_weight, &out[i],
-                                                  &lookups.cells);
+                                                  &lookups.cells, dirs != nullptr ? &dv : nullptr);
+    }
   }
 }
 
@@ -309,7 +349,7 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
   if (n == 0) return;
   bool common = true;
   for (int i = 1; i < n; ++i) common = common && level[i] == level[0];
-  uint8_t complete[kCapacity];
+  int32_t complete[kCapacity];
   if (!common ||
       !address_cells_one_level<3>(map, cache, lookups.box, level[0], n, points, cells, complete)) {
     for (int i = 0; i < n; ++i) {
@@ -323,7 +363,7 @@ void samples_one_voxel_ahead_packet(const MapView& map, BlockLookupCache& cache,
       }
     }
   }
-  cells.interpolate(map.tsdf, 3 * n, min_weight);
+  cells.template interpolate<false>(map.tsdf, 3 * n, min_weight);
   for (int i = 0; i < n; ++i) {
     ok[i] = true;
     for (int k = 0; k < 3; ++k) {

@@ -97,8 +97,10 @@ struct RayHit {
 
 /// A crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0), refined by secant steps until the
 /// bracket spans at most a voxel (`voxel_z`, in ray parameter) or `kMaxSteps` samples were
-/// taken. `best` is the last sample that succeeded (initially the one at z_hi), `level` its level.
-/// The scalar refinement (`refine_crossing`) and the CPU driver's ray packets take the same steps.
+/// taken, or until a sample finds the crossing inside its cell (the samples are taken with the
+/// ray, see TsdfSample::crossing_dz), which ends it `exact`. `best` is the last sample that
+/// succeeded (initially the one at z_hi), `level` its level. The scalar refinement
+/// (`refine_crossing`) and the CPU driver's ray packets take the same steps.
 struct CrossingBracket {
   static constexpr int kMaxSteps = 4;
   float z_lo = 0, f_lo = 0, z_hi = 0, f_hi = 0;
@@ -106,6 +108,7 @@ struct CrossingBracket {
   TsdfSample best;
   int level = 0;
   int steps = 0;
+  bool exact = false;  ///< z_lo = z_hi is the crossing, found inside the cell of `best`
 };
 
 HIVOX_HD inline CrossingBracket make_bracket(const MapView& map, const Vec3f& d, float z_lo,
@@ -122,9 +125,19 @@ HIVOX_HD inline CrossingBracket make_bracket(const MapView& map, const Vec3f& d,
   return b;
 }
 
+/// The bracket of a crossing that sample `s`, taken at `z` (level `level`), found inside its
+/// cell (s.at_crossing()).
+HIVOX_HD inline CrossingBracket exact_bracket(const MapView& map, const Vec3f& d, float z,
+                                              const TsdfSample& s, int level) {
+  const float z_hit = z + s.crossing_dz;
+  CrossingBracket b = make_bracket(map, d, z_hit, s.f, z_hit, s.f, s, level);
+  b.exact = true;
+  return b;
+}
+
 /// Where the secant through the bracket's ends crosses zero: the next sample, and the hit.
 HIVOX_HD inline float bracket_secant(const CrossingBracket& b) {
-  return b.z_lo + (b.z_hi - b.z_lo) * b.f_lo / (b.f_lo - b.f_hi);
+  return b.exact ? b.z_lo : b.z_lo + (b.z_hi - b.z_lo) * b.f_lo / (b.f_lo - b.f_hi);
 }
 
 /// Takes the sample at `bracket_secant(b)` (`sampled` false: it failed). Returns true when the
@@ -135,6 +148,11 @@ HIVOX_HD inline bool bracket_update(CrossingBracket& b, float zm, bool sampled,
   if (!sampled) return true;
   b.best = sm;
   b.level = level_m;
+  if (sm.at_crossing()) {
+    b.exact = true;
+    b.z_lo = b.z_hi = zm + sm.crossing_dz;
+    return true;
+  }
   if (sm.f > 0.0f) {
     b.z_lo = zm;
     b.f_lo = sm.f;
@@ -160,11 +178,11 @@ HIVOX_HD inline void bracket_hit(const CrossingBracket& b, const Vec3f& o, const
 HIVOX_HD inline void refine_bracket(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                     const Vec3f& d, CrossingBracket b, const RayMarchConstants& k,
                                     RayHit* hit) {
-  for (;;) {
+  while (!b.exact) {
     const float zm = bracket_secant(b);
     TsdfSample sm;
     int lm;
-    const bool sampled = sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm);
+    const bool sampled = sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm, &d);
     if (bracket_update(b, zm, sampled, sm, lm)) break;
   }
   bracket_hit(b, o, d, hit);
@@ -300,8 +318,9 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
 /// crossing. Where the gradient does not fall along the ray, the slope of a projective TSDF fused
 /// from this pose is taken: -1 per `mu_m` of depth (`d` has unit depth). A sample that fails
 /// (unobserved voxels, typically just behind a surface seen from one side only) is taken again
-/// halfway back towards the last good one. `hit_near_hint` runs it ray by ray; the CPU driver's
-/// ray packets take the same steps.
+/// halfway back towards the last good one. Samples are taken with the ray: one whose cell holds
+/// the crossing (usually the first, at the hint) ends the search with the exact crossing.
+/// `hit_near_hint` runs it ray by ray; the CPU driver's ray packets take the same steps.
 struct HintSearch {
   static constexpr int kMaxSamples = 8;
   float z0 = 0;  ///< the last sample's ray parameter
@@ -356,6 +375,10 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
     return HintStep::Continue;
   }
   h.retry_z = -1.0f;
+  if (s1.at_crossing()) {
+    *bracket = exact_bracket(map, d, z1, s1, l1);
+    return HintStep::Bracketed;
+  }
   // The slope is negative, so steps go forward from free space and back from behind a
   // surface: a sign change always brackets a front face, free space in front.
   if ((h.s0.f > 0.0f) != (s1.f > 0.0f)) {
@@ -379,17 +402,20 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
                                    RayHit* hit) {
   TsdfSample s;
   int l;
-  HintSearch h;
-  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l) ||
-      !hint_search_begin(map, d, z_hint, s, l, k, &h))
-    return false;
+  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l, &d)) return false;
   CrossingBracket b;
-  for (;;) {
-    const float z1 = hint_search_next(h, k);
-    const bool sampled = sample_tsdf(map, cache, o + d * z1, k.min_weight, &s, &l);
-    const HintStep step = hint_search_update(h, map, d, z1, sampled, s, l, &b);
-    if (step == HintStep::GiveUp) return false;
-    if (step == HintStep::Bracketed) break;
+  if (s.at_crossing()) {
+    b = exact_bracket(map, d, z_hint, s, l);  // the usual case: the surface is in the hint's cell
+  } else {
+    HintSearch h;
+    if (!hint_search_begin(map, d, z_hint, s, l, k, &h)) return false;
+    for (;;) {
+      const float z1 = hint_search_next(h, k);
+      const bool sampled = sample_tsdf(map, cache, o + d * z1, k.min_weight, &s, &l, &d);
+      const HintStep step = hint_search_update(h, map, d, z1, sampled, s, l, &b);
+      if (step == HintStep::GiveUp) return false;
+      if (step == HintStep::Bracketed) break;
+    }
   }
   refine_bracket(map, cache, o, d, b, k, hit);
   return true;

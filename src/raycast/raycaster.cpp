@@ -34,6 +34,7 @@ struct PacketScratch {
   int live[kPacketRays];
   float z[kPacketRays];
   Vec3f points[kPacketRays];
+  Vec3f dirs[kPacketRays];
   kernels::TsdfSample samples[kPacketRays];
   int levels[kPacketRays];
   bool sampled[kPacketRays];
@@ -49,31 +50,40 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
                   const Vec3f& o, int n, const kernels::RayMarchConstants& k, float z_max) {
   using namespace kernels;
   const int min_w = k.min_weight;
-  // The sample at the hint starts the search.
+  // The sample at the hint starts the search, and usually ends it: its cell holds the crossing.
   for (int i = 0; i < n; ++i) {
     s.found[i] = false;
     s.points[i] = o + s.rays[i].dir * s.rays[i].hint;
+    s.dirs[i] = s.rays[i].dir;
   }
-  sample_tsdf_packet(map, cache, s.lookups, n, s.points, min_w, s.cells, s.samples, s.levels,
-                     s.sampled);
+  sample_tsdf_packet(map, cache, s.lookups, n, s.points, s.dirs, min_w, s.cells, s.samples,
+                     s.levels, s.sampled);
   int live = 0;
-  for (int i = 0; i < n; ++i)
-    if (s.sampled[i] && hint_search_begin(map, s.rays[i].dir, s.rays[i].hint, s.samples[i],
-                                          s.levels[i], k, &s.search[i]))
+  int bracketed[kPacketRays];
+  int n_bracketed = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!s.sampled[i]) continue;
+    const PacketRay& ray = s.rays[i];
+    if (s.samples[i].at_crossing()) {
+      s.bracket[i] = exact_bracket(map, ray.dir, ray.hint, s.samples[i], s.levels[i]);
+      bracketed[n_bracketed++] = i;
+    } else if (hint_search_begin(map, ray.dir, ray.hint, s.samples[i], s.levels[i], k,
+                                 &s.search[i])) {
       s.live[live++] = i;
+    }
+  }
   // Samples the live rays s.live[0, live) at the ray parameters `next(ray)` gives.
   auto sample_live = [&](int live_rays, auto&& next) {
     for (int j = 0; j < live_rays; ++j) {
       const int i = s.live[j];
       s.z[j] = next(i);
       s.points[j] = o + s.rays[i].dir * s.z[j];
+      s.dirs[j] = s.rays[i].dir;
     }
-    sample_tsdf_packet(map, cache, s.lookups, live_rays, s.points, min_w, s.cells, s.samples,
-                       s.levels, s.sampled);
+    sample_tsdf_packet(map, cache, s.lookups, live_rays, s.points, s.dirs, min_w, s.cells,
+                       s.samples, s.levels, s.sampled);
   };
   // Newton steps until the crossing is bracketed (or the ray gives up).
-  int bracketed[kPacketRays];
-  int n_bracketed = 0;
   while (live > 0) {
     sample_live(live, [&](int i) { return hint_search_next(s.search[i], k); });
     int kept = 0;
@@ -87,9 +97,10 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
     }
     live = kept;
   }
-  // Secant steps until each bracket is short.
-  for (int j = 0; j < n_bracketed; ++j) s.live[j] = bracketed[j];
-  live = n_bracketed;
+  // Secant steps until each bracket is short or exact.
+  live = 0;
+  for (int j = 0; j < n_bracketed; ++j)
+    if (!s.bracket[bracketed[j]].exact) s.live[live++] = bracketed[j];
   while (live > 0) {
     sample_live(live, [&](int i) { return bracket_secant(s.bracket[i]); });
     int kept = 0;

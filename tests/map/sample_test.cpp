@@ -78,6 +78,110 @@ TEST(IrregularInterpolation, ReducesToTrilinearOnARegularCube) {
   }
 }
 
+// The ray's segment inside the unit cell around t: [s_in, s_out] in ray parameter.
+void segment_in_cell(const Vec3f& t, const Vec3f& dv, float* s_in, float* s_out) {
+  *s_in = -1e30f;
+  *s_out = 1e30f;
+  for (int k = 0; k < 3; ++k) {
+    if (dv[k] == 0.0f) continue;
+    const float a = -t[k] / dv[k], b = (1.0f - t[k]) / dv[k];
+    *s_in = std::max(*s_in, std::min(a, b));
+    *s_out = std::min(*s_out, std::max(a, b));
+  }
+}
+
+Vec3f random_direction(std::mt19937& rng, float scale) {
+  std::normal_distribution<float> n(0.0f, 1.0f);
+  Vec3f d{n(rng), n(rng), n(rng)};
+  return d * (scale / norm(d));
+}
+
+TEST(CrossingInCell, ThePlaneOfALinearTsdfIsHitExactly) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> in(0.0f, 1.0f), offset(-0.8f, 0.8f), speed(0.2f, 3.0f);
+  int found = 0, checked = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    // F(u) = n . (u - c) / 2: a plane through the cell (TSDF units, a slope below 1 per voxel).
+    const Vec3f n = random_direction(rng, 1.0f);
+    const Vec3f c{0.5f + offset(rng), 0.5f + offset(rng), 0.5f + offset(rng)};
+    float v[8];
+    for (int k = 0; k < 8; ++k) {
+      const Vec3f corner{static_cast<float>(k & 1), static_cast<float>((k >> 1) & 1),
+                         static_cast<float>(k >> 2)};
+      v[k] = 0.5f * dot(n, corner - c);
+    }
+    const Vec3f t{in(rng), in(rng), in(rng)};
+    const Vec3f dv = random_direction(rng, speed(rng));
+    float s_in, s_out;
+    segment_in_cell(t, dv, &s_in, &s_out);
+    // The exact crossing, and whether it is a front face on the side the sign at t calls for.
+    const float f_t = 0.5f * dot(n, t - c), slope = 0.5f * dot(n, dv);
+    const float s_star = -f_t / slope;
+    const bool front = slope < 0.0f;
+    const bool expected = front && (f_t > 0.0f ? s_star <= s_out : s_star >= s_in);
+    // Crossings within rounding of the segment's ends may go either way.
+    if (std::fabs(s_star - s_in) < 1e-4f || std::fabs(s_star - s_out) < 1e-4f) continue;
+    ++checked;
+    float dz;
+    Vec3f t_hit;
+    const bool hit =
+        kernels::crossing_in_cell(v, t, dv, kernels::inverse_direction(dv), &dz, &t_hit);
+    ASSERT_EQ(hit, expected) << "trial " << trial << " f(t) " << f_t << " s* " << s_star
+                             << " segment [" << s_in << ", " << s_out << "]";
+    if (!hit) continue;
+    ++found;
+    EXPECT_NEAR(dz, s_star, 2e-5f) << "trial " << trial;
+    EXPECT_NEAR(t_hit.x, t.x + dv.x * s_star, 2e-5f);
+    EXPECT_NEAR(t_hit.y, t.y + dv.y * s_star, 2e-5f);
+    EXPECT_NEAR(t_hit.z, t.z + dv.z * s_star, 2e-5f);
+  }
+  EXPECT_GT(checked, 1900);
+  EXPECT_GT(found, 300);  // the trials are not all misses
+}
+
+TEST(CrossingInCell, FindsTheSignChangeOfAnyCell) {
+  // Arbitrary corner values: the interpolant along the ray is a general cubic. A crossing is
+  // reported exactly when the values at t and at the end of the segment on the side the sign at
+  // t calls for change sign, and the root found is one (|F| tiny, between those two points).
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> value(-1.0f, 1.0f), in(0.0f, 1.0f), speed(0.2f, 3.0f);
+  int found = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    float v[8];
+    for (float& x : v) x = value(rng);
+    const Vec3f t{in(rng), in(rng), in(rng)};
+    const Vec3f dv = random_direction(rng, speed(rng));
+    float s_in, s_out;
+    segment_in_cell(t, dv, &s_in, &s_out);
+    auto f_at = [&](float s) {
+      Vec3f unused;
+      return kernels::interpolate_trilinear(v, t + dv * s, &unused);
+    };
+    const float f_t = f_at(0.0f);
+    const float s_end = f_t > 0.0f ? s_out : s_in;
+    const float f_end = f_at(s_end);
+    // Values within rounding of zero at the bracket's ends may go either way.
+    if (std::fabs(f_t) < 1e-4f || std::fabs(f_end) < 1e-4f) continue;
+    const bool expected = f_t > 0.0f ? f_end <= 0.0f : f_end > 0.0f;
+    float dz;
+    Vec3f t_hit;
+    const bool hit =
+        kernels::crossing_in_cell(v, t, dv, kernels::inverse_direction(dv), &dz, &t_hit);
+    ASSERT_EQ(hit, expected) << "trial " << trial;
+    if (!hit) continue;
+    ++found;
+    EXPECT_GE(dz, std::min(0.0f, s_end) - 1e-5f) << "trial " << trial;
+    EXPECT_LE(dz, std::max(0.0f, s_end) + 1e-5f) << "trial " << trial;
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(t_hit[k], t[k] + dv[k] * dz, 1e-5f);
+    // A root lies within 0.005 voxel of the one reported (these cubics are far more curved than
+    // a TSDF's, and the few steps taken leave a small residual on some).
+    const float ds = 0.005f / norm(dv);
+    EXPECT_TRUE(f_at(dz) == 0.0f || (f_at(dz - ds) > 0.0f && f_at(dz + ds) <= 0.0f))
+        << "trial " << trial << " F " << f_at(dz);
+  }
+  EXPECT_GT(found, 500);
+}
+
 TEST(IrregularInterpolation, DegenerateConfigurationsAreRejectedWithoutNaN) {
   Vec3f pos[8];
   float val[8];

@@ -7,8 +7,11 @@
 #if defined(__CUDACC__)
 #define HIVOX_HD __host__ __device__
 #define HIVOX_NOINLINE __noinline__
+#define HIVOX_FORCEINLINE __forceinline__
 #else
 #define HIVOX_HD
 /// Keeps a rarely taken path out of line so that the common path around it can be inlined.
 #define HIVOX_NOINLINE __attribute__((noinline))
+/// Inlines a function everywhere: a loop calling it can then be vectorized.
+#define HIVOX_FORCEINLINE inline __attribute__((always_inline))
 #endif
