@@ -10,6 +10,7 @@
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
 #include "map/sample_kernels.h"
+#include "raycast/coarse_occupancy.h"
 
 namespace hivox::kernels {
 
@@ -84,6 +85,7 @@ struct RayMarchConstants {
   float step_fraction = 0;    ///< of the TSDF distance per step
   float min_step_voxels = 2;  ///< smallest step in front of a surface, voxels of its level
   int min_weight = 1;
+  CoarseOccupancy occupancy;  ///< optional (empty: unallocated space is crossed block by block)
 };
 
 struct RayHit {
@@ -230,10 +232,18 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
     const Vec3f p = o + d * z;
     if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
           (p.z < hi.z))) {
-      ptr = locate_block(map, cache, p, &level, &pos);
-      const float block_m = map.level[level].block_size_m;
-      lo = to_float(pos) * block_m;
-      hi = Vec3f{lo.x + block_m, lo.y + block_m, lo.z + block_m};
+      const Vec3i super_block = k.occupancy.cell_of(p);
+      if (k.occupancy.empty(super_block)) {  // no block of any level in it: one step across
+        ptr = kPtrEmpty;
+        level = map.levels - 1;
+        lo = to_float(super_block) * k.occupancy.side_m;
+        hi = Vec3f{lo.x + k.occupancy.side_m, lo.y + k.occupancy.side_m, lo.z + k.occupancy.side_m};
+      } else {
+        ptr = locate_block(map, cache, p, &level, &pos);
+        const float block_m = map.level[level].block_size_m;
+        lo = to_float(pos) * block_m;
+        hi = Vec3f{lo.x + block_m, lo.y + block_m, lo.z + block_m};
+      }
     }
     // Nothing stored here, or no observed voxel of this block at or behind a surface (all
     // positive: no crossing inside): skip to where the ray leaves the block. A surface just

@@ -229,6 +229,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         kernels::project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
                                         params_.min_depth_m, params_.max_depth_m, tiles);
   }
+  // Which super-blocks hold blocks: marches cross the others in one step.
+  kernels::CoarseOccupancy occupancy;
+  if (params_.coarse_skipping) occupancy = kernels::build_coarse_occupancy(map, &occupancy_);
   const double range_ms = watch.lap_ms();
 
   // March one ray per pixel.
@@ -237,6 +240,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   k.mu_m = params_.truncation_m;
   k.step_fraction = params_.step_fraction;
   k.min_weight = params_.min_weight;
+  k.occupancy = occupancy;
   const float hint_margin = params_.hint_margin_mu * params_.truncation_m;
   k.min_step_voxels = std::min(
       2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);

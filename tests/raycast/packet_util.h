@@ -33,7 +33,8 @@ inline DepthImage mixed_hints(const DepthImage& truth, float mu) {
 // search gives it, up to float rounding (the vectorized interpolation may fuse multiplies and
 // adds where the scalar one does not), which can at most decide a sample's sign on a knife
 // edge.
-inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, int min_hits) {
+inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, int min_hits,
+                                const char* what = "packets vs ray by ray") {
   int hits = 0, differ = 0, pixels = 0;
   double max_depth = 0, max_normal = 0;
   for (int y = 0; y < a.depth_m.height(); ++y)
@@ -55,9 +56,9 @@ inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, 
   EXPECT_LT(max_depth, 1e-4) << "metres";  // rounding; the voxels are 4-10 mm
   EXPECT_LT(max_normal, 1e-3);
   std::printf(
-      "packets vs ray by ray: %d hits, %d pixels differ, depth within %.2g m, normals "
+      "%s: %d hits, %d pixels differ, depth within %.2g m, normals "
       "within %.2g\n",
-      hits, differ, max_depth, max_normal);
+      what, hits, differ, max_depth, max_normal);
 }
 
 /// Raycasts `map` from `T_wc` with `hint` twice, with and without ray packets, and checks the

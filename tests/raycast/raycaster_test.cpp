@@ -10,6 +10,7 @@
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/fusion/integrator.h"
+#include "raycast/coarse_occupancy.h"
 #include "raycast/packet_util.h"
 #include "raycast/raycast_kernels.h"
 
@@ -244,6 +245,68 @@ TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
     const DepthImage truth = s.shape.render(cam, T_wc);
     test::expect_packets_match(*s.map, rp, cam, T_wc, truth, 12000);
     test::expect_packets_match(*s.map, rp, cam, T_wc, test::mixed_hints(truth, s.mu), 12000);
+  }
+}
+
+// The grid of super-blocks (4x4x4 blocks of the coarsest level) holding blocks: exactly those
+// with a block of any level are marked, across negative coordinates, and points map to the
+// super-block their blocks map to.
+TEST(CoarseOccupancy, MarksTheSuperBlocksHoldingBlocksOfAnyLevel) {
+  MapParams p = fixed_grid(0.01f);
+  p.levels = 2;  // blocks of 8 and 16 cm, super-blocks of 64 cm
+  VoxelBlockMap map(p);
+  const std::vector<BlockKey> keys = {{{-1, 0, 0}, 0}, {{-9, 3, 7}, 0}, {{5, 5, 5}, 1}};
+  ASSERT_EQ(map.insert_blocks(keys).inserted, 3);
+  std::vector<int32_t> cells;
+  const kernels::CoarseOccupancy grid = kernels::build_coarse_occupancy(map, &cells);
+  ASSERT_NE(grid.cells, nullptr);
+  EXPECT_FLOAT_EQ(grid.side_m, 0.64f);
+  // Fine block (-1, 0, 0): super-block floor(-1 / 8) = -1; (-9, 3, 7): (-2, 0, 0); coarse block
+  // (5, 5, 5): floor(5 / 4) = 1.
+  EXPECT_EQ(grid.lo, (Vec3i{-2, 0, 0}));
+  EXPECT_EQ(grid.dims, (Vec3i{4, 2, 2}));
+  int marked = 0;
+  for (int z = -1; z <= 2; ++z)
+    for (int y = -1; y <= 2; ++y)
+      for (int x = -3; x <= 2; ++x) {
+        const Vec3i c{x, y, z};
+        const bool holds = c == Vec3i{-1, 0, 0} || c == Vec3i{-2, 0, 0} || c == Vec3i{1, 1, 1};
+        EXPECT_EQ(!grid.empty(c), holds) << x << " " << y << " " << z;
+        marked += !grid.empty(c);
+      }
+  EXPECT_EQ(marked, 3);
+  // A point inside each block lies in its block's super-block.
+  for (const BlockKey& k : keys) {
+    const float block_m = map.view().level[k.level].block_size_m;
+    const Vec3f inside = (to_float(k.pos) + Vec3f{0.5f, 0.5f, 0.5f}) * block_m;
+    EXPECT_FALSE(grid.empty(grid.cell_of(inside)));
+  }
+  // An empty map has no grid.
+  VoxelBlockMap empty(p);
+  EXPECT_EQ(kernels::build_coarse_occupancy(empty, &cells).cells, nullptr);
+}
+
+// Crossing empty super-blocks in one step finds the surfaces block-by-block marching finds.
+TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
+  const Scene s = fused_scene(0.01f);
+  std::vector<int32_t> cells;
+  const kernels::CoarseOccupancy grid = kernels::build_coarse_occupancy(*s.map, &cells);
+  ASSERT_NE(grid.cells, nullptr);
+  const int64_t empty = std::count(cells.begin(), cells.end(), 0);
+  EXPECT_GT(empty, static_cast<int64_t>(cells.size()) / 4);  // there is space to skip
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  const PinholeCamera cam = small_camera();
+  for (int view : {2, 9}) {
+    // From farther out than the views fused, so that rays cross empty space first.
+    const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[view];
+    rp.coarse_skipping = true;
+    Raycaster skipping(rp);
+    rp.coarse_skipping = false;
+    Raycaster block_by_block(rp);
+    test::expect_same_raycast(skipping.raycast(*s.map, cam, T_wc),
+                              block_by_block.raycast(*s.map, cam, T_wc), 8000,
+                              "skipping vs block by block");
   }
 }
 
