@@ -167,10 +167,24 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       atomic_min_positive(&nearest(u, v), p.z);
     }
   out->resize(w, h);
+  auto landed = [&](int u, int v) {
+    return u >= 0 && v >= 0 && u < w && v < h ? nearest(u, v) : FLT_MAX;
+  };
 #pragma omp parallel for schedule(static)
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      const float z = nearest(x, y);
+      float z = nearest(x, y);
+      if (z == FLT_MAX) {
+        // No hit landed here, but on both sides of the pixel (the new view magnifies the
+        // surface, or its pixels sample it elsewhere): the nearer of the two, where they agree.
+        // A pixel beside a silhouette has hits on one side only and stays empty.
+        constexpr int kOpposite[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+        for (const auto& o : kOpposite) {
+          const float a = landed(x - o[0], y - o[1]), b = landed(x + o[0], y + o[1]);
+          if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
+            z = std::min(z, std::min(a, b));
+        }
+      }
       float front = z;
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {

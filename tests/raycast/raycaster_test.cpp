@@ -438,7 +438,7 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
       in_band += diff < s.mu;
       other_surface += diff > 2 * s.mu;
     }
-  EXPECT_GT(covered, 0.85 * hits);
+  EXPECT_GT(covered, 0.945 * hits);  // 0.933 without filling the holes between landed pixels
   // Landing on the nearest pixel moves a hit by up to half a pixel, ~5 mm at 1.5 m with this
   // small camera: where the surface is oblique, more than a voxel in depth.
   EXPECT_GT(close, 0.95 * covered);
