@@ -62,16 +62,15 @@ struct CellBatch {
   void set_unused(int i) {
     for (int c = 0; c < 8; ++c) voxel[c][i] = 0;
     set_t(i, Vec3f{});
-    set_ray(i, Vec3f{});
+    set_ray(i, Vec3f{}, Vec3f{});
   }
-  void set_ray(int i, const Vec3f& dv) {
+  void set_ray(int i, const Vec3f& dv, const Vec3f& inv_dv) {
     dvx[i] = dv.x;
     dvy[i] = dv.y;
     dvz[i] = dv.z;
-    const Vec3f inv = inverse_direction(dv);
-    inv_dvx[i] = inv.x;
-    inv_dvy[i] = inv.y;
-    inv_dvz[i] = inv.z;
+    inv_dvx[i] = inv_dv.x;
+    inv_dvy[i] = inv_dv.y;
+    inv_dvz[i] = inv_dv.z;
   }
   void set_t(int i, const Vec3f& t) {
     tx[i] = t.x;
@@ -279,10 +278,12 @@ struct PacketLookups {
 
 /// `sample_tsdf` at `n` points at once: `sampled[i]`, `out[i]` and `level[i]` are what
 /// sample_tsdf(points[i], &dirs[i]) gives (without `dirs`, nullptr: sample_tsdf(points[i])).
+/// `inv_dirs` (with `dirs`): inverse_direction(dirs[i]).
 template <int kCapacity>
 void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLookups& lookups, int n,
-                        const Vec3f* points, const Vec3f* dirs, int min_weight,
-                        CellBatch<kCapacity>& cells, TsdfSample* out, int* level, bool* sampled) {
+                        const Vec3f* points, const Vec3f* dirs, const Vec3f* inv_dirs,
+                        int min_weight, CellBatch<kCapacity>& cells, TsdfSample* out, int* level,
+                        bool* sampled) {
   // The block storing each point (where the search from the coarsest level ends; negative:
   // none). On one level there is nothing to search: a point whose block is absent has a cell
   // with an absent corner.
@@ -314,7 +315,10 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
     }
   }
   if (dirs != nullptr) {
-    for (int i = 0; i < n; ++i) cells.set_ray(i, dirs[i] * map.level[level[i]].inv_voxel_size);
+    for (int i = 0; i < n; ++i) {
+      const LevelView& lv = map.level[level[i]];
+      cells.set_ray(i, dirs[i] * lv.inv_voxel_size, inv_dirs[i] * lv.voxel_size_m);
+    }
     cells.template interpolate<true>(map.tsdf, n, min_weight);
   } else {
     cells.template interpolate<false>(map.tsdf, n, min_weight);

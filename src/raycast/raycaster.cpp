@@ -20,6 +20,7 @@ constexpr int kPacketRays = 64;
 struct PacketRay {
   int x = 0, y = 0;
   Vec3f dir;
+  Vec3f inv_dir;  ///< kernels::inverse_direction(dir)
   float hint = 0;
 };
 
@@ -35,6 +36,7 @@ struct PacketScratch {
   float z[kPacketRays];
   Vec3f points[kPacketRays];
   Vec3f dirs[kPacketRays];
+  Vec3f inv_dirs[kPacketRays];
   kernels::TsdfSample samples[kPacketRays];
   int levels[kPacketRays];
   bool sampled[kPacketRays];
@@ -55,9 +57,10 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
     s.found[i] = false;
     s.points[i] = o + s.rays[i].dir * s.rays[i].hint;
     s.dirs[i] = s.rays[i].dir;
+    s.inv_dirs[i] = s.rays[i].inv_dir;
   }
-  sample_tsdf_packet(map, cache, s.lookups, n, s.points, s.dirs, min_w, s.cells, s.samples,
-                     s.levels, s.sampled);
+  sample_tsdf_packet(map, cache, s.lookups, n, s.points, s.dirs, s.inv_dirs, min_w, s.cells,
+                     s.samples, s.levels, s.sampled);
   int live = 0;
   int bracketed[kPacketRays];
   int n_bracketed = 0;
@@ -79,9 +82,10 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
       s.z[j] = next(i);
       s.points[j] = o + s.rays[i].dir * s.z[j];
       s.dirs[j] = s.rays[i].dir;
+      s.inv_dirs[j] = s.rays[i].inv_dir;
     }
-    sample_tsdf_packet(map, cache, s.lookups, live_rays, s.points, s.dirs, min_w, s.cells,
-                       s.samples, s.levels, s.sampled);
+    sample_tsdf_packet(map, cache, s.lookups, live_rays, s.points, s.dirs, s.inv_dirs, min_w,
+                       s.cells, s.samples, s.levels, s.sampled);
   };
   // Newton steps until the crossing is bracketed (or the ray gives up).
   while (live > 0) {
@@ -117,6 +121,11 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
     const int i = bracketed[j];
     bracket_hit(s.bracket[i], o, s.rays[i].dir, &s.hits[i]);
     if (s.hits[i].depth_m > z_max) continue;
+    // The hit's colour is read when the packet is written out: fetch it while the normals are
+    // computed (an uncached read per hit otherwise).
+    if (map.color != nullptr && s.hits[i].color_ptr >= 0)
+      __builtin_prefetch(&map.color[static_cast<int64_t>(s.hits[i].color_ptr) * kBlockVoxels +
+                                    s.hits[i].color_index]);
     s.live[with_hit] = i;
     s.points[with_hit] = s.hits[i].p_w;
     s.levels[with_hit] = s.hits[i].level;
@@ -333,7 +342,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
                 hint - hint_margin < tile_max_[t]))
             hint = 0.0f;
           if (packets && hint > 0.0f) {
-            scratch->rays[packed++] = {x, y, dir, hint};
+            scratch->rays[packed++] = {x, y, dir, kernels::inverse_direction(dir), hint};
             if (packed == kPacketRays) flush_packet();
             continue;
           }
