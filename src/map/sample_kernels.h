@@ -149,7 +149,7 @@ HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& 
   auto value_at = [&](float s) { return p0 + s * (p1 + s * (p2 + s * p3)); };
   // The ray's segment inside the cell, [s_in, s_out] around t (s_in <= 0 <= s_out).
   float s_in = -FLT_MAX, s_out = FLT_MAX;
-#pragma GCC unroll 3
+  HIVOX_UNROLL(3)
   for (int k = 0; k < 3; ++k) {
     const float a = -t[k] * inv_dv[k], b = (1.0f - t[k]) * inv_dv[k];
     const float lo = a < b ? a : b, hi = a < b ? b : a;
@@ -167,7 +167,7 @@ HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& 
   // division is unconditional, its operand guarded: a vectorized loop cannot branch).
   auto secant = [&] { return a + (b - a) * (fa / (found ? fa - fb : 1.0f)); };
   int kept = 0;  // which end the last two steps kept (1: a, -1: b), for the Illinois rule
-#pragma GCC unroll 8
+  HIVOX_UNROLL(7)
   for (int i = 0; i < 7; ++i) {
     const float m = secant();
     const float fm = value_at(m);

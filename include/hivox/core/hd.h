@@ -4,8 +4,11 @@
 /// as `HIVOX_HD inline` functions on plain types; this header is the only place that knows
 /// whether a CUDA compiler is looking.
 
+#define HIVOX_PRAGMA(x) _Pragma(#x)
+
 #if defined(__CUDACC__)
 #define HIVOX_HD __host__ __device__
+#define HIVOX_UNROLL(n) HIVOX_PRAGMA(unroll n)
 #define HIVOX_NOINLINE __noinline__
 #define HIVOX_FORCEINLINE __forceinline__
 #else
@@ -14,4 +17,11 @@
 #define HIVOX_NOINLINE __attribute__((noinline))
 /// Inlines a function everywhere: a loop calling it can then be vectorized.
 #define HIVOX_FORCEINLINE inline __attribute__((always_inline))
+/// Unrolls the loop that follows `n` times (a vectorizer cannot take a loop nest with inner
+/// loops).
+#if defined(__clang__)
+#define HIVOX_UNROLL(n) HIVOX_PRAGMA(unroll n)
+#else
+#define HIVOX_UNROLL(n) HIVOX_PRAGMA(GCC unroll n)
+#endif
 #endif
