@@ -242,7 +242,7 @@ bool address_cells_one_level(const MapView& map, BlockLookupCache& cache, BlockB
       const int32_t row = bx[i] + by[i] * sx + bz[i] * sxy - origin;
       const int32_t ox = lx[i] + dx, oy = ly[i] + dy, oz = lz[i] + dz;
       int32_t missing = 0;
-#pragma GCC unroll 8
+      HIVOX_UNROLL(8)
       for (int c = 0; c < 8; ++c) {
         const int32_t x = ox + (c & 1), y = oy + ((c >> 1) & 1), z = oz + (c >> 2);
         const int32_t ptr = ptrs[row + (x >> 3) + (y >> 3) * sx + (z >> 3) * sxy];
@@ -335,7 +335,7 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
     // at another level (or nowhere) is sampled there.
     const CellCoords cell = cell_at(map.level[level[i]], points[i]);
     if (cell.spans_blocks()) {
-      const Vec3f dv = dirs != nullptr ? dirs[i] * map.level[level[i]].inv_voxel_size : Vec3f{};
+      const Vec3f dv{cells.dvx[i], cells.dvy[i], cells.dvz[i]};  // as set_ray set it
       sampled[i] = sample_trilinear_across_blocks(map, cache, level[i], cell, min_weight, &out[i],
                                                   &lookups.cells, dirs != nullptr ? &dv : nullptr);
     }

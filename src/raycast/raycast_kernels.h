@@ -232,18 +232,21 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
     const Vec3f p = o + d * z;
     if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
           (p.z < hi.z))) {
+      // The box the ray is in: an empty super-block (no block of any level: one step across)
+      // or the block stored here.
       const Vec3i super_block = k.occupancy.cell_of(p);
-      if (k.occupancy.empty(super_block)) {  // no block of any level in it: one step across
+      float side_m;
+      if (k.occupancy.empty(super_block)) {
         ptr = kPtrEmpty;
         level = map.levels - 1;
-        lo = to_float(super_block) * k.occupancy.side_m;
-        hi = Vec3f{lo.x + k.occupancy.side_m, lo.y + k.occupancy.side_m, lo.z + k.occupancy.side_m};
+        side_m = k.occupancy.side_m;
+        lo = to_float(super_block) * side_m;
       } else {
         ptr = locate_block(map, cache, p, &level, &pos);
-        const float block_m = map.level[level].block_size_m;
-        lo = to_float(pos) * block_m;
-        hi = Vec3f{lo.x + block_m, lo.y + block_m, lo.z + block_m};
+        side_m = map.level[level].block_size_m;
+        lo = to_float(pos) * side_m;
       }
+      hi = Vec3f{lo.x + side_m, lo.y + side_m, lo.z + side_m};
     }
     // Nothing stored here, or no observed voxel of this block at or behind a surface (all
     // positive: no crossing inside): skip to where the ray leaves the block. A surface just

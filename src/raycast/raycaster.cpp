@@ -196,10 +196,7 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       }
       float front = z;
       for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int u = x + dx, v = y + dy;
-          if (u >= 0 && v >= 0 && u < w && v < h) front = std::min(front, nearest(u, v));
-        }
+        for (int dx = -1; dx <= 1; ++dx) front = std::min(front, landed(x + dx, y + dy));
       (*out)(x, y) = z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
     }
 }

@@ -47,8 +47,8 @@ struct RaycastStats {
 /// up and down, or diagonal) that agree within `max_gap_m` (holes where the new view magnifies
 /// the surface); other pixels no hit lands on get 0, and so do pixels that may show a surface
 /// through a gap in the warped foreground (a pixel within one pixel of them holds a surface
-/// nearer by more than `max_gap_m`). The previous frame's raycast warped this way gives the rays of pixels without
-/// a measured depth a start hint (see Raycaster::raycast).
+/// nearer by more than `max_gap_m`). The previous frame's raycast warped this way gives the rays of
+/// pixels without a measured depth a start hint (see Raycaster::raycast).
 void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
                         float max_gap_m, DepthImage* out);
 
