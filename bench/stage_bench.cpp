@@ -121,23 +121,24 @@ void raycast(benchmark::State& state, RaycastHints hints) {
   RaycastParams rp;
   rp.truncation_m = w.fusion.truncation_m;
   Raycaster raycaster(rp);
-  DepthImage hint = w.frame.depth_m;
+  const DepthImage& hint = w.frame.depth_m;
+  DepthImage warped;
   if (hints == RaycastHints::DepthAndWarped) {
-    // As in the pipeline: where the frame has no depth, the previous frame's raycast warped.
+    // As in the pipeline: where the frame has no depth or the search at it fails, the previous
+    // frame's raycast warped into this view.
     Raycaster previous(rp);
     previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
-    DepthImage warped;
     warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
                        &warped);
-    for (std::size_t i = 0; i < hint.size(); ++i)
-      if (!(hint.data()[i] > 0.0f)) hint.data()[i] = warped.data()[i];
   }
   RaycastStats s;
   for (auto _ : state)
     raycaster.raycast(*w.map, w.input.depth_camera, w.input.T_wc, &s,
-                      hints == RaycastHints::None ? nullptr : &hint);
+                      hints == RaycastHints::None ? nullptr : &hint,
+                      hints == RaycastHints::DepthAndWarped ? &warped : nullptr);
   state.counters["hits"] = static_cast<double>(s.hits);
   state.counters["at_hint"] = static_cast<double>(s.found_at_hint);
+  state.counters["at_fallback"] = static_cast<double>(s.found_at_fallback);
   state.counters["blocks"] = static_cast<double>(w.map->blocks_in_use());
 }
 void BM_Raycast(benchmark::State& state) {

@@ -327,7 +327,11 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
                            : nullptr;
   const float* depth_m = depth.depth_m.data;
   const float min_d = depth.min_depth_m, max_d = depth.max_depth_m;
-  int min_tsdf = static_cast<int>(kTsdfScale);  // over observed voxels, for the block summary
+  // The block's surface summary (BlockSurface): the smallest observed TSDF, and the octants whose
+  // cells have observed corners and observed corners with TSDF <= 0 (voxel_octants; the slice's
+  // voxel i has x = i % 8 and y = i / 8).
+  int min_tsdf = static_cast<int>(kTsdfScale);
+  uint32_t observed_octants = 0, surface_octants = 0;
   for (int z = 0; z < kBlockSide; ++z) {
     const float zf = static_cast<float>(z);
     // The camera-frame position of voxel i of the slice (x = i % 8, y = i / 8).
@@ -344,6 +348,7 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
     int any_pixel[kSlice];       // always a valid pixel index (branch-free gathers)
     uint32_t near_mask[kSlice];  // all ones where colour is fused (observed, near surface)
     float eta[kSlice];
+    int summary[kSlice];  // the voxel's TSDF after the update, INT_MAX where unobserved
     [[maybe_unused]] float interpolated[kSlice];
     [[maybe_unused]] int projected[kSlice];
     [[maybe_unused]] uint32_t inside_word[kSlice];
@@ -384,9 +389,21 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
       pixel[i] = px | static_cast<int>(keep);
       any_pixel[i] = px;
       near_mask[i] = 0u - static_cast<uint32_t>(observed & (eta[i] < k.mu_m));
-      const int t = (result >> 16) != 0u ? tsdf_of_word(result) : static_cast<int>(kTsdfScale);
-      min_tsdf = t < min_tsdf ? t : min_tsdf;
+      summary[i] = (result >> 16) != 0u ? tsdf_of_word(result) : INT_MAX;
     }
+    // A loop of its own: in the loop above, GCC narrows the octant masks to bytes and then
+    // cannot vectorize the floats.
+    int slice_min = INT_MAX;
+    uint32_t slice_observed = 0, slice_surface = 0;
+    for (int i = 0; i < kSlice; ++i) {
+      const uint32_t octants = voxel_octants(i & 7, i >> 3, z);
+      slice_min = summary[i] < slice_min ? summary[i] : slice_min;
+      slice_observed |= octants & (0u - static_cast<uint32_t>(summary[i] != INT_MAX));
+      slice_surface |= octants & (0u - static_cast<uint32_t>(summary[i] <= 0));
+    }
+    min_tsdf = slice_min < min_tsdf ? slice_min : min_tsdf;
+    observed_octants |= slice_observed;
+    surface_octants |= slice_surface;
     if (colors == nullptr) continue;
     if (color.packed != nullptr) {  // registered colour: the same pixel, vectorized
       uint32_t* out_c = reinterpret_cast<uint32_t*>(colors + voxel_index(0, 0, z));
@@ -412,7 +429,9 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
     }
   }
   BlockMeta& meta = map.meta[ptr];
-  meta.min_tsdf = static_cast<int16_t>(min_tsdf);
+  meta.surface.min_tsdf = static_cast<int16_t>(min_tsdf);
+  meta.surface.observed = static_cast<uint8_t>(observed_octants);
+  meta.surface.surface = static_cast<uint8_t>(surface_octants);
   if (meta.updates < 65535) ++meta.updates;
 }
 

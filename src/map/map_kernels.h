@@ -85,8 +85,7 @@ HIVOX_HD inline AllocResult allocate_block(const MapView& map, int level, const 
     return AllocResult::PoolFull;
   }
   clear_block(map, block);
-  map.meta[block] =
-      BlockMeta{pos, entry, static_cast<int16_t>(level), static_cast<int16_t>(kTsdfScale), 0, 0};
+  map.meta[block] = BlockMeta{pos, entry, static_cast<int16_t>(level), 0, BlockSurface{}};
   atomic_max(map.block_high_water, block + 1);
   atomic_store(&lv.entries[entry].ptr, block);
   atomic_add(&map.level_block_count[level], 1);

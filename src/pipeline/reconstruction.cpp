@@ -182,16 +182,17 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
       hint = &hint_;
     }
     // Where the frame has no depth, the surface the previous raycast saw, seen from here.
+    // Where the frame has no depth, or the search at its depth fails (a depth in front of the
+    // model's surface, or on voxels not observed yet), the surface the previous raycast saw, seen
+    // from here.
     const RaycastResult& previous = raycaster_.result();
+    const DepthImage* fallback = nullptr;
     if (params_.previous_raycast_hints && previous.camera.width == camera.width &&
         previous.camera.height == camera.height && !previous.depth_m.empty()) {
-      if (hint != &hint_) hint_ = frame.depth_m;
       warp_raycast_depth(previous, camera, T_wc, params_.fusion.truncation_m, &warped_);
-      for (std::size_t i = 0; i < hint_.size(); ++i)
-        if (!(hint_.data()[i] > 0.0f)) hint_.data()[i] = warped_.data()[i];
-      hint = &hint_;
+      fallback = &warped_;
     }
-    raycaster_.raycast(*map_, camera, T_wc, &rs, hint);
+    raycaster_.raycast(*map_, camera, T_wc, &rs, hint, fallback);
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
     s.raycast_hits_at_hint = rs.found_at_hint;

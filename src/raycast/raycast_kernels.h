@@ -248,11 +248,29 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
       }
       hi = Vec3f{lo.x + side_m, lo.y + side_m, lo.z + side_m};
     }
-    // Nothing stored here, or no observed voxel of this block at or behind a surface (all
-    // positive: no crossing inside): skip to where the ray leaves the block. A surface just
-    // beyond the exit is caught by the look-back below.
-    if (ptr < 0 || map.meta[ptr].min_tsdf > 0) {
-      const float exit = box_exit(o, d, inv_d, lo, hi);
+    // Nothing stored here, or no observed voxel of this block (or of the octant of it the ray
+    // is in) at or behind a surface (all positive: no crossing inside): skip to where the ray
+    // leaves it. A surface just beyond the exit is caught by the look-back below.
+    Vec3f skip_lo = lo, skip_hi = hi;
+    bool skip = ptr < 0;
+    if (!skip) {
+      const BlockSurface surface = map.meta[ptr].surface;
+      const float half_m = 0.5f * (hi.x - lo.x);
+      const int ox = p.x >= lo.x + half_m, oy = p.y >= lo.y + half_m, oz = p.z >= lo.z + half_m;
+      const unsigned bit = 1u << (ox | (oy << 1) | (oz << 2));
+      if (surface.surface == 0) {
+        skip = true;
+      } else if ((surface.surface & bit) == 0) {
+        skip = true;
+        skip_lo = {lo.x + static_cast<float>(ox) * half_m, lo.y + static_cast<float>(oy) * half_m,
+                   lo.z + static_cast<float>(oz) * half_m};
+        skip_hi = {skip_lo.x + half_m, skip_lo.y + half_m, skip_lo.z + half_m};
+        // Observed and all positive: known free space in front, as a positive sample would say.
+        seen_known = seen_known || (surface.observed & bit) != 0;
+      }
+    }
+    if (skip) {
+      const float exit = box_exit(o, d, inv_d, skip_lo, skip_hi);
       const float min_step = 1e-3f * map.level[level].voxel_size_m * inv_len;
       z = exit > z + min_step ? exit + min_step : z + min_step;
       prev_valid = false;

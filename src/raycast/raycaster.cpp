@@ -22,6 +22,8 @@ struct PacketRay {
   Vec3f dir;
   Vec3f inv_dir;  ///< kernels::inverse_direction(dir)
   float hint = 0;
+  float second_hint = 0;          ///< searched where the search at `hint` fails (0: none)
+  bool hint_is_fallback = false;  ///< `hint` comes from the fallback hint image
 };
 
 /// One thread's packet: its rays, their search state and outcomes, and the cells it samples.
@@ -44,6 +46,15 @@ struct PacketScratch {
   kernels::PacketLookups lookups;
   kernels::CellBatch<kPacketRays> cells;
   kernels::CellBatch<3 * kPacketRays> normal_cells;
+  // Rays searched again at their fallback hint: which of the packet's rays, and the packet's
+  // first search kept meanwhile.
+  int retry[kPacketRays];
+  PacketRay retry_rays[kPacketRays];
+  struct {
+    PacketRay rays[kPacketRays];
+    kernels::RayHit hits[kPacketRays];
+    bool found[kPacketRays];
+  } first;
 };
 
 /// `hit_near_hint` for the `n` rays of a packet, step by step: `found[i]` when ray i's surface
@@ -207,12 +218,14 @@ Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
 
 const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
                                         const Pose& T_wc, RaycastStats* stats,
-                                        const DepthImage* start_hint_m) {
+                                        const DepthImage* start_hint_m,
+                                        const DepthImage* fallback_hint_m) {
   camera.validate("raycast camera");
-  if (start_hint_m != nullptr &&
-      (start_hint_m->width() != camera.width || start_hint_m->height() != camera.height))
-    fail(ErrorCode::InvalidArgument, "raycast start hint is {}x{} but the camera is {}x{}",
-         start_hint_m->width(), start_hint_m->height(), camera.width, camera.height);
+  for (const auto& [image, name] :
+       {std::pair{start_hint_m, "start hint"}, std::pair{fallback_hint_m, "fallback hint"}})
+    if (image != nullptr && (image->width() != camera.width || image->height() != camera.height))
+      fail(ErrorCode::InvalidArgument, "raycast {} is {}x{} but the camera is {}x{}", name,
+           image->width(), image->height(), camera.width, camera.height);
   Stopwatch watch;
   RaycastResult& r = result_;
   const int w = camera.width, h = camera.height;
@@ -264,10 +277,11 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   const float hint_margin = params_.hint_margin_mu * params_.truncation_m;
   k.min_step_voxels = std::min(
       2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
-  const bool packets =
-      params_.ray_packets && start_hint_m != nullptr && kernels::packets_can_address(view);
-  int64_t hits = 0, found_at_hint = 0;
-#pragma omp parallel reduction(+ : hits, found_at_hint)
+  const bool packets = params_.ray_packets &&
+                       (start_hint_m != nullptr || fallback_hint_m != nullptr) &&
+                       kernels::packets_can_address(view);
+  int64_t hits = 0, found_at_hint = 0, found_at_fallback = 0;
+#pragma omp parallel reduction(+ : hits, found_at_hint, found_at_fallback)
   {
     kernels::BlockLookupCache cache;  // per thread, across the rays of its tiles
     std::unique_ptr<PacketScratch> scratch;
@@ -316,9 +330,63 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     for (int t = 0; t < static_cast<int>(tile_count); ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
+      // The depth of `image` at (x, y) when a start `hint_margin` in front of it lies inside the
+      // tile's range, else 0.
+      auto hint_at = [&](const DepthImage* image, int x, int y) {
+        const float z = image != nullptr ? (*image)(x, y) : 0.0f;
+        return z > 0.0f && z - hint_margin > tile_min_[t] && z - hint_margin < tile_max_[t] ? z
+                                                                                            : 0.0f;
+      };
+      // The ray of pixel (x, y) and its hints: the start hint, or where it has none the fallback
+      // hint; and the fallback as the second hint where it differs from the first.
+      auto ray_at = [&](int x, int y) {
+        PacketRay ray;
+        ray.x = x;
+        ray.y = y;
+        ray.dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
+        ray.hint = hint_at(start_hint_m, x, y);
+        ray.second_hint = hint_at(fallback_hint_m, x, y);
+        if (ray.hint == 0.0f) {
+          ray.hint = ray.second_hint;
+          ray.hint_is_fallback = ray.hint > 0.0f;
+          ray.second_hint = 0.0f;
+        } else if (ray.second_hint == ray.hint) {
+          ray.second_hint = 0.0f;
+        }
+        return ray;
+      };
       int packed = 0;  // hinted rays waiting in the packet
       auto flush_packet = [&] {
         search_hints(view, cache, *scratch, T.t, packed, k, tile_max_[t]);
+        // The rays whose search failed and that have a second hint search again, together.
+        int retried = 0;
+        for (int i = 0; i < packed; ++i) {
+          const PacketRay& ray = scratch->rays[i];
+          found_at_fallback += scratch->found[i] && ray.hint_is_fallback;
+          if (scratch->found[i] || ray.second_hint == 0.0f) continue;
+          scratch->retry[retried] = i;
+          PacketRay& again = scratch->retry_rays[retried++];
+          again = ray;
+          again.hint = ray.second_hint;
+          again.second_hint = 0.0f;
+        }
+        if (retried > 0) {
+          std::copy_n(scratch->rays, packed, scratch->first.rays);
+          std::copy_n(scratch->hits, packed, scratch->first.hits);
+          std::copy_n(scratch->found, packed, scratch->first.found);
+          std::copy_n(scratch->retry_rays, retried, scratch->rays);
+          search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
+          for (int j = 0; j < retried; ++j)
+            if (scratch->found[j]) {
+              const int i = scratch->retry[j];
+              scratch->first.hits[i] = scratch->hits[j];
+              scratch->first.found[i] = true;
+              ++found_at_fallback;
+            }
+          std::copy_n(scratch->first.rays, packed, scratch->rays);
+          std::copy_n(scratch->first.hits, packed, scratch->hits);
+          std::copy_n(scratch->first.found, packed, scratch->found);
+        }
         for (int i = 0; i < packed; ++i) {
           const PacketRay& ray = scratch->rays[i];
           kernels::RayHit& hit = scratch->hits[i];
@@ -331,26 +399,30 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       };
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
-          const Vec3f dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-          // The hinted depth when a start `hint_margin` in front of it lies inside the ray's
-          // range, else 0.
-          float hint = start_hint_m != nullptr ? (*start_hint_m)(x, y) : 0.0f;
-          if (!(hint > 0.0f && hint - hint_margin > tile_min_[t] &&
-                hint - hint_margin < tile_max_[t]))
-            hint = 0.0f;
-          if (packets && hint > 0.0f) {
-            scratch->rays[packed++] = {x, y, dir, kernels::inverse_direction(dir), hint};
+          PacketRay ray = ray_at(x, y);
+          if (packets && ray.hint > 0.0f) {
+            ray.inv_dir = kernels::inverse_direction(ray.dir);
+            scratch->rays[packed++] = ray;
             if (packed == kPacketRays) flush_packet();
             continue;
           }
           kernels::RayHit hit;
           bool found = false;
-          if (hint > 0.0f && kernels::hit_near_hint(view, cache, T.t, dir, hint, k, &hit) &&
-              hit.depth_m <= tile_max_[t]) {
+          auto near = [&](float hint) {
+            return hint > 0.0f &&
+                   kernels::hit_near_hint(view, cache, T.t, ray.dir, hint, k, &hit) &&
+                   hit.depth_m <= tile_max_[t];
+          };
+          if (near(ray.hint)) {
             found = true;  // the usual case: the surface lies at the depth just fused
             ++found_at_hint;
+            found_at_fallback += ray.hint_is_fallback;
+          } else if (near(ray.second_hint)) {
+            found = true;
+            ++found_at_hint;
+            ++found_at_fallback;
           } else if (tile_max_[t] > 0.0f) {
-            found = march(dir, hint, t, &hit);
+            found = march(ray.dir, ray.hint, t, &hit);
           }
           write_pixel(x, y, found, hit);
         }
@@ -361,6 +433,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     stats->blocks_projected = projected;
     stats->hits = hits;
     stats->found_at_hint = found_at_hint;
+    stats->found_at_fallback = found_at_fallback;
     stats->range_ms = range_ms;
     stats->march_ms = watch.lap_ms();
   }

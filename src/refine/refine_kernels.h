@@ -89,14 +89,14 @@ HIVOX_HD inline float block_det_cov(const TsdfVoxel* v, int min_weight) {
 /// kPtrEmpty when absent): the last half voxel of the parent interpolates towards the neighbour,
 /// or takes the parent's border voxel when there is none. Unobserved voxels do not enter the
 /// average (their default value is not a measurement). Weights are interpolated and scaled by
-/// `weight_scale`. Returns the child's smallest observed TSDF (the block summary).
-HIVOX_HD inline int16_t fill_split_child(const MapView& map, const int32_t parent_blocks[8],
-                                         int child, int32_t child_ptr, float weight_scale) {
+/// `weight_scale`. Returns the child's surface summary.
+HIVOX_HD inline BlockSurface fill_split_child(const MapView& map, const int32_t parent_blocks[8],
+                                              int child, int32_t child_ptr, float weight_scale) {
   const int ox = child & 1, oy = (child >> 1) & 1, oz = child >> 2;
   TsdfVoxel* out = map.tsdf + static_cast<int64_t>(child_ptr) * kBlockVoxels;
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(child_ptr) * kBlockVoxels : nullptr;
-  int min_tsdf = static_cast<int>(kTsdfScale);
+  BlockSurface surface;
   for (int i = 0; i < kBlockVoxels; ++i) {
     const Vec3i j = voxel_coords(i);
     // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
@@ -140,7 +140,7 @@ HIVOX_HD inline int16_t fill_split_child(const MapView& map, const int32_t paren
       v.tsdf = tsdf_from_float(f_sum / f_w);
       const float w = w_sum * weight_scale + 0.5f;
       v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
-      min_tsdf = v.tsdf < min_tsdf ? v.tsdf : min_tsdf;
+      surface.add(j.x, j.y, j.z, v.tsdf);
     }
     out[i] = v;
     if (out_c != nullptr) {
@@ -156,7 +156,7 @@ HIVOX_HD inline int16_t fill_split_child(const MapView& map, const int32_t paren
       out_c[i] = cv;
     }
   }
-  return static_cast<int16_t>(min_tsdf);
+  return surface;
 }
 
 // ---- merge: the parent from its children -----------------------------------------------------
@@ -164,23 +164,23 @@ HIVOX_HD inline int16_t fill_split_child(const MapView& map, const int32_t paren
 /// Fills a merged parent block by subsampling its 8 children (`child_ptrs[c]`, c = cx | cy << 1 |
 /// cz << 2): parent voxel i takes child voxel 2 (i mod 4) of child i / 4 along each axis, the
 /// sample at the same position. A split followed by a merge gives back the parent exactly.
-/// Returns the parent's smallest observed TSDF.
-HIVOX_HD inline int16_t fill_merged_parent(const MapView& map, const int32_t child_ptrs[8],
-                                           int32_t parent_ptr) {
+/// Returns the parent's surface summary.
+HIVOX_HD inline BlockSurface fill_merged_parent(const MapView& map, const int32_t child_ptrs[8],
+                                                int32_t parent_ptr) {
   TsdfVoxel* out = map.tsdf + static_cast<int64_t>(parent_ptr) * kBlockVoxels;
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(parent_ptr) * kBlockVoxels : nullptr;
-  int min_tsdf = static_cast<int>(kTsdfScale);
+  BlockSurface surface;
   for (int i = 0; i < kBlockVoxels; ++i) {
     const Vec3i p = voxel_coords(i);
     const int child = (p.x >> 2) | ((p.y >> 2) << 1) | ((p.z >> 2) << 2);
     const int src = voxel_index(2 * (p.x & 3), 2 * (p.y & 3), 2 * (p.z & 3));
     const int64_t at = static_cast<int64_t>(child_ptrs[child]) * kBlockVoxels + src;
     out[i] = map.tsdf[at];
-    if (out[i].weight > 0) min_tsdf = out[i].tsdf < min_tsdf ? out[i].tsdf : min_tsdf;
+    if (out[i].weight > 0) surface.add(p.x, p.y, p.z, out[i].tsdf);
     if (out_c != nullptr) out_c[i] = map.color[at];
   }
-  return static_cast<int16_t>(min_tsdf);
+  return surface;
 }
 
 /// Removes entry `e` (already Empty) from its chain when it is the chain's tail and lies in the

@@ -81,7 +81,7 @@ SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> bloc
                    *view.blocks.count);
   const int64_t n = static_cast<int64_t>(go.size());
   std::vector<std::array<int32_t, kChildren>> child_block(go.size()), child_entry(go.size());
-  std::vector<std::array<int16_t, kChildren>> child_min(go.size());
+  std::vector<std::array<BlockSurface, kChildren>> child_surface(go.size());
 
   // Pass 1: claim blocks and entries, fill the children. No entry of the parents' level changes
   // here, so every split reads its neighbours as they were.
@@ -101,7 +101,7 @@ SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> bloc
     for (int c = 0; c < kChildren; ++c) {
       child_entry[s][c] = kernels::reserve_entry(view.level[p.level - 1], child_pos(p.pos, c));
       child_block[s][c] = pop_block(view);
-      child_min[s][c] =
+      child_surface[s][c] =
           kernels::fill_split_child(view, parents, c, child_block[s][c], weight_scale);
     }
   });
@@ -111,12 +111,8 @@ SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> bloc
     const LevelView& child_level = view.level[p.level - 1];
     for (int c = 0; c < kChildren; ++c) {
       const int32_t b = child_block[s][c];
-      view.meta[b] = BlockMeta{child_pos(p.pos, c),
-                               child_entry[s][c],
-                               static_cast<int16_t>(p.level - 1),
-                               child_min[s][c],
-                               0,
-                               0};
+      view.meta[b] = BlockMeta{child_pos(p.pos, c), child_entry[s][c],
+                               static_cast<int16_t>(p.level - 1), 0, child_surface[s][c]};
       atomic_store(&child_level.entries[child_entry[s][c]].ptr, b);
     }
     atomic_store(&view.level[p.level].entries[p.entry].ptr, kPtrSplit);
@@ -169,12 +165,12 @@ SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> pare
   }
   const int64_t n = static_cast<int64_t>(todo.size());
   std::vector<int32_t> parent_block(todo.size());
-  std::vector<int16_t> parent_min(todo.size());
+  std::vector<BlockSurface> parent_surface(todo.size());
   // Pass 1: claim a block per parent and fill it from the children.
   parallel_for(n, [&](int64_t i) {
     const Merge& m = todo[static_cast<std::size_t>(i)];
     parent_block[i] = pop_block(view);
-    parent_min[i] = kernels::fill_merged_parent(view, m.child_block.data(), parent_block[i]);
+    parent_surface[i] = kernels::fill_merged_parent(view, m.child_block.data(), parent_block[i]);
   });
   // Pass 2: publish the parents; empty the children's entries, unlinking chain tails.
   std::vector<std::array<int32_t, kChildren>> unlinked(todo.size());
@@ -182,7 +178,7 @@ SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> pare
     const Merge& m = todo[static_cast<std::size_t>(i)];
     const int pl = m.parent.level;
     view.meta[parent_block[i]] =
-        BlockMeta{m.parent.pos, m.entry, static_cast<int16_t>(pl), parent_min[i], 0, 0};
+        BlockMeta{m.parent.pos, m.entry, static_cast<int16_t>(pl), 0, parent_surface[i]};
     atomic_store(&view.level[pl].entries[m.entry].ptr, parent_block[i]);
     const LevelView& lv = view.level[pl - 1];
     for (int c = 0; c < kChildren; ++c) {

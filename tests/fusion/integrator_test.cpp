@@ -214,6 +214,7 @@ TEST(Integrator, SignIsPositiveInFrontAndNegativeBehind) {
   }
   ASSERT_GT(n, 1000);
   EXPECT_LT(wrong, n / 200) << wrong << " of " << n << " voxels have the wrong sign";
+  test::expect_map_consistent(*f.map);  // with every block's surface summary
 }
 
 TEST(Integrator, AllocatesOnlyTheTruncationBand) {

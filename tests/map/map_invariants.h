@@ -11,9 +11,34 @@
 
 namespace hivox::test {
 
+/// The surface summary of a block recomputed from its voxels cell by cell: octant o holds the
+/// cells whose lowest voxel has coordinates in [4 (o & 1), +3] along x (likewise y with o & 2,
+/// z with o & 4); a cell's corners are its lowest voxel plus 0 or 1 per axis, within the block.
+inline BlockSurface surface_from_voxels(const TsdfVoxel* voxels) {
+  BlockSurface s;
+  for (int i = 0; i < kBlockVoxels; ++i)
+    if (voxels[i].weight > 0 && voxels[i].tsdf < s.min_tsdf) s.min_tsdf = voxels[i].tsdf;
+  for (int o = 0; o < 8; ++o) {
+    const Vec3i lo{4 * (o & 1), 2 * (o & 2), (o & 4)};
+    for (int z = lo.z; z < lo.z + 4; ++z)
+      for (int y = lo.y; y < lo.y + 4; ++y)
+        for (int x = lo.x; x < lo.x + 4; ++x)
+          for (int c = 0; c < 8; ++c) {
+            const int cx = x + (c & 1), cy = y + ((c >> 1) & 1), cz = z + (c >> 2);
+            if (cx > 7 || cy > 7 || cz > 7) continue;
+            const TsdfVoxel& v = voxels[voxel_index(cx, cy, cz)];
+            if (v.weight == 0) continue;
+            s.observed = static_cast<uint8_t>(s.observed | (1u << o));
+            if (v.tsdf <= 0) s.surface = static_cast<uint8_t>(s.surface | (1u << o));
+          }
+  }
+  return s;
+}
+
 /// Checks: every chain is acyclic and entries are reached from exactly one bucket; every used
 /// entry hashes to the bucket it hangs from; no key twice per level; every pool block is either
-/// free or owned by exactly one Allocated entry; per-level counters match the tables.
+/// free or owned by exactly one Allocated entry, and its surface summary is its voxels';
+/// per-level counters match the tables.
 inline void expect_map_consistent(const VoxelBlockMap& map) {
   const MapView v = map.view();
   std::vector<int> owner(static_cast<std::size_t>(v.block_capacity), 0);
@@ -43,6 +68,10 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
           EXPECT_EQ(m.pos, e.pos);
           EXPECT_EQ(m.entry, i);
           EXPECT_LT(e.ptr, map.block_high_water());
+          const BlockSurface s = surface_from_voxels(map.block_tsdf(e.ptr));
+          EXPECT_EQ(m.surface.min_tsdf, s.min_tsdf) << "block " << e.ptr;
+          EXPECT_EQ(m.surface.observed, s.observed) << "block " << e.ptr;
+          EXPECT_EQ(m.surface.surface, s.surface) << "block " << e.ptr;
         }
       }
     }

@@ -242,6 +242,7 @@ std::unique_ptr<VoxelBlockMap> split_lattice_map() {
           lattice_f(k * (b.pos.x * 8 + c.x), k * (b.pos.y * 8 + c.y), k * (b.pos.z * 8 + c.z)));
       vox[i].weight = 2;
     }
+    map->refresh_block_surface(b.ptr);
   }
   const LevelView lv = map->view().level[1];
   lv.entries[find_entry(lv, {1, 0, 0})].ptr = kPtrSplit;

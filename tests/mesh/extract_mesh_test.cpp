@@ -164,8 +164,9 @@ TEST(ExtractMesh, UnobservedAndLowWeightVoxelsMakeNoSurface) {
   // Unobserve voxel (5, 6, 4), just below the plane: the 8 cells around it go, and with them
   // every vertex on an edge of that voxel.
   const Vec3i hole{5, 6, 4};
-  TsdfVoxel* vox = map.block_tsdf(map.find(0, {0, 0, 0})->ptr);
-  vox[local_voxel_index(hole)].weight = 0;
+  const int32_t ptr = map.find(0, {0, 0, 0})->ptr;
+  map.block_tsdf(ptr)[local_voxel_index(hole)].weight = 0;
+  map.refresh_block_surface(ptr);
   const TriangleMesh holed = extract_mesh(map);
   EXPECT_EQ(holed.vertex_count(), full.vertex_count() - 1);
   EXPECT_EQ(holed.triangle_count(), full.triangle_count() - 8);

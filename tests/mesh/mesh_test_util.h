@@ -37,6 +37,7 @@ inline void write_sdf_voxels(VoxelBlockMap& map, const BlockRef& b, double mu_m,
     vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
     vox[i].weight = weight;
   }
+  map.refresh_block_surface(b.ptr);
 }
 
 /// Writes F = clamp(sdf / mu) with weight `weight` into every voxel of the level-`level`

@@ -61,17 +61,19 @@ inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, 
       what, hits, differ, max_depth, max_normal);
 }
 
-/// Raycasts `map` from `T_wc` with `hint` twice, with and without ray packets, and checks the
-/// two results are identical.
+/// Raycasts `map` from `T_wc` with `hint` (and `fallback`, optional) twice, with and without ray
+/// packets, and checks the two results are identical.
 inline void expect_packets_match(const VoxelBlockMap& map, RaycastParams rp,
                                  const PinholeCamera& cam, const Pose& T_wc, const DepthImage& hint,
-                                 int min_hits) {
+                                 int min_hits, const DepthImage* fallback = nullptr) {
   rp.ray_packets = true;
   Raycaster packets(rp);
   rp.ray_packets = false;
   Raycaster one_by_one(rp);
-  expect_same_raycast(packets.raycast(map, cam, T_wc, nullptr, &hint),
-                      one_by_one.raycast(map, cam, T_wc, nullptr, &hint), min_hits);
+  RaycastStats a, b;
+  expect_same_raycast(packets.raycast(map, cam, T_wc, &a, &hint, fallback),
+                      one_by_one.raycast(map, cam, T_wc, &b, &hint, fallback), min_hits);
+  EXPECT_NEAR(a.found_at_fallback, b.found_at_fallback, 1 + a.found_at_fallback / 1000);
 }
 
 }  // namespace hivox::test

@@ -196,16 +196,51 @@ TEST(Raycaster, PointsAndNormalsInCameraFrame) {
   EXPECT_GT(checked, 100);
 }
 
-TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
-  const Scene s = fused_scene(0.01f);
+// Pixels where raycasts with different hints must agree: the surface is well observed, apart
+// from the scene's other surface, and not seen at a grazing angle (see the helpers above).
+bool hints_agree_here(const Scene& s, const PinholeCamera& cam, const Pose& T_wc,
+                      const DepthImage& truth, int x, int y) {
+  const float d = truth(x, y);
+  if (d > kWellObservedDepth) return false;
+  if (d > 0 && !well_separated(s.shape, cam, T_wc, x, y, d, 2 * s.mu)) return false;
+  return !(d > 0 && ray_incidence(s.shape, cam, T_wc, x, y, d) < 0.2);
+}
+
+// `a` and `b` hit the same pixels where hints must agree, on the exact surface.
+int expect_same_surfaces(const Scene& s, const PinholeCamera& cam, const Pose& T_wc,
+                         const DepthImage& truth, const RaycastResult& a, const RaycastResult& b) {
+  int both = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      if (!hints_agree_here(s, cam, T_wc, truth, x, y)) continue;
+      EXPECT_EQ(a.hit(x, y), b.hit(x, y)) << x << "," << y;
+      if (!a.hit(x, y) || !b.hit(x, y)) continue;
+      ++both;
+      // Same surface: both points lie on it (samples differ, so depths differ slightly).
+      for (const RaycastResult* r : {&a, &b}) {
+        const Vec3f p = r->points_w(x, y);
+        EXPECT_LT(std::abs(s.shape.sdf(Eigen::Vector3d(p.x, p.y, p.z))), 0.5 * s.voxel);
+      }
+    }
+  return both;
+}
+
+// The hint tests' view of the fused scene, and its true depth.
+struct HintView {
+  Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
-  const PinholeCamera cam = small_camera();
-  const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];
+  PinholeCamera cam = small_camera();
+  Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];
+  DepthImage truth = s.shape.render(cam, T_wc);
+  HintView() { rp.truncation_m = s.mu; }
+};
+
+TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
+  const HintView v;
+  const auto& [s, rp, cam, T_wc, truth] = v;
   Raycaster plain(rp), hinted(rp), misled(rp);
   const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
   // The true depth as hint: same surface everywhere.
-  const DepthImage truth = s.shape.render(cam, T_wc);
   const RaycastResult& b = hinted.raycast(*s.map, cam, T_wc, nullptr, &truth);
   // A hint far behind every surface (and one on unobserved pixels): the fallback must search
   // in front of it and find the same surface.
@@ -213,26 +248,39 @@ TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
   for (std::size_t i = 0; i < wrong.size(); ++i)
     wrong.data()[i] = wrong.data()[i] > 0 ? 2.9f : 0.0f;
   const RaycastResult& c = misled.raycast(*s.map, cam, T_wc, nullptr, &wrong);
-  int both = 0;
-  for (int y = 0; y < cam.height; ++y)
-    for (int x = 0; x < cam.width; ++x) {
-      if (truth(x, y) > kWellObservedDepth) continue;  // see above
-      if (truth(x, y) > 0 && !well_separated(s.shape, cam, T_wc, x, y, truth(x, y), 2 * s.mu))
-        continue;
-      if (truth(x, y) > 0 && ray_incidence(s.shape, cam, T_wc, x, y, truth(x, y)) < 0.2) continue;
-      EXPECT_EQ(a.hit(x, y), b.hit(x, y)) << x << "," << y;
-      EXPECT_EQ(a.hit(x, y), c.hit(x, y)) << x << "," << y;
-      if (!a.hit(x, y) || !b.hit(x, y) || !c.hit(x, y)) continue;
-      ++both;
-      // Same surface: all three points lie on it (samples differ, so depths differ slightly).
-      for (const RaycastResult* r : {&a, &b, &c}) {
-        const Vec3f p = r->points_w(x, y);
-        EXPECT_LT(std::abs(s.shape.sdf(Eigen::Vector3d(p.x, p.y, p.z))), 0.5 * s.voxel);
-      }
-    }
-  EXPECT_GT(both, 12000);
+  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a, b), 12000);
+  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a, c), 12000);
   const DepthImage small(10, 10);
   EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &small), Error);
+  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &truth, &small), Error);
+}
+
+// A fallback hint is searched where the start hint has none or the search at it fails: with
+// start hints in free space 40 cm in front of every surface (where the search gives up) and the
+// true depth as fallback, rays find their surface at the fallback instead of marching, and the
+// surfaces found are those found without any hint. With the roles swapped, the search at the
+// fallback fails where it is taken, and the marches find the same surfaces again.
+TEST(Raycaster, FallbackHintIsSearchedWhereTheHintFails) {
+  const HintView v;
+  const auto& [s, rp, cam, T_wc, truth] = v;
+  DepthImage in_front = truth;
+  for (std::size_t i = 0; i < in_front.size(); ++i)
+    in_front.data()[i] = in_front.data()[i] > 0 ? in_front.data()[i] - 0.4f : 0.0f;
+  Raycaster plain(rp), rescued(rp), swapped(rp);
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
+  RaycastStats rescued_stats, swapped_stats;
+  EXPECT_GT(
+      expect_same_surfaces(s, cam, T_wc, truth, a,
+                           rescued.raycast(*s.map, cam, T_wc, &rescued_stats, &in_front, &truth)),
+      12000);
+  EXPECT_GT(rescued_stats.found_at_fallback, 0.95 * rescued_stats.hits);
+  EXPECT_LE(rescued_stats.found_at_fallback, rescued_stats.found_at_hint);
+  EXPECT_GT(
+      expect_same_surfaces(s, cam, T_wc, truth, a,
+                           swapped.raycast(*s.map, cam, T_wc, &swapped_stats, &truth, &in_front)),
+      12000);
+  EXPECT_LT(swapped_stats.found_at_fallback, swapped_stats.hits / 1000);
+  EXPECT_GT(swapped_stats.found_at_hint, 0.98 * swapped_stats.hits);
 }
 
 TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
@@ -245,6 +293,9 @@ TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
     const DepthImage truth = s.shape.render(cam, T_wc);
     test::expect_packets_match(*s.map, rp, cam, T_wc, truth, 12000);
     test::expect_packets_match(*s.map, rp, cam, T_wc, test::mixed_hints(truth, s.mu), 12000);
+    // Where the search at the hint fails, the search at the fallback hint.
+    test::expect_packets_match(*s.map, rp, cam, T_wc, test::mixed_hints(truth, s.mu), 12000,
+                               &truth);
   }
 }
 
@@ -388,14 +439,30 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
   const RaycastResult& a = ra.raycast(*s.map, cam, T_a);
 
   // Seen from the same pose, every hit lands on its own pixel, except where a nearer surface
-  // within a pixel may hide it.
+  // within a pixel may hide it; a pixel without a hit stays empty unless it is a hole between
+  // two opposite hits that agree within a band (filled with the nearer of them).
   DepthImage same;
   warp_raycast_depth(a, cam, T_a, s.mu, &same);
-  int kept = 0, dropped = 0;
+  auto hole_fill = [&](int x, int y) {
+    float z = 0.0f;
+    for (const auto& [dx, dy] :
+         {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
+      if (!cam.contains(x - dx, y - dy) || !cam.contains(x + dx, y + dy) ||
+          !a.hit(x - dx, y - dy) || !a.hit(x + dx, y + dy))
+        continue;
+      const float p = a.depth_m(x - dx, y - dy), q = a.depth_m(x + dx, y + dy);
+      if (std::abs(p - q) <= s.mu && (z == 0.0f || std::min(p, q) < z)) z = std::min(p, q);
+    }
+    return z;
+  };
+  int kept = 0, dropped = 0, filled = 0;
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       if (!a.hit(x, y)) {
-        EXPECT_EQ(same(x, y), 0.0f) << x << "," << y;
+        if (same(x, y) != 0.0f) {
+          ++filled;
+          EXPECT_EQ(same(x, y), hole_fill(x, y)) << x << "," << y;
+        }
         continue;
       }
       // Far away the floor is seen at grazing angles, where neighbouring pixels lie more than a
@@ -415,7 +482,10 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
       EXPECT_GT(a.depth_m(x, y) - front, s.mu) << x << "," << y;
     }
   EXPECT_GT(kept, 0.98 * (kept + dropped));
-  std::printf("warp to the same pose: %d hits kept, %d behind a nearer neighbour\n", kept, dropped);
+  EXPECT_LT(filled, kept / 1000);
+  std::printf(
+      "warp to the same pose: %d hits kept, %d behind a nearer neighbour, %d holes filled\n", kept,
+      dropped, filled);
 
   // From a pose 1 cm and 1.5 degrees away: the warped depth is the depth raycast from there.
   Pose delta = Pose::Identity();

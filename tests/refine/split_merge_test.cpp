@@ -47,6 +47,7 @@ void fill_block(VoxelBlockMap& map, const BlockRef& b, std::mt19937& rng) {
     c[i] = {static_cast<uint8_t>(col(rng)), static_cast<uint8_t>(col(rng)),
             static_cast<uint8_t>(col(rng)), static_cast<uint8_t>(v[i].weight ? 1 + w(rng) : 0)};
   }
+  map.refresh_block_surface(b.ptr);
 }
 
 std::vector<BlockRef> allocate_cube(VoxelBlockMap& map, int level, int n, std::mt19937& rng) {

@@ -55,18 +55,45 @@ struct FreeListView {
   int32_t capacity = 0;
 };
 
-/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free); a
-/// summary for raycasting, the smallest normalised TSDF (int16 units) over its observed voxels
-/// (a block whose observed voxels are all positive holds no surface, so rays cross it in one
-/// step); and how many frames were integrated into it since its content was created (by
-/// allocation, split or merge), which refinement uses to judge only settled blocks.
+/// The octants of a block (bit o: the interpolation cells whose lowest voxel has local
+/// coordinates >= 4 along x where o & 1, along y where o & 2, along z where o & 4, else < 4)
+/// whose cells have voxel (x, y, z) of the block as a corner: the octant of the voxel, and
+/// the one below along each axis where the voxel's coordinate is 4.
+HIVOX_HD constexpr unsigned voxel_octants(int x, int y, int z) {
+  const unsigned mx = (x <= 4 ? 0x55u : 0u) | (x >= 4 ? 0xAAu : 0u);
+  const unsigned my = (y <= 4 ? 0x33u : 0u) | (y >= 4 ? 0xCCu : 0u);
+  const unsigned mz = (z <= 4 ? 0x0Fu : 0u) | (z >= 4 ? 0xF0u : 0u);
+  return mx & my & mz;
+}
+
+/// The summary of a block's content that raycasting uses: which parts were observed, and where
+/// observed voxels are at or behind a surface (TSDF <= 0). Where observed voxels are all
+/// positive there is no surface, so rays cross such a block, or such an octant of a block
+/// (voxel_octants), in one step; cells that reach into the next block are not covered.
+struct BlockSurface {
+  int16_t min_tsdf = static_cast<int16_t>(kTsdfScale);  ///< over observed voxels, int16 units
+  uint8_t observed = 0;  ///< bit o set: a cell of octant o has an observed corner
+  uint8_t surface = 0;   ///< bit o set: a cell of octant o has an observed corner with TSDF <= 0
+
+  /// Takes in observed voxel (x, y, z) with TSDF `tsdf`.
+  HIVOX_HD void add(int x, int y, int z, int16_t tsdf) {
+    const unsigned bits = voxel_octants(x, y, z);
+    min_tsdf = tsdf < min_tsdf ? tsdf : min_tsdf;
+    observed = static_cast<uint8_t>(observed | bits);
+    if (tsdf <= 0) surface = static_cast<uint8_t>(surface | bits);
+  }
+};
+
+/// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free); its
+/// surface summary for raycasting; and how many frames were integrated into it since its
+/// content was created (by allocation, split or merge), which refinement uses to judge only
+/// settled blocks.
 struct BlockMeta {
   Vec3i pos;
   int32_t entry = kNoEntry;
   int16_t level = -1;
-  int16_t min_tsdf = static_cast<int16_t>(kTsdfScale);
   uint16_t updates = 0;
-  uint16_t reserved = 0;
+  BlockSurface surface;
 };
 static_assert(sizeof(BlockMeta) == 24);
 

@@ -69,7 +69,12 @@ class VoxelBlockMap {
   /// Number of entries marked Split at each level.
   std::vector<int64_t> split_entries_per_level() const;
 
+  /// The voxels of pool block `ptr`. Whoever writes them directly (fusion and refinement keep
+  /// it themselves) calls refresh_block_surface afterwards.
   TsdfVoxel* block_tsdf(int32_t ptr) const { return view_.tsdf + int64_t{ptr} * kBlockVoxels; }
+  /// Recomputes the surface summary of pool block `ptr` (BlockMeta::surface, which raycasting
+  /// relies on) from its voxels.
+  void refresh_block_surface(int32_t ptr);
   ColorVoxel* block_color(int32_t ptr) const {
     return view_.color ? view_.color + int64_t{ptr} * kBlockVoxels : nullptr;
   }

@@ -131,9 +131,9 @@ class Reconstruction {
                            FrameStats& s);
   /// The camera of the per-frame raycast (the depth camera, subsampled for tracking).
   PinholeCamera model_camera() const;
-  DepthImage hint_;    ///< the raycast's start hints: the fused depth at the model camera's
-                       ///< resolution, holes filled from the previous raycast
-  DepthImage warped_;  ///< the previous raycast's depth seen from the current pose
+  DepthImage hint_;    ///< the fused depth at the model camera's resolution, when it differs
+  DepthImage warped_;  ///< the previous raycast's depth seen from the current pose (the
+                       ///< raycast's fallback hints)
 
   Tracker tracker_;
   TrackResult last_track_;

@@ -34,11 +34,12 @@ struct RaycastResult {
 };
 
 struct RaycastStats {
-  int64_t blocks_projected = 0;  ///< blocks whose bounding box landed in the view
-  int64_t hits = 0;              ///< pixels with a surface
-  int64_t found_at_hint = 0;     ///< of them, found near their start hint (without a march)
-  double range_ms = 0;           ///< building the min/max depth range image
-  double march_ms = 0;           ///< marching the rays
+  int64_t blocks_projected = 0;   ///< blocks whose bounding box landed in the view
+  int64_t hits = 0;               ///< pixels with a surface
+  int64_t found_at_hint = 0;      ///< of them, found near a hint (without a march)
+  int64_t found_at_fallback = 0;  ///< of those, found near the fallback hint
+  double range_ms = 0;            ///< building the min/max depth range image
+  double march_ms = 0;            ///< marching the rays
 };
 
 /// The depth at which the surface points of raycast `from` are seen by `camera` from pose
@@ -67,9 +68,17 @@ class Raycaster {
   /// front of the depth range. Either way it skips the space in front (often many blocks for
   /// surfaces seen at grazing angles) but also any model surface the hint says is not there.
   /// Pixels without a hint (0) search the whole range.
+  ///
+  /// `fallback_hint_m` (optional, same size): a second depth per pixel, searched the same way
+  /// where `start_hint_m` has none, or where the search at it fails, before the ray marches: e.g.
+  /// the previous frame's raycast warped into this view (warp_raycast_depth) where the start
+  /// hint is the depth just measured. Where that depth is missing or disagrees with the model (it
+  /// lies in front of the model's surface, or on voxels not yet observed), the model's surface is
+  /// usually where the previous frame saw it.
   const RaycastResult& raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
                                const Pose& T_wc, RaycastStats* stats = nullptr,
-                               const DepthImage* start_hint_m = nullptr);
+                               const DepthImage* start_hint_m = nullptr,
+                               const DepthImage* fallback_hint_m = nullptr);
   const RaycastResult& result() const { return result_; }
 
  private:
