@@ -152,6 +152,22 @@ void BM_RaycastPipeline(benchmark::State& state) {
   raycast(state, RaycastHints::DepthAndWarped);
 }
 
+/// The previous frame's raycast warped into this view (the pipeline's fallback hints).
+void BM_WarpRaycast(benchmark::State& state) {
+  Workload& w = workload();
+  RaycastParams rp;
+  rp.truncation_m = w.fusion.truncation_m;
+  Raycaster previous(rp);
+  previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
+  DepthImage warped;
+  for (auto _ : state)
+    warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
+                       &warped);
+  int64_t covered = 0;
+  for (std::size_t i = 0; i < warped.size(); ++i) covered += warped.data()[i] > 0.0f;
+  state.counters["covered"] = static_cast<double>(covered);
+}
+
 void BM_ExtractMesh(benchmark::State& state) {
   Workload& w = workload();
   TriangleMesh mesh;
@@ -164,6 +180,7 @@ BENCHMARK(BM_Integrate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastHinted)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastPipeline)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_WarpRaycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 }  // namespace

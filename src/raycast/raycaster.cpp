@@ -186,30 +186,51 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       if (u < 0 || v < 0 || u >= w || v >= h) continue;
       atomic_min_positive(&nearest(u, v), p.z);
     }
+  // The nearest depth landed within one pixel: a minimum over each row's 3 pixels, then over 3
+  // rows (loops without branches, which vectorize).
+  DepthImage row_min(w, h, FLT_MAX);
+#pragma omp parallel for schedule(static)
+  for (int y = 0; y < h; ++y) {
+    const float* n = &nearest(0, y);
+    float* r = &row_min(0, y);
+    for (int x = 1; x + 1 < w; ++x) r[x] = std::min(n[x - 1], std::min(n[x], n[x + 1]));
+    r[0] = std::min(n[0], w > 1 ? n[1] : FLT_MAX);
+    if (w > 1) r[w - 1] = std::min(n[w - 2], n[w - 1]);
+  }
   out->resize(w, h);
   auto landed = [&](int u, int v) {
     return u >= 0 && v >= 0 && u < w && v < h ? nearest(u, v) : FLT_MAX;
   };
+  const std::vector<float> no_row(static_cast<std::size_t>(w), FLT_MAX);
 #pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y)
+  for (int y = 0; y < h; ++y) {
+    const float* n = &nearest(0, y);
+    const float* above = y > 0 ? &row_min(0, y - 1) : no_row.data();
+    const float* row = &row_min(0, y);
+    const float* below = y + 1 < h ? &row_min(0, y + 1) : no_row.data();
+    float* o = &(*out)(0, y);
+    // A landed depth stays unless a pixel within one pixel holds a surface nearer by more than
+    // the gap (a surface that may show through a gap in the warped foreground).
     for (int x = 0; x < w; ++x) {
-      float z = nearest(x, y);
-      if (z == FLT_MAX) {
-        // No hit landed here, but on both sides of the pixel (the new view magnifies the
-        // surface, or its pixels sample it elsewhere): the nearer of the two, where they agree.
-        // A pixel beside a silhouette has hits on one side only and stays empty.
-        constexpr int kOpposite[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-        for (const auto& o : kOpposite) {
-          const float a = landed(x - o[0], y - o[1]), b = landed(x + o[0], y + o[1]);
-          if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
-            z = std::min(z, std::min(a, b));
-        }
-      }
-      float front = z;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) front = std::min(front, landed(x + dx, y + dy));
-      (*out)(x, y) = z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
+      const float front = std::min(above[x], std::min(row[x], below[x]));
+      o[x] = n[x] < FLT_MAX && n[x] - front <= max_gap_m ? n[x] : 0.0f;
     }
+    for (int x = 0; x < w; ++x) {
+      if (n[x] < FLT_MAX) continue;
+      // No hit landed here, but on both sides of the pixel (the new view magnifies the surface,
+      // or its pixels sample it elsewhere): the nearer of the two, where they agree. A pixel
+      // beside a silhouette has hits on one side only and stays empty.
+      constexpr int kOpposite[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+      float z = FLT_MAX;
+      for (const auto& d : kOpposite) {
+        const float a = landed(x - d[0], y - d[1]), b = landed(x + d[0], y + d[1]);
+        if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
+          z = std::min(z, std::min(a, b));
+      }
+      const float front = std::min(above[x], std::min(row[x], below[x]));
+      o[x] = z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
+    }
+  }
 }
 
 Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
