@@ -181,7 +181,6 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
           hint_(x, y) = frame.depth_m(n * x + n / 2, n * y + n / 2);
       hint = &hint_;
     }
-    // Where the frame has no depth, the surface the previous raycast saw, seen from here.
     // Where the frame has no depth, or the search at its depth fails (a depth in front of the
     // model's surface, or on voxels not observed yet), the surface the previous raycast saw, seen
     // from here.
