@@ -327,10 +327,9 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
                            : nullptr;
   const float* depth_m = depth.depth_m.data;
   const float min_d = depth.min_depth_m, max_d = depth.max_depth_m;
-  // The block's surface summary (BlockSurface): the smallest observed TSDF, and the octants whose
-  // cells have observed corners and observed corners with TSDF <= 0 (voxel_octants; the slice's
-  // voxel i has x = i % 8 and y = i / 8).
-  int min_tsdf = static_cast<int>(kTsdfScale);
+  // The block's surface summary (BlockSurface): the octants whose cells have observed corners
+  // and observed corners with TSDF <= 0 (voxel_octants; the slice's voxel i has x = i % 8 and
+  // y = i / 8).
   uint32_t observed_octants = 0, surface_octants = 0;
   for (int z = 0; z < kBlockSide; ++z) {
     const float zf = static_cast<float>(z);
@@ -393,15 +392,12 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
     }
     // A loop of its own: in the loop above, GCC narrows the octant masks to bytes and then
     // cannot vectorize the floats.
-    int slice_min = INT_MAX;
     uint32_t slice_observed = 0, slice_surface = 0;
     for (int i = 0; i < kSlice; ++i) {
       const uint32_t octants = voxel_octants(i & 7, i >> 3, z);
-      slice_min = summary[i] < slice_min ? summary[i] : slice_min;
       slice_observed |= octants & (0u - static_cast<uint32_t>(summary[i] != INT_MAX));
       slice_surface |= octants & (0u - static_cast<uint32_t>(summary[i] <= 0));
     }
-    min_tsdf = slice_min < min_tsdf ? slice_min : min_tsdf;
     observed_octants |= slice_observed;
     surface_octants |= slice_surface;
     if (colors == nullptr) continue;
@@ -429,7 +425,6 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
     }
   }
   BlockMeta& meta = map.meta[ptr];
-  meta.surface.min_tsdf = static_cast<int16_t>(min_tsdf);
   meta.surface.observed = static_cast<uint8_t>(observed_octants);
   meta.surface.surface = static_cast<uint8_t>(surface_octants);
   if (meta.updates < 65535) ++meta.updates;

@@ -248,9 +248,9 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
       }
       hi = Vec3f{lo.x + side_m, lo.y + side_m, lo.z + side_m};
     }
-    // Nothing stored here, or no observed voxel of this block (or of the octant of it the ray
-    // is in) at or behind a surface (all positive: no crossing inside): skip to where the ray
-    // leaves it. A surface just beyond the exit is caught by the look-back below.
+    // Nothing stored here, or no cell of this block (or of the octant of it the ray is in) with
+    // an observed corner at or behind a surface (all positive: no crossing inside): skip to
+    // where the ray leaves it. A surface just beyond the exit is caught by the look-back below.
     Vec3f skip_lo = lo, skip_hi = hi;
     bool skip = ptr < 0;
     if (!skip) {

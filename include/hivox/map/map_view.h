@@ -71,14 +71,12 @@ HIVOX_HD constexpr unsigned voxel_octants(int x, int y, int z) {
 /// positive there is no surface, so rays cross such a block, or such an octant of a block
 /// (voxel_octants), in one step; cells that reach into the next block are not covered.
 struct BlockSurface {
-  int16_t min_tsdf = static_cast<int16_t>(kTsdfScale);  ///< over observed voxels, int16 units
   uint8_t observed = 0;  ///< bit o set: a cell of octant o has an observed corner
   uint8_t surface = 0;   ///< bit o set: a cell of octant o has an observed corner with TSDF <= 0
 
   /// Takes in observed voxel (x, y, z) with TSDF `tsdf`.
   HIVOX_HD void add(int x, int y, int z, int16_t tsdf) {
     const unsigned bits = voxel_octants(x, y, z);
-    min_tsdf = tsdf < min_tsdf ? tsdf : min_tsdf;
     observed = static_cast<uint8_t>(observed | bits);
     if (tsdf <= 0) surface = static_cast<uint8_t>(surface | bits);
   }
