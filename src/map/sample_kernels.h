@@ -279,11 +279,14 @@ HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cac
 /// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
 /// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
 /// level's voxel nearest to it (or, when that voxel's block lies elsewhere, the one at the
-/// point's floor in the block holding the point). Returns the level of the voxel, whose block
-/// and global coordinates (at that level) go to `ptr` and `voxel`, or -1 when no level stores
-/// the point.
+/// point's floor in the block holding the point). With `corner` (0..7, as in read_cell) the
+/// coarser voxel is not the nearest but the one at or beyond the point on the corner's side of
+/// its cell along each axis (floor for a low corner, ceiling for a high one), so that the two
+/// corners of a cell never land on one coarse voxel. Returns the level of the voxel, whose
+/// block and global coordinates (at that level) go to `ptr` and `voxel`, or -1 when no level
+/// stores the point.
 HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
-                                  const Vec3i& g, int32_t* ptr, Vec3i* voxel) {
+                                  const Vec3i& g, int32_t* ptr, Vec3i* voxel, int corner = -1) {
   for (int l = level; l >= 0; --l) {
     const int k = 1 << (level - l);
     const Vec3i gl{g.x * k, g.y * k, g.z * k};
@@ -299,21 +302,24 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
   const int32_t holder = coarser_holder(map, cache, level, block_of_voxel(g), &l);
   if (holder < 0) return -1;
   const int k = 1 << (l - level);
-  const Vec3i nearest{floor_div(g.x + k / 2, k), floor_div(g.y + k / 2, k),
-                      floor_div(g.z + k / 2, k)};
+  auto shift = [&](int axis) { return corner < 0 ? k / 2 : ((corner >> axis) & 1) * (k - 1); };
+  const Vec3i nearest{floor_div(g.x + shift(0), k), floor_div(g.y + shift(1), k),
+                      floor_div(g.z + shift(2), k)};
   const int32_t p = cache.find(map, l, block_of_voxel(nearest));
   *ptr = p >= 0 ? p : holder;
   *voxel = p >= 0 ? nearest : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
   return l;
 }
 
-/// The sample standing in for voxel `g` (integer coordinates of `level`) when its block is not
-/// stored at `level`: lattice_voxel's voxel of another level; `pos` receives its position in
-/// voxel units of `level` (`g` itself for a finer level).
+/// The sample standing in for corner `corner` (as in read_cell) of a cell, voxel `g` (integer
+/// coordinates of `level`), when its block is not stored at `level`: lattice_voxel's voxel of
+/// another level, on the corner's side; `pos` receives its position in voxel units of `level`
+/// (`g` itself for a finer level).
 HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCache& cache, int level,
-                                             const Vec3i& g, int32_t* ptr, int* index, Vec3f* pos) {
+                                             const Vec3i& g, int corner, int32_t* ptr, int* index,
+                                             Vec3f* pos) {
   Vec3i voxel;
-  const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel);
+  const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel, corner);
   if (l2 < 0 || l2 == level) return false;
   *index = local_voxel_index(voxel);
   *pos = to_float(g);
@@ -439,7 +445,7 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     pos[c] = to_float(g);
     if (ptr < 0) {  // this corner's region is stored at another level (or nowhere)
       Vec3f where;
-      if (!corner_from_other_level(map, cache, level, g, &ptr, &i, &where)) return false;
+      if (!corner_from_other_level(map, cache, level, g, c, &ptr, &i, &where)) return false;
       regular = regular && where == pos[c];
       pos[c] = where;
     }

@@ -264,8 +264,16 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
     const float level = params_.merge_level(depth_of(p.pos, p.level));
     for (int k = 0; k < kChildren; ++k) {
       const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_pos(p.pos, k));
-      if (ptr < 0 || !settled(ptr)) return;
-      if (complexity(map, ptr, truncation_m) >= level) return;
+      if (ptr < 0) return;
+      const float c = complexity(map, ptr, truncation_m);
+      // A child with too little surface to judge holds nothing a merge could lose, however
+      // young: the children of a table top's block that lie below the band seen from above are
+      // never integrated, and waiting for them to settle kept the flat top split for good.
+      if (c < 0.0f &&
+          (getenv("V2") == nullptr || kernels::block_detail_m(map.block_tsdf(ptr), truncation_m,
+                                                              params_.min_weight, 1) < 0.0f))
+        continue;
+      if (!settled(ptr) || c >= level) return;
     }
     mergeable[i] = 1;
   });

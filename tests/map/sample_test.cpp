@@ -222,14 +222,14 @@ int lattice_f(int x, int y, int z) {
   return 3 * x - 5 * y + 7 * z + 11;
 }
 
-std::unique_ptr<VoxelBlockMap> split_lattice_map() {
+std::unique_ptr<VoxelBlockMap> split_lattice_map(int split_x = 1) {
   MapParams mp;
   mp.voxel_size_m = 0.01f;
   mp.levels = 2;
   mp.max_blocks = 64;
   auto map = std::make_unique<VoxelBlockMap>(mp);
   std::vector<BlockKey> keys = {{{0, 0, 0}, 1}, {{1, 0, 0}, 1}};
-  for (int c = 0; c < 8; ++c) keys.push_back({{2 + (c & 1), (c >> 1) & 1, c >> 2}, 0});
+  for (int c = 0; c < 8; ++c) keys.push_back({{2 * split_x + (c & 1), (c >> 1) & 1, c >> 2}, 0});
   std::vector<BlockRef> inserted;
   map->insert_blocks(keys, &inserted);
   EXPECT_EQ(inserted.size(), keys.size());
@@ -245,8 +245,35 @@ std::unique_ptr<VoxelBlockMap> split_lattice_map() {
     map->refresh_block_surface(b.ptr);
   }
   const LevelView lv = map->view().level[1];
-  lv.entries[find_entry(lv, {1, 0, 0})].ptr = kPtrSplit;
+  lv.entries[find_entry(lv, {split_x, 0, 0})].ptr = kPtrSplit;
   return map;
+}
+
+TEST(LatticeSampling, FineCellsReachingIntoACoarseRegionKeepALinearFieldExact) {
+  // Level-1 block 0 split (level-0 x in [0, 16)), level-1 block 1 coarse (x in [16, 32)). The
+  // last fine cells, x in [15, 16), take their x = 16 corners from the coarse voxels. Where a
+  // cell's y or z corners are 2j - 1 and 2j, rounding both to the nearest coarse voxel put them
+  // on one sample and the cell fell back to trilinear on misplaced values: off by up to half a
+  // coarse voxel's change of F. Taken on the corner's side, the samples stay distinct and the
+  // interpolant, which holds every linear function, gives F exactly.
+  const auto map = split_lattice_map(0);
+  const MapView view = map->view();
+  auto cache = std::make_unique<kernels::BlockLookupCache>();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  double worst = 0.0;
+  int irregular = 0;
+  for (int i = 0; i < 2000; ++i) {
+    // Level-0 voxel units; y and z below 14, where the coarse samples beyond stay in block 1.
+    const Vec3f q{15.0f + u(rng), 14.0f * u(rng), 14.0f * u(rng)};
+    kernels::TsdfSample s;
+    ASSERT_TRUE(kernels::sample_trilinear(view, *cache, 0, q * 0.01f, 1, &s));
+    const float exact = (3.0f * q.x - 5.0f * q.y + 7.0f * q.z + 11.0f) / kTsdfScale;
+    worst = std::max(worst, std::abs(static_cast<double>(s.f - exact)) * kTsdfScale);
+    irregular += (static_cast<int>(q.y) % 2 == 1) || (static_cast<int>(q.z) % 2 == 1);
+  }
+  EXPECT_GT(irregular, 1000);
+  EXPECT_LT(worst, 0.05) << "largest error, int16 TSDF units (F changes by 3-7 per voxel)";
 }
 
 TEST(LatticeSampling, CoarseLatticePointsInASplitRegionReadTheFinerVoxel) {

@@ -105,21 +105,24 @@ TEST(Reconstruction, RefinementTakesTheDatasetsNoiseModel) {
 TEST(HierarchyDesk, NoiseFree) {
   const Outcome o = run("none");
   // Measured (120 frames, 640x480; the dataset declares no sensor noise, so only the absolute
-  // 0.2 / 0.1 mm levels apply): walls ~97 % coarse, floor ~82 %, keyboard ~100 % finest, blob
-  // ~96 %, blocks ~24 % of the fixed 2 mm grid, error ~1.24x fixed 2 mm and ~0.50x fixed 8 mm
-  // (the 1.25x and 0.6x; asserted with a little room for other CPUs).
-  expect_sensible_hierarchy(o, 0.9, 1.3, 0.6);
-  EXPECT_GE(o.level_share.at("floor")[2], 0.7);
+  // 0.2 / 0.1 mm levels apply): walls ~97 % coarse, floor ~91 %, keyboard ~100 % finest, blob
+  // ~96 %, table top ~28 % coarse (~63 % more than a coarse block from its rim and objects),
+  // blocks ~21 % of the fixed 2 mm grid, error ~1.18x fixed 2 mm and ~0.48x fixed 8 mm (the
+  // issue's 1.25x and 0.6x).
+  expect_sensible_hierarchy(o, 0.9, 1.25, 0.6);
+  EXPECT_GE(o.level_share.at("floor")[2], 0.85);
 }
 
 TEST(HierarchyDesk, KinectNoise) {
   const Outcome o = run("kinect");
-  // Measured: walls ~99 % coarse, floor ~73 %, keyboard ~84 % finest, blob ~49 %, table top
-  // ~26 % finest and ~68 % at the middle level (objects stand on it, and the synthetic depth
-  // quantisation leaves a staircase on the tilted top), blocks ~11 % of fixed 2 mm, error ~0.92x
-  // fixed 2 mm (noise averages out in the coarser voxels) and ~0.89x fixed 8 mm (itself within
-  // 5 % of fixed 2 mm at this noise, so the 0.6x of fixed 8 mm cannot hold here).
+  // Measured: walls ~99 % coarse, floor ~91 %, keyboard ~84 % finest, blob ~48 %, table top
+  // ~26 % finest and ~69 % at the middle level (objects stand on it, and seen at ~60 degrees its
+  // noise, lateral jitter included, reads as detail above the merge level), blocks ~10 % of
+  // fixed 2 mm, error ~0.90x fixed 2 mm (noise averages out in the coarser voxels) and ~0.88x
+  // fixed 8 mm (itself within 5 % of fixed 2 mm at this noise, so the 0.6x of fixed 8 mm
+  // cannot hold here).
   expect_sensible_hierarchy(o, 0.9, 1.0, 0.95);
+  EXPECT_GE(o.level_share.at("floor")[2], 0.85);
 }
 
 }  // namespace
