@@ -282,7 +282,8 @@ HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cac
 /// point's floor in the block holding the point). With `corner` (0..7, as in read_cell) the
 /// coarser voxel is not the nearest but the one at or beyond the point on the corner's side of
 /// its cell along each axis (floor for a low corner, ceiling for a high one), so that the two
-/// corners of a cell never land on one coarse voxel. Returns the level of the voxel, whose
+/// corners of a cell never land on one coarse voxel; where that point's coarse block is split,
+/// the finer voxel exactly at the point. Returns the level of the voxel, whose
 /// block and global coordinates (at that level) go to `ptr` and `voxel`, or -1 when no level
 /// stores the point.
 HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
@@ -306,6 +307,21 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
   const Vec3i nearest{floor_div(g.x + shift(0), k), floor_div(g.y + shift(1), k),
                       floor_div(g.z + shift(2), k)};
   const int32_t p = cache.find(map, l, block_of_voxel(nearest));
+  if (p == kPtrSplit && corner >= 0) {
+    // The coarse point on the corner's side lies in a finer region, which has a voxel exactly
+    // there (taking the floor instead would put two corners of the cell on one sample).
+    for (int f = level; f >= 0; --f) {
+      const int kf = k << (level - f);
+      const Vec3i gf{nearest.x * kf, nearest.y * kf, nearest.z * kf};
+      const int32_t pf = cache.find(map, f, block_of_voxel(gf));
+      if (pf >= 0) {
+        *ptr = pf;
+        *voxel = gf;
+        return f;
+      }
+      if (pf != kPtrSplit) break;
+    }
+  }
   *ptr = p >= 0 ? p : holder;
   *voxel = p >= 0 ? nearest : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
   return l;
@@ -320,13 +336,10 @@ HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCach
                                              Vec3f* pos) {
   Vec3i voxel;
   const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel, corner);
-  if (l2 < 0 || l2 == level) return false;
+  if (l2 < 0 || (l2 == level && voxel == g)) return false;
   *index = local_voxel_index(voxel);
-  *pos = to_float(g);
-  if (l2 > level) {
-    const int f = 1 << (l2 - level);
-    *pos = to_float(Vec3i{voxel.x * f, voxel.y * f, voxel.z * f});
-  }
+  *pos = l2 >= level ? to_float(voxel) * static_cast<float>(1 << (l2 - level))
+                     : to_float(voxel) * (1.0f / static_cast<float>(1 << (level - l2)));
   return true;
 }
 

@@ -222,14 +222,21 @@ int lattice_f(int x, int y, int z) {
   return 3 * x - 5 * y + 7 * z + 11;
 }
 
-std::unique_ptr<VoxelBlockMap> split_lattice_map(int split_x = 1) {
+// `coarse` level-1 blocks stored as such, `split` ones stored through their 8 level-0 children.
+std::unique_ptr<VoxelBlockMap> lattice_map(const std::vector<Vec3i>& coarse,
+                                           const std::vector<Vec3i>& split) {
   MapParams mp;
   mp.voxel_size_m = 0.01f;
   mp.levels = 2;
   mp.max_blocks = 64;
   auto map = std::make_unique<VoxelBlockMap>(mp);
-  std::vector<BlockKey> keys = {{{0, 0, 0}, 1}, {{1, 0, 0}, 1}};
-  for (int c = 0; c < 8; ++c) keys.push_back({{2 * split_x + (c & 1), (c >> 1) & 1, c >> 2}, 0});
+  std::vector<BlockKey> keys;
+  for (const Vec3i& b : coarse) keys.push_back({b, 1});
+  for (const Vec3i& b : split) {
+    keys.push_back({b, 1});
+    for (int c = 0; c < 8; ++c)
+      keys.push_back({{2 * b.x + (c & 1), 2 * b.y + ((c >> 1) & 1), 2 * b.z + (c >> 2)}, 0});
+  }
   std::vector<BlockRef> inserted;
   map->insert_blocks(keys, &inserted);
   EXPECT_EQ(inserted.size(), keys.size());
@@ -245,34 +252,42 @@ std::unique_ptr<VoxelBlockMap> split_lattice_map(int split_x = 1) {
     map->refresh_block_surface(b.ptr);
   }
   const LevelView lv = map->view().level[1];
-  lv.entries[find_entry(lv, {split_x, 0, 0})].ptr = kPtrSplit;
+  for (const Vec3i& b : split) lv.entries[find_entry(lv, b)].ptr = kPtrSplit;
   return map;
 }
 
+std::unique_ptr<VoxelBlockMap> split_lattice_map() {
+  return lattice_map({{0, 0, 0}}, {{1, 0, 0}});
+}
+
 TEST(LatticeSampling, FineCellsReachingIntoACoarseRegionKeepALinearFieldExact) {
-  // Level-1 block 0 split (level-0 x in [0, 16)), level-1 block 1 coarse (x in [16, 32)). The
-  // last fine cells, x in [15, 16), take their x = 16 corners from the coarse voxels. Where a
-  // cell's y or z corners are 2j - 1 and 2j, rounding both to the nearest coarse voxel put them
-  // on one sample and the cell fell back to trilinear on misplaced values: off by up to half a
-  // coarse voxel's change of F. Taken on the corner's side, the samples stay distinct and the
-  // interpolant, which holds every linear function, gives F exactly.
-  const auto map = split_lattice_map(0);
+  // Level-1 block 0 split (level-0 x in [0, 16)), level-1 block (1, 0, 0) coarse (x in [16,
+  // 32)) and block (1, 1, 0) split again. The last fine cells, x in [15, 16), take their x = 16
+  // corners from the coarse voxels. Where a cell's y or z corners are 2j - 1 and 2j, rounding both
+  // to the nearest coarse voxel put them on one sample and the cell fell back to trilinear on
+  // misplaced values: off by up to half a coarse voxel's change of F. Taken on the corner's side,
+  // the samples stay distinct and the interpolant, which holds every linear function, gives F
+  // exactly. At y in [14, 16) the sample beyond y = 15 lies in the split block (1, 1, 0), whose
+  // fine voxel at y = 16 stands in for it.
+  const auto map = lattice_map({{1, 0, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}});
   const MapView view = map->view();
   auto cache = std::make_unique<kernels::BlockLookupCache>();
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   double worst = 0.0;
-  int irregular = 0;
-  for (int i = 0; i < 2000; ++i) {
-    // Level-0 voxel units; y and z below 14, where the coarse samples beyond stay in block 1.
-    const Vec3f q{15.0f + u(rng), 14.0f * u(rng), 14.0f * u(rng)};
+  int irregular = 0, beyond = 0;
+  for (int i = 0; i < 4000; ++i) {
+    // Level-0 voxel units; z below 14, where the coarse samples beyond stay in block (1, 0, 0).
+    const Vec3f q{15.0f + u(rng), 16.0f * u(rng), 14.0f * u(rng)};
     kernels::TsdfSample s;
-    ASSERT_TRUE(kernels::sample_trilinear(view, *cache, 0, q * 0.01f, 1, &s));
+    ASSERT_TRUE(kernels::sample_trilinear(view, *cache, 0, q * 0.01f, 1, &s)) << q.y;
     const float exact = (3.0f * q.x - 5.0f * q.y + 7.0f * q.z + 11.0f) / kTsdfScale;
     worst = std::max(worst, std::abs(static_cast<double>(s.f - exact)) * kTsdfScale);
     irregular += (static_cast<int>(q.y) % 2 == 1) || (static_cast<int>(q.z) % 2 == 1);
+    beyond += q.y >= 14.0f;
   }
-  EXPECT_GT(irregular, 1000);
+  EXPECT_GT(irregular, 2000);
+  EXPECT_GT(beyond, 200);
   EXPECT_LT(worst, 0.05) << "largest error, int16 TSDF units (F changes by 3-7 per voxel)";
 }
 
