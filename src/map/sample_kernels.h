@@ -304,15 +304,15 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
   if (holder < 0) return -1;
   const int k = 1 << (l - level);
   auto shift = [&](int axis) { return corner < 0 ? k / 2 : ((corner >> axis) & 1) * (k - 1); };
-  const Vec3i nearest{floor_div(g.x + shift(0), k), floor_div(g.y + shift(1), k),
-                      floor_div(g.z + shift(2), k)};
-  const int32_t p = cache.find(map, l, block_of_voxel(nearest));
+  const Vec3i pick{floor_div(g.x + shift(0), k), floor_div(g.y + shift(1), k),
+                   floor_div(g.z + shift(2), k)};
+  const int32_t p = cache.find(map, l, block_of_voxel(pick));
   if (p == kPtrSplit && corner >= 0) {
     // The coarse point on the corner's side lies in a finer region, which has a voxel exactly
     // there (taking the floor instead would put two corners of the cell on one sample).
     for (int f = level; f >= 0; --f) {
       const int kf = k << (level - f);
-      const Vec3i gf{nearest.x * kf, nearest.y * kf, nearest.z * kf};
+      const Vec3i gf{pick.x * kf, pick.y * kf, pick.z * kf};
       const int32_t pf = cache.find(map, f, block_of_voxel(gf));
       if (pf >= 0) {
         *ptr = pf;
@@ -323,14 +323,14 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
     }
   }
   *ptr = p >= 0 ? p : holder;
-  *voxel = p >= 0 ? nearest : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
+  *voxel = p >= 0 ? pick : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
   return l;
 }
 
 /// The sample standing in for corner `corner` (as in read_cell) of a cell, voxel `g` (integer
 /// coordinates of `level`), when its block is not stored at `level`: lattice_voxel's voxel of
 /// another level, on the corner's side; `pos` receives its position in voxel units of `level`
-/// (`g` itself for a finer level).
+/// (`g` itself for a finer level, but for the split-block case of lattice_voxel).
 HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCache& cache, int level,
                                              const Vec3i& g, int corner, int32_t* ptr, int* index,
                                              Vec3f* pos) {

@@ -269,10 +269,7 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
       // A child with too little surface to judge holds nothing a merge could lose, however
       // young: the children of a table top's block that lie below the band seen from above are
       // never integrated, and waiting for them to settle kept the flat top split for good.
-      if (c < 0.0f &&
-          (getenv("V2") == nullptr || kernels::block_detail_m(map.block_tsdf(ptr), truncation_m,
-                                                              params_.min_weight, 1) < 0.0f))
-        continue;
+      if (c < 0.0f) continue;
       if (!settled(ptr) || c >= level) return;
     }
     mergeable[i] = 1;
