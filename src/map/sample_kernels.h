@@ -275,6 +275,25 @@ HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cac
   return kPtrEmpty;
 }
 
+/// The voxel exactly at lattice point `g` of `level`: of `level` itself, or of the finer level
+/// its Split entries lead to. Returns that level (the voxel's block and global coordinates there
+/// go to `ptr` and `voxel`), or -1 when `level` has no block there (a coarser level may).
+HIVOX_HD inline int voxel_at_or_finer(const MapView& map, BlockLookupCache& cache, int level,
+                                      const Vec3i& g, int32_t* ptr, Vec3i* voxel) {
+  for (int l = level; l >= 0; --l) {
+    const int k = 1 << (level - l);
+    const Vec3i gl{g.x * k, g.y * k, g.z * k};
+    const int32_t p = cache.find(map, l, block_of_voxel(gl));
+    if (p >= 0) {
+      *ptr = p;
+      *voxel = gl;
+      return l;
+    }
+    if (p != kPtrSplit) break;
+  }
+  return -1;
+}
+
 /// The voxel standing for lattice point `g` of `level`, found with integer arithmetic only (so
 /// points on block borders never land in the wrong block): the voxel of `level` itself, or of a
 /// finer level, which has a voxel exactly there; where the point lies in a coarser region, that
@@ -288,17 +307,8 @@ HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cac
 /// stores the point.
 HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, int level,
                                   const Vec3i& g, int32_t* ptr, Vec3i* voxel, int corner = -1) {
-  for (int l = level; l >= 0; --l) {
-    const int k = 1 << (level - l);
-    const Vec3i gl{g.x * k, g.y * k, g.z * k};
-    const int32_t p = cache.find(map, l, block_of_voxel(gl));
-    if (p >= 0) {
-      *ptr = p;
-      *voxel = gl;
-      return l;
-    }
-    if (p != kPtrSplit) break;
-  }
+  const int here = voxel_at_or_finer(map, cache, level, g, ptr, voxel);
+  if (here >= 0) return here;
   int l;
   const int32_t holder = coarser_holder(map, cache, level, block_of_voxel(g), &l);
   if (holder < 0) return -1;
@@ -310,17 +320,9 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
   if (p == kPtrSplit && corner >= 0) {
     // The coarse point on the corner's side lies in a finer region, which has a voxel exactly
     // there (taking the floor instead would put two corners of the cell on one sample).
-    for (int f = level; f >= 0; --f) {
-      const int kf = k << (level - f);
-      const Vec3i gf{pick.x * kf, pick.y * kf, pick.z * kf};
-      const int32_t pf = cache.find(map, f, block_of_voxel(gf));
-      if (pf >= 0) {
-        *ptr = pf;
-        *voxel = gf;
-        return f;
-      }
-      if (pf != kPtrSplit) break;
-    }
+    const int finer =
+        voxel_at_or_finer(map, cache, level, Vec3i{pick.x * k, pick.y * k, pick.z * k}, ptr, voxel);
+    if (finer >= 0) return finer;
   }
   *ptr = p >= 0 ? p : holder;
   *voxel = p >= 0 ? pick : Vec3i{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
