@@ -206,14 +206,7 @@ void VoxelBlockMap::refresh_block_surface(int32_t ptr) {
   if (ptr < 0 || ptr >= block_high_water())
     fail(ErrorCode::InvalidArgument, "refresh_block_surface: pool block {} is not in [0, {})", ptr,
          block_high_water());
-  const TsdfVoxel* voxels = block_tsdf(ptr);
-  BlockSurface surface;
-  for (int i = 0; i < kBlockVoxels; ++i) {
-    if (voxels[i].weight == 0) continue;
-    const Vec3i v = voxel_coords(i);
-    surface.add(v.x, v.y, v.z, voxels[i].tsdf);
-  }
-  meta_[static_cast<std::size_t>(ptr)].surface = surface;
+  meta_[static_cast<std::size_t>(ptr)].surface = block_surface(block_tsdf(ptr));
 }
 
 std::optional<TsdfVoxel> VoxelBlockMap::voxel(int level, const Vec3i& v) const {

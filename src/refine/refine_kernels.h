@@ -96,7 +96,6 @@ HIVOX_HD inline BlockSurface fill_split_child(const MapView& map, const int32_t 
   TsdfVoxel* out = map.tsdf + static_cast<int64_t>(child_ptr) * kBlockVoxels;
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(child_ptr) * kBlockVoxels : nullptr;
-  BlockSurface surface;
   for (int i = 0; i < kBlockVoxels; ++i) {
     const Vec3i j = voxel_coords(i);
     // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
@@ -140,7 +139,6 @@ HIVOX_HD inline BlockSurface fill_split_child(const MapView& map, const int32_t 
       v.tsdf = tsdf_from_float(f_sum / f_w);
       const float w = w_sum * weight_scale + 0.5f;
       v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
-      surface.add(j.x, j.y, j.z, v.tsdf);
     }
     out[i] = v;
     if (out_c != nullptr) {
@@ -156,7 +154,7 @@ HIVOX_HD inline BlockSurface fill_split_child(const MapView& map, const int32_t 
       out_c[i] = cv;
     }
   }
-  return surface;
+  return block_surface(out);
 }
 
 // ---- merge: the parent from its children -----------------------------------------------------
@@ -170,17 +168,15 @@ HIVOX_HD inline BlockSurface fill_merged_parent(const MapView& map, const int32_
   TsdfVoxel* out = map.tsdf + static_cast<int64_t>(parent_ptr) * kBlockVoxels;
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(parent_ptr) * kBlockVoxels : nullptr;
-  BlockSurface surface;
   for (int i = 0; i < kBlockVoxels; ++i) {
     const Vec3i p = voxel_coords(i);
     const int child = (p.x >> 2) | ((p.y >> 2) << 1) | ((p.z >> 2) << 2);
     const int src = voxel_index(2 * (p.x & 3), 2 * (p.y & 3), 2 * (p.z & 3));
     const int64_t at = static_cast<int64_t>(child_ptrs[child]) * kBlockVoxels + src;
     out[i] = map.tsdf[at];
-    if (out[i].weight > 0) surface.add(p.x, p.y, p.z, out[i].tsdf);
     if (out_c != nullptr) out_c[i] = map.color[at];
   }
-  return surface;
+  return block_surface(out);
 }
 
 /// Removes entry `e` (already Empty) from its chain when it is the chain's tail and lies in the

@@ -82,6 +82,17 @@ struct BlockSurface {
   }
 };
 
+/// The surface summary of a block's voxels `v` (observed: weight > 0).
+HIVOX_HD inline BlockSurface block_surface(const TsdfVoxel* v) {
+  BlockSurface surface;
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    if (v[i].weight == 0) continue;
+    const Vec3i c = voxel_coords(i);
+    surface.add(c.x, c.y, c.z, v[i].tsdf);
+  }
+  return surface;
+}
+
 /// What is stored in a pool block: its coordinates, level and hash entry (level -1 = free); its
 /// surface summary for raycasting; and how many frames were integrated into it since its
 /// content was created (by allocation, split or merge), which refinement uses to judge only
