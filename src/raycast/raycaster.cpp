@@ -46,15 +46,6 @@ struct PacketScratch {
   kernels::PacketLookups lookups;
   kernels::CellBatch<kPacketRays> cells;
   kernels::CellBatch<3 * kPacketRays> normal_cells;
-  // Rays searched again at their fallback hint: which of the packet's rays, and the packet's
-  // first search kept meanwhile.
-  int retry[kPacketRays];
-  PacketRay retry_rays[kPacketRays];
-  struct {
-    PacketRay rays[kPacketRays];
-    kernels::RayHit hits[kPacketRays];
-    bool found[kPacketRays];
-  } first;
 };
 
 /// `hit_near_hint` for the `n` rays of a packet, step by step: `found[i]` when ray i's surface
@@ -379,34 +370,25 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       int packed = 0;  // hinted rays waiting in the packet
       auto flush_packet = [&] {
         search_hints(view, cache, *scratch, T.t, packed, k, tile_max_[t]);
-        // The rays whose search failed and that have a second hint search again, together.
+        // The rays whose search failed and that have a second hint search again, together: moved
+        // to the front of the packet (their pixels go by their coordinates, and their failed
+        // results need not be kept), searched at the second hint, and given their first hint
+        // back for the march should that fail too.
         int retried = 0;
         for (int i = 0; i < packed; ++i) {
-          const PacketRay& ray = scratch->rays[i];
+          PacketRay& ray = scratch->rays[i];
           found_at_fallback += scratch->found[i] && ray.hint_is_fallback;
           if (scratch->found[i] || ray.second_hint == 0.0f) continue;
-          scratch->retry[retried] = i;
-          PacketRay& again = scratch->retry_rays[retried++];
-          again = ray;
-          again.hint = ray.second_hint;
-          again.second_hint = 0.0f;
+          std::swap(ray.hint, ray.second_hint);
+          std::swap(scratch->rays[i], scratch->rays[retried]);
+          std::swap(scratch->hits[i], scratch->hits[retried]);
+          std::swap(scratch->found[i], scratch->found[retried]);
+          ++retried;
         }
-        if (retried > 0) {
-          std::copy_n(scratch->rays, packed, scratch->first.rays);
-          std::copy_n(scratch->hits, packed, scratch->first.hits);
-          std::copy_n(scratch->found, packed, scratch->first.found);
-          std::copy_n(scratch->retry_rays, retried, scratch->rays);
-          search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
-          for (int j = 0; j < retried; ++j)
-            if (scratch->found[j]) {
-              const int i = scratch->retry[j];
-              scratch->first.hits[i] = scratch->hits[j];
-              scratch->first.found[i] = true;
-              ++found_at_fallback;
-            }
-          std::copy_n(scratch->first.rays, packed, scratch->rays);
-          std::copy_n(scratch->first.hits, packed, scratch->hits);
-          std::copy_n(scratch->first.found, packed, scratch->found);
+        if (retried > 0) search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
+        for (int j = 0; j < retried; ++j) {
+          found_at_fallback += scratch->found[j];
+          std::swap(scratch->rays[j].hint, scratch->rays[j].second_hint);
         }
         for (int i = 0; i < packed; ++i) {
           const PacketRay& ray = scratch->rays[i];
