@@ -10,11 +10,18 @@ namespace hivox::kernels {
 
 // ---- complexity ------------------------------------------------------------------------------
 
+/// Voxels farther from the surface than this fraction of the truncation do not enter the detail
+/// criterion. Seen at incidence theta, a voxel's projective distance is its true distance over
+/// cos theta, so beyond ~cos theta of the truncation some frames clamped it at +-1: its fused
+/// value bends away from linear with the mix of viewing angles, which second differences read as
+/// detail (on the synthetic desk, a flat table top seen at ~60 degrees stayed split for it).
+constexpr float kDetailBand = 0.75f;
+
 /// Detail criterion: RMS, in metres, of F(v) - (F(v - e) + F(v + e)) / 2 over voxels v with an
 /// odd coordinate along axis e (what subsampling to the coarser level loses), counting only
-/// voxels near the surface (|F(v)| < 0.75) whose three voxels are observed `min_weight` times and
-/// not saturated (|F| < 0.98: the clamp at +-1 would look like detail). Returns -1 when fewer
-/// than `min_samples` such samples exist (too little surface to judge).
+/// voxels whose three voxels are observed `min_weight` times and lie within `kDetailBand` of the
+/// surface. Returns -1 when fewer than `min_samples` such samples exist (too little surface to
+/// judge).
 /// `mean_weight` (optional) receives the mean observation count of the sampled voxels.
 HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_weight,
                                      int min_samples, float* mean_weight = nullptr) {
@@ -30,7 +37,8 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
       if (a.weight < min_weight || m.weight < min_weight || b.weight < min_weight) continue;
       const float fa = tsdf_to_float(a.tsdf), fm = tsdf_to_float(m.tsdf),
                   fb = tsdf_to_float(b.tsdf);
-      if (fabsf(fm) >= 0.75f || fabsf(fa) >= 0.98f || fabsf(fb) >= 0.98f) continue;
+      if (fabsf(fm) >= kDetailBand || fabsf(fa) >= kDetailBand || fabsf(fb) >= kDetailBand)
+        continue;
       const float d = fm - 0.5f * (fa + fb);
       sum += d * d;
       weights += static_cast<float>(m.weight);
