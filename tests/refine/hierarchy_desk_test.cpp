@@ -58,8 +58,8 @@ Outcome run(const std::string& noise) {
       }
   }
   // "flat top": the points of the table's top face more than one coarsest block from the face's
-  // edges and from every object standing on it (a block holding part of an object or of the
-  // table's 90-degree edge must be fine; the table's box comes from the scene).
+  // edges and from every object standing on it (a block that also holds part of an object or of
+  // the table's 90-degree edge is rightly fine; the table's box comes from the scene).
   const double coarse_block_m = 8 * 0.008;
   std::vector<bool> flat_top(points.size(), false);
   for (const Primitive& table : data.scene().primitives()) {
@@ -135,7 +135,7 @@ TEST(HierarchyDesk, NoiseFree) {
   const Outcome o = run("none");
   // Measured (120 frames, 640x480; the dataset declares no sensor noise, so only the absolute
   // 0.2 / 0.1 mm levels apply): walls ~97 % coarse, floor ~94 %, flat table top ~93 %, the whole
-  // table ~42 % (its rim and the ground around the objects on it need fine blocks), keyboard
+  // table ~42 % (its rim, and the parts of the top next to the objects on it, are fine), keyboard
   // ~100 % finest, blob ~96 %, blocks ~19 % of the fixed 2 mm grid, error ~1.20x fixed 2 mm and
   // ~0.49x fixed 8 mm (the 1.25x and 0.6x).
   expect_sensible_hierarchy(o, 0.9, 1.25, 0.6);
