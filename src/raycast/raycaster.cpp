@@ -200,12 +200,13 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     const float* row = &row_min(0, y);
     const float* below = y + 1 < h ? &row_min(0, y + 1) : no_row.data();
     float* o = &(*out)(0, y);
-    // A landed depth stays unless a pixel within one pixel holds a surface nearer by more than
-    // the gap (a surface that may show through a gap in the warped foreground).
-    for (int x = 0; x < w; ++x) {
+    // A depth stays unless a pixel within one pixel holds a surface nearer by more than the gap
+    // (a surface that may show through a gap in the warped foreground).
+    auto kept = [&](int x, float z) {
       const float front = std::min(above[x], std::min(row[x], below[x]));
-      o[x] = n[x] < FLT_MAX && n[x] - front <= max_gap_m ? n[x] : 0.0f;
-    }
+      return z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
+    };
+    for (int x = 0; x < w; ++x) o[x] = kept(x, n[x]);
     for (int x = 0; x < w; ++x) {
       if (n[x] < FLT_MAX) continue;
       // No hit landed here, but on both sides of the pixel (the new view magnifies the surface,
@@ -218,8 +219,7 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
         if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
           z = std::min(z, std::min(a, b));
       }
-      const float front = std::min(above[x], std::min(row[x], below[x]));
-      o[x] = z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
+      o[x] = kept(x, z);
     }
   }
 }
