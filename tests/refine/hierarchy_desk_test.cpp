@@ -60,7 +60,7 @@ Outcome run(const std::string& noise) {
   // "flat top": the points of the table's top face more than one coarsest block from the face's
   // edges and from every object standing on it (a block that also holds part of an object or of
   // the table's 90-degree edge is rightly fine; the table's box comes from the scene).
-  const double coarse_block_m = 8 * 0.008;
+  const double coarse_block_m = adaptive.map.block_size_at(adaptive.map.levels - 1);
   std::vector<bool> flat_top(points.size(), false);
   for (const Primitive& table : data.scene().primitives()) {
     if (table.label != "table") continue;
