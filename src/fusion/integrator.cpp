@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "fusion/fusion_kernels.h"
+#include "fusion/integration_frame.h"
 #include "hivox/core/atomic.h"
 #include "hivox/core/dataset.h"
 #include "hivox/core/error.h"
@@ -168,35 +169,43 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
   return stats;
 }
 
-void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
-  validate_input(in);
-  const MapView view = map.view();
-  const kernels::DepthFrameView depth = depth_view(in, params_);
-  kernels::ColorFrameView color;
-  if (params_.integrate_color && in.color != nullptr && !in.color->empty() && view.color) {
+IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& params,
+                                   bool map_has_color, std::vector<uint32_t>* packed_color) {
+  IntegrationFrame f;
+  f.depth = depth_view(in, params);
+  if (params.integrate_color && in.color != nullptr && !in.color->empty() && map_has_color) {
+    kernels::ColorFrameView& color = f.color;
     color.image = {in.color->data(), in.color->width(), in.color->height()};
     color.camera = in.color_camera;
     color.T_color_depth = to_rigid3f(in.T_color_depth);
     color.registered = color_registered(in.color_camera, in.depth_camera, in.T_color_depth);
     if (color.registered) {
-      std::vector<uint32_t>& packed = scratch_->packed_color;
-      packed.resize(in.color->size());
+      packed_color->resize(in.color->size());
       const Rgb8* src = in.color->data();
-      parallel_for(static_cast<int64_t>(packed.size()),
+      uint32_t* packed = packed_color->data();
+      parallel_for(static_cast<int64_t>(packed_color->size()),
                    [&](int64_t i) { packed[i] = kernels::pack_rgb(src[i]); });
-      color.packed = packed.data();
+      color.packed = packed;
     }
   }
-  kernels::IntegrationConstants k;
+  kernels::IntegrationConstants& k = f.constants;
   k.T_cw = to_rigid3f(in.T_wc.inverse());
-  k.mu_m = params_.truncation_m;
-  k.inv_mu = 1.0f / params_.truncation_m;
-  k.max_weight = params_.max_weight;
-  k.bilinear_depth = params_.depth_sampling == DepthSampling::Bilinear;
+  k.mu_m = params.truncation_m;
+  k.inv_mu = 1.0f / params.truncation_m;
+  k.max_weight = params.max_weight;
+  k.bilinear_depth = params.depth_sampling == DepthSampling::Bilinear;
+  return f;
+}
+
+void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
+  validate_input(in);
+  const MapView view = map.view();
+  const IntegrationFrame f =
+      integration_frame(in, params_, view.color != nullptr, &scratch_->packed_color);
   const std::vector<BlockRef>& blocks = visible_;
   parallel_for_dynamic(static_cast<int64_t>(blocks.size()), 16, [&](int64_t i) {
     const BlockRef& b = blocks[static_cast<std::size_t>(i)];
-    kernels::integrate_block(view, b.level, b.pos, b.ptr, depth, color, k);
+    kernels::integrate_block(view, b.level, b.pos, b.ptr, f.depth, f.color, f.constants);
   });
 }
 

@@ -7,8 +7,10 @@
 #include "hivox/core/atomic.h"
 #include "hivox/core/camera.h"
 #include "hivox/core/hd.h"
+#include "hivox/core/image.h"
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
+#include "hivox/raycast/params.h"
 #include "map/sample_kernels.h"
 #include "raycast/coarse_occupancy.h"
 
@@ -86,7 +88,22 @@ struct RayMarchConstants {
   float min_step_voxels = 2;  ///< smallest step in front of a surface, voxels of its level
   int min_weight = 1;
   CoarseOccupancy occupancy;  ///< optional (empty: unallocated space is crossed block by block)
+  float hint_margin_m = 0;    ///< a hinted ray's march starts this far in front of its hint
 };
+
+/// The constants of a raycast of `map` with `p` (the same for every driver).
+inline RayMarchConstants march_constants(const RaycastParams& p, const MapView& map,
+                                         const CoarseOccupancy& occupancy) {
+  RayMarchConstants k;
+  k.mu_m = p.truncation_m;
+  k.step_fraction = p.step_fraction;
+  k.min_weight = p.min_weight;
+  k.occupancy = occupancy;
+  const float coarsest_voxel_m = map.level[map.levels - 1].voxel_size_m;
+  k.min_step_voxels = fminf(2.0f, 0.5f * p.truncation_m / coarsest_voxel_m + 0.5f);
+  k.hint_margin_m = p.hint_margin_mu * p.truncation_m;
+  return k;
+}
 
 struct RayHit {
   float depth_m = 0;  ///< ray parameter (depth along the optical axis for camera rays)
@@ -450,6 +467,104 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
   }
   refine_bracket(map, cache, o, d, b, k, hit);
   return true;
+}
+
+/// The march of a ray whose hint search failed, or that has no hint (`hint` 0): from
+/// `k.hint_margin_m` in front of the hint (from `z_min` without one) to `z_max`. Where the hint is
+/// wrong (a model surface in front of it, e.g. at a depth edge, or none behind it), the part in
+/// front of the hint is searched as well.
+HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                     const Vec3f& d, float hint, float z_min, float z_max,
+                                     const RayMarchConstants& k, RayHit* hit) {
+  bool behind = false;
+  bool found = march_ray(map, cache, o, d, hint > 0.0f ? hint - k.hint_margin_m : z_min, z_max, k,
+                         hit, &behind);
+  if (hint > 0.0f && (!found || behind)) {
+    RayHit front;
+    if (march_ray(map, cache, o, d, z_min, hint, k, &front)) {
+      *hit = front;
+      found = true;
+    }
+  }
+  return found;
+}
+
+/// A pixel's two hints (see Raycaster::raycast): `hint` is the start hint, or where it has none
+/// the fallback; `second` the fallback where it differs from `hint`. A depth counts only where a
+/// start `hint_margin_m` in front of it lies inside the pixel's range (z_min, z_max).
+struct RayHints {
+  float hint = 0;
+  float second = 0;
+  bool hint_is_fallback = false;  ///< `hint` comes from the fallback
+};
+HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, float hint_margin_m,
+                                   float z_min, float z_max) {
+  auto in_range = [&](float z) {
+    return z > 0.0f && z - hint_margin_m > z_min && z - hint_margin_m < z_max ? z : 0.0f;
+  };
+  RayHints h;
+  h.hint = in_range(start_m);
+  h.second = in_range(fallback_m);
+  if (h.hint == 0.0f) {
+    h.hint = h.second;
+    h.hint_is_fallback = h.hint > 0.0f;
+    h.second = 0.0f;
+  } else if (h.second == h.hint) {
+    h.second = 0.0f;
+  }
+  return h;
+}
+
+/// Where a ray's surface was found (see cast_ray).
+enum class RayOutcome { Miss, AtHint, AtSecondHint, Marched };
+
+/// One pixel's ray, searched alone (the CPU driver's rays outside packets; a GPU thread's ray):
+/// the surface near the hint, else near the second hint, else a march over [z_min, z_max]
+/// (march_from_hint). Hits beyond z_max do not count.
+HIVOX_HD inline RayOutcome cast_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                    const Vec3f& d, const RayHints& hints, float z_min, float z_max,
+                                    const RayMarchConstants& k, RayHit* hit) {
+  auto near = [&](float hint) {
+    return hint > 0.0f && hit_near_hint(map, cache, o, d, hint, k, hit) && hit->depth_m <= z_max;
+  };
+  if (near(hints.hint)) return RayOutcome::AtHint;  // usually: the surface is at the depth fused
+  if (near(hints.second)) return RayOutcome::AtSecondHint;
+  if (z_max > 0.0f && march_from_hint(map, cache, o, d, hints.hint, z_min, z_max, k, hit))
+    return RayOutcome::Marched;
+  return RayOutcome::Miss;
+}
+
+/// The raycast's output images as plain arrays (one element per pixel, row-major).
+struct RaycastOutputView {
+  float* depth_m = nullptr;
+  Vec3f* points_w = nullptr;
+  Vec3f* normals_w = nullptr;
+  Rgb8* colors = nullptr;
+  int8_t* levels = nullptr;
+};
+
+/// Writes pixel `i`: the hit, or no surface (depth 0, level -1, the rest zero).
+HIVOX_HD inline void write_ray(const RaycastOutputView& out, const MapView& map, int64_t i,
+                               bool found, const RayHit& hit) {
+  if (!found) {
+    out.depth_m[i] = 0.0f;
+    out.points_w[i] = {};
+    out.normals_w[i] = {};
+    out.colors[i] = {};
+    out.levels[i] = -1;
+    return;
+  }
+  out.depth_m[i] = hit.depth_m;
+  out.points_w[i] = hit.p_w;
+  out.normals_w[i] = hit.normal_w;
+  out.levels[i] = static_cast<int8_t>(hit.level);
+  if (map.color != nullptr && hit.color_ptr >= 0) {
+    const ColorVoxel c =
+        map.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
+    out.colors[i] = {c.r, c.g, c.b};
+  } else {
+    out.colors[i] = {};
+  }
 }
 
 // ---- range image ----------------------------------------------------------------------------

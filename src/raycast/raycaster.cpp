@@ -281,14 +281,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
 
   // March one ray per pixel.
   const Rigid3f T = to_rigid3f(T_wc);
-  kernels::RayMarchConstants k;
-  k.mu_m = params_.truncation_m;
-  k.step_fraction = params_.step_fraction;
-  k.min_weight = params_.min_weight;
-  k.occupancy = occupancy;
-  const float hint_margin = params_.hint_margin_mu * params_.truncation_m;
-  k.min_step_voxels = std::min(
-      2.0f, 0.5f * params_.truncation_m / map.params().voxel_size_at(map.levels() - 1) + 0.5f);
+  const kernels::RayMarchConstants k = kernels::march_constants(params_, view, occupancy);
   const bool packets = params_.ray_packets &&
                        (start_hint_m != nullptr || fallback_hint_m != nullptr) &&
                        kernels::packets_can_address(view);
@@ -298,73 +291,32 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     kernels::BlockLookupCache cache;  // per thread, across the rays of its tiles
     std::unique_ptr<PacketScratch> scratch;
     if (packets) scratch = std::make_unique<PacketScratch>();
+    const kernels::RaycastOutputView out{r.depth_m.data(), r.points_w.data(), r.normals_w.data(),
+                                         r.colors.data(), r.levels.data()};
     auto write_pixel = [&](int x, int y, bool found, const kernels::RayHit& hit) {
-      if (!found) {
-        r.depth_m(x, y) = 0.0f;
-        r.points_w(x, y) = {};
-        r.normals_w(x, y) = {};
-        r.colors(x, y) = {};
-        r.levels(x, y) = -1;
-        return;
-      }
-      ++hits;
-      r.depth_m(x, y) = hit.depth_m;
-      r.points_w(x, y) = hit.p_w;
-      r.normals_w(x, y) = hit.normal_w;
-      r.levels(x, y) = static_cast<int8_t>(hit.level);
-      if (view.color != nullptr && hit.color_ptr >= 0) {
-        const ColorVoxel c =
-            view.color[static_cast<int64_t>(hit.color_ptr) * kBlockVoxels + hit.color_index];
-        r.colors(x, y) = {c.r, c.g, c.b};
-      } else {
-        r.colors(x, y) = {};
-      }
-    };
-    // The march of a ray whose hint search failed (or that has no hint: `hint` 0).
-    auto march = [&](const Vec3f& dir, float hint, int t, kernels::RayHit* hit) {
-      bool behind = false;
-      bool found =
-          kernels::march_ray(view, cache, T.t, dir, hint > 0.0f ? hint - hint_margin : tile_min_[t],
-                             tile_max_[t], k, hit, &behind);
-      // The hint is wrong here (a model surface in front of it, e.g. at a depth edge, or none
-      // behind it): search the part in front of the hint as well.
-      if (hint > 0.0f && (!found || behind)) {
-        kernels::RayHit front;
-        if (kernels::march_ray(view, cache, T.t, dir, tile_min_[t], hint, k, &front)) {
-          *hit = front;
-          found = true;
-        }
-      }
-      return found;
+      hits += found;
+      kernels::write_ray(out, view, static_cast<int64_t>(y) * w + x, found, hit);
     };
     // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
 #pragma omp for schedule(dynamic, 8)
     for (int t = 0; t < static_cast<int>(tile_count); ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
-      // The depth of `image` at (x, y) when a start `hint_margin` in front of it lies inside the
-      // tile's range, else 0.
-      auto hint_at = [&](const DepthImage* image, int x, int y) {
-        const float z = image != nullptr ? (*image)(x, y) : 0.0f;
-        return z > 0.0f && z - hint_margin > tile_min_[t] && z - hint_margin < tile_max_[t] ? z
-                                                                                            : 0.0f;
-      };
-      // The ray of pixel (x, y) and its hints: the start hint, or where it has none the fallback
-      // hint; and the fallback as the second hint where it differs from the first.
+      // The ray of pixel (x, y) and its hints.
       auto ray_at = [&](int x, int y) {
+        auto depth_at = [&](const DepthImage* image) {
+          return image != nullptr ? (*image)(x, y) : 0.0f;
+        };
+        const kernels::RayHints hints =
+            kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k.hint_margin_m,
+                               tile_min_[t], tile_max_[t]);
         PacketRay ray;
         ray.x = x;
         ray.y = y;
         ray.dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-        ray.hint = hint_at(start_hint_m, x, y);
-        ray.second_hint = hint_at(fallback_hint_m, x, y);
-        if (ray.hint == 0.0f) {
-          ray.hint = ray.second_hint;
-          ray.hint_is_fallback = ray.hint > 0.0f;
-          ray.second_hint = 0.0f;
-        } else if (ray.second_hint == ray.hint) {
-          ray.second_hint = 0.0f;
-        }
+        ray.hint = hints.hint;
+        ray.second_hint = hints.second;
+        ray.hint_is_fallback = hints.hint_is_fallback;
         return ray;
       };
       int packed = 0;  // hinted rays waiting in the packet
@@ -395,7 +347,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
           found_at_hint += scratch->found[i];
-          const bool found = scratch->found[i] || march(ray.dir, ray.hint, t, &hit);
+          const bool found =
+              scratch->found[i] || kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hint,
+                                                            tile_min_[t], tile_max_[t], k, &hit);
           write_pixel(ray.x, ray.y, found, hit);
         }
         packed = 0;
@@ -410,23 +364,14 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
             continue;
           }
           kernels::RayHit hit;
-          bool found = false;
-          auto near = [&](float hint) {
-            return hint > 0.0f &&
-                   kernels::hit_near_hint(view, cache, T.t, ray.dir, hint, k, &hit) &&
-                   hit.depth_m <= tile_max_[t];
-          };
-          if (near(ray.hint)) {
-            found = true;  // the usual case: the surface lies at the depth just fused
-            ++found_at_hint;
-            found_at_fallback += ray.hint_is_fallback;
-          } else if (near(ray.second_hint)) {
-            found = true;
-            ++found_at_hint;
-            ++found_at_fallback;
-          } else if (tile_max_[t] > 0.0f) {
-            found = march(ray.dir, ray.hint, t, &hit);
-          }
+          const kernels::RayOutcome outcome = kernels::cast_ray(
+              view, cache, T.t, ray.dir, {ray.hint, ray.second_hint, ray.hint_is_fallback},
+              tile_min_[t], tile_max_[t], k, &hit);
+          const bool found = outcome != kernels::RayOutcome::Miss;
+          found_at_hint += outcome == kernels::RayOutcome::AtHint ||
+                           outcome == kernels::RayOutcome::AtSecondHint;
+          found_at_fallback += (outcome == kernels::RayOutcome::AtHint && ray.hint_is_fallback) ||
+                               outcome == kernels::RayOutcome::AtSecondHint;
           write_pixel(x, y, found, hit);
         }
       if (packed > 0) flush_packet();
