@@ -14,9 +14,14 @@ namespace hivox::kernels {
 /// Direct-mapped cache of block look-ups (absent blocks included). Neighbouring samples (along a
 /// ray, between neighbouring rays, across a mesh block) mostly need the same few blocks; a CPU
 /// driver keeps one cache per thread, a GPU thread one of its own. Valid while the map's layout
-/// does not change.
+/// does not change. A cache is a local of one thread and never crosses between host and device,
+/// so its size may differ between the two.
 struct BlockLookupCache {
-  static constexpr int kSlots = 4096;  // 80 KB: a row of rays crosses ~100 blocks
+#if defined(__CUDA_ARCH__)
+  static constexpr int kSlots = 16;  // 320 B of a GPU thread's local memory: one ray's blocks
+#else
+  static constexpr int kSlots = 4096;  // 80 KB: a CPU thread's row of rays crosses ~100 blocks
+#endif
   struct Slot {
     Vec3i pos;
     int32_t level = -1;
