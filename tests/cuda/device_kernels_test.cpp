@@ -1,0 +1,214 @@
+// The host-device kernels run on a CUDA device give what they give on the CPU: integration of
+// a frame into the same blocks (voxel by voxel), and the raycast of the fused map (pixel by
+// pixel). Built with -DHIVOX_WITH_CUDA=ON; skipped where no CUDA device is present.
+//
+// Workloads: the synthetic desk with Kinect-like noise (always), and TUM fr1/rpy when the real
+// data are found. The kernel times are printed (one GPU thread per block for integration, the
+// simplest mapping; one per pixel for the raycast): measurements, not assertions.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cuda/device_kernels.h"
+#include "fusion/integration_frame.h"
+#include "hivox/fusion/integrator.h"
+#include "hivox/io/dataset.h"
+#include "hivox/raycast/raycaster.h"
+#include "hivox/refine/refiner.h"
+#include "hivox/synth/synthetic_dataset.h"
+#include "test_util.h"
+
+namespace hivox::test {
+namespace {
+
+struct Workload {
+  std::string name;
+  std::unique_ptr<DatasetReader> reader;
+  int frames = 0;  ///< fused before the compared frame, which is frame `frames`
+  float voxel_m = 0, truncation_m = 0;
+  int levels = 1;
+};
+
+#define HIVOX_REQUIRE_CUDA_DEVICE()                                                   \
+  const std::string device = cuda_device_name();                                      \
+  if (device.empty()) GTEST_SKIP() << "no CUDA device found; skipping the GPU tests"; \
+  std::printf("[ device   ] %s\n", device.c_str())
+
+FusionInput input_of(const DatasetReader& reader, const RgbdFrame& f) {
+  FusionInput in;
+  in.depth_m = &f.depth_m;
+  in.depth_camera = reader.info().depth_camera;
+  if (!f.color.empty()) {
+    in.color = &f.color;
+    in.color_camera = reader.info().color_camera;
+    in.T_color_depth = reader.info().T_color_depth;
+  }
+  in.T_wc = f.T_wc_gt.value_or(Pose::Identity());
+  return in;
+}
+
+/// Fuses the workload's first frames on the CPU (refining between frames when it has several
+/// levels, as the pipeline does), then checks frame `frames`: integrated on the CPU and on the
+/// device into copies of the same map, then raycast from its pose by both.
+void compare_on_device(const Workload& w) {
+  MapParams mp;
+  mp.voxel_size_m = w.voxel_m;
+  mp.levels = w.levels;
+  VoxelBlockMap map(mp);
+  FusionParams fp;
+  fp.truncation_m = w.truncation_m;
+  TsdfIntegrator integrator(fp);
+  Refiner refiner;
+  for (int i = 0; i < w.frames; ++i) {
+    const RgbdFrame f = w.reader->read(static_cast<std::size_t>(i));
+    const FusionInput in = input_of(*w.reader, f);
+    integrator.fuse(map, in);
+    if (w.levels > 1) refiner.refine(map, integrator.visible_blocks(), fp.truncation_m, in.T_wc);
+  }
+  const RgbdFrame frame = w.reader->read(static_cast<std::size_t>(w.frames));
+  const FusionInput in = input_of(*w.reader, frame);
+
+  // Integration: the device works on a copy of the map taken after allocation.
+  integrator.allocate(map, in);
+  const std::vector<BlockRef> blocks = integrator.visible_blocks();
+  DeviceMap device_map(map.view(), map.block_high_water());
+  integrator.integrate(map, in);
+  std::vector<uint32_t> packed;
+  const IntegrationFrame f = integration_frame(in, fp, map.view().color != nullptr, &packed);
+  const double integrate_ms =
+      integrate_on_device(device_map, blocks, f.depth, f.color, f.constants);
+  std::vector<TsdfVoxel> tsdf;
+  std::vector<ColorVoxel> color;
+  std::vector<BlockMeta> meta;
+  device_map.download(&tsdf, &color, &meta);
+  const MapView host = map.view();
+  int64_t observed = 0, tsdf_equal = 0, tsdf_far = 0, weight_differ = 0, color_far = 0;
+  int64_t surface_differ = 0;
+  for (const BlockRef& b : blocks) {
+    for (int v = 0; v < kBlockVoxels; ++v) {
+      const std::size_t i = static_cast<std::size_t>(b.ptr) * kBlockVoxels + v;
+      const TsdfVoxel& c = host.tsdf[i];
+      const TsdfVoxel& g = tsdf[i];
+      if (c.weight == 0 && g.weight == 0) continue;
+      ++observed;
+      weight_differ += c.weight != g.weight;
+      tsdf_equal += c.tsdf == g.tsdf;
+      // One int16 unit is 1/32767 of the band: float rounding (fused multiply-adds) alone. More
+      // only where rounding tips a decision (the bilinear depth's step test, the band's edge).
+      tsdf_far += std::abs(c.tsdf - g.tsdf) > 1;
+      if (!color.empty()) {
+        const ColorVoxel& cc = host.color[i];
+        const ColorVoxel& gc = color[i];
+        color_far += std::abs(cc.r - gc.r) > 1 || std::abs(cc.g - gc.g) > 1 ||
+                     std::abs(cc.b - gc.b) > 1 || cc.weight != gc.weight;
+      }
+    }
+    const BlockSurface& cs = host.meta[b.ptr].surface;
+    const BlockSurface& gs = meta[static_cast<std::size_t>(b.ptr)].surface;
+    surface_differ += cs.observed != gs.observed || cs.surface != gs.surface;
+  }
+  std::printf(
+      "[ integrate] %s: %zu blocks, %lld observed voxels, %.3f %% equal, %lld more than one "
+      "unit apart; GPU %.3f ms\n",
+      w.name.c_str(), blocks.size(), static_cast<long long>(observed),
+      100.0 * static_cast<double>(tsdf_equal) / static_cast<double>(observed),
+      static_cast<long long>(tsdf_far), integrate_ms);
+  ASSERT_GT(observed, 100000);
+  EXPECT_LE(weight_differ, observed / 100000);
+  EXPECT_LE(tsdf_far, observed / 100000);
+  EXPECT_LE(color_far, observed / 100000);
+  // A summary bit can only differ where a TSDF near 0 rounded to the other sign.
+  EXPECT_LE(surface_differ, static_cast<int64_t>(blocks.size() / 1000));
+
+  // Raycast: the CPU's per-ray path (no packets), with the depth just fused as the start hint
+  // and without hints.
+  RaycastParams rp;
+  rp.truncation_m = w.truncation_m;
+  rp.ray_packets = false;
+  const DeviceMap fused(map.view(), map.block_high_water());
+  std::vector<int32_t> cells;
+  const kernels::CoarseOccupancy occupancy = kernels::build_coarse_occupancy(map, &cells);
+  for (const DepthImage* hint : {&frame.depth_m, static_cast<const DepthImage*>(nullptr)}) {
+    Raycaster raycaster(rp);
+    const RaycastResult& cpu = raycaster.raycast(map, in.depth_camera, in.T_wc, nullptr, hint);
+    const DeviceRaycast gpu = raycast_on_device(fused, occupancy, rp, in.depth_camera,
+                                                to_rigid3f(in.T_wc), hint, nullptr, 5);
+    const int width = in.depth_camera.width;
+    int64_t both = 0, only_one = 0, depth_far = 0, normal_far = 0, level_differ = 0;
+    for (std::size_t i = 0; i < gpu.depth_m.size(); ++i) {
+      const int x = static_cast<int>(i % static_cast<std::size_t>(width));
+      const int y = static_cast<int>(i / static_cast<std::size_t>(width));
+      const bool c = cpu.hit(x, y), g = gpu.depth_m[i] > 0.0f;
+      if (c != g) ++only_one;
+      if (!c || !g) continue;
+      ++both;
+      depth_far += std::abs(cpu.depth_m(x, y) - gpu.depth_m[i]) > 1e-4f;
+      const Vec3f& a = cpu.normals_w(x, y);
+      const Vec3f& b = gpu.normals_w[i];
+      normal_far += a.x * b.x + a.y * b.y + a.z * b.z < std::cos(1.0f * 3.14159265f / 180.0f);
+      level_differ += cpu.levels(x, y) != gpu.levels[i];
+    }
+    std::printf(
+        "[ raycast  ] %s, %s: %lld hits, %lld hit by one only, %lld depths > 0.1 mm apart, "
+        "%lld normals > 1 deg apart; GPU range %.3f ms, rays %.3f ms\n",
+        w.name.c_str(), hint != nullptr ? "depth hint" : "no hint", static_cast<long long>(both),
+        static_cast<long long>(only_one), static_cast<long long>(depth_far),
+        static_cast<long long>(normal_far), gpu.range_ms, gpu.rays_ms);
+    ASSERT_GT(both, 50000);
+    // Float rounding can move a sample across a crossing or a weight threshold at a few rays;
+    // anything systematic shows as many.
+    EXPECT_LE(only_one, both / 1000);
+    EXPECT_LE(depth_far, both / 1000);
+    EXPECT_LE(normal_far, both / 1000);
+    EXPECT_LE(level_differ, both / 1000);
+  }
+}
+
+TEST(DeviceKernels, SyntheticDeskFixedGrid) {
+  HIVOX_REQUIRE_CUDA_DEVICE();
+  Workload w{"desk, fixed 5 mm",
+             std::make_unique<SyntheticDataset>(
+                 parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect")),
+             30,
+             0.005f,
+             0.02f,
+             1};
+  compare_on_device(w);
+}
+
+TEST(DeviceKernels, SyntheticDeskThreeLevels) {
+  HIVOX_REQUIRE_CUDA_DEVICE();
+  Workload w{"desk, 3 levels from 2 mm",
+             std::make_unique<SyntheticDataset>(
+                 parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect")),
+             30,
+             0.002f,
+             0.024f,
+             3};
+  compare_on_device(w);
+}
+
+/// The stage benchmarks' workload: fr1/rpy, frame 100 after fusing 100 frames.
+TEST(DeviceKernels, TumFr1RpyFixedGrid) {
+  HIVOX_REQUIRE_CUDA_DEVICE();
+  HIVOX_REQUIRE_DATASET(dir, "tum_fr1_rpy");
+  Workload w{"fr1/rpy, fixed 5 mm", open_dataset(dir.string()), 100, 0.005f, 0.02f, 1};
+  compare_on_device(w);
+}
+
+TEST(DeviceKernels, TumFr1RpyThreeLevels) {
+  HIVOX_REQUIRE_CUDA_DEVICE();
+  HIVOX_REQUIRE_DATASET(dir, "tum_fr1_rpy");
+  Workload w{"fr1/rpy, 3 levels from 2 mm", open_dataset(dir.string()), 100, 0.002f, 0.024f, 3};
+  compare_on_device(w);
+}
+
+}  // namespace
+}  // namespace hivox::test
