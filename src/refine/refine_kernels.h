@@ -65,9 +65,11 @@ HIVOX_HD inline float block_det_cov(const TsdfVoxel* v, int min_weight) {
         if (c.weight < min_weight || vx.weight < min_weight || vy.weight < min_weight ||
             vz.weight < min_weight)
           continue;
-        const float f = tsdf_to_float(c.tsdf);
-        const Vec3f g{tsdf_to_float(vx.tsdf) - f, tsdf_to_float(vy.tsdf) - f,
-                      tsdf_to_float(vz.tsdf) - f};
+        // Differences of the int16 values (exact): on a plateau the gradient is exactly zero.
+        // Differences of tsdf_to_float values are not where a compiler fuses the product of one
+        // with the subtraction, and a plateau voxel would count with direction (1, 1, 1).
+        const Vec3f g{static_cast<float>(vx.tsdf - c.tsdf), static_cast<float>(vy.tsdf - c.tsdf),
+                      static_cast<float>(vz.tsdf - c.tsdf)};
         const float len = norm(g);
         if (len <= 0.0f) continue;
         const Vec3f n = g / len;

@@ -77,5 +77,41 @@ TEST(DetailCriterion, TooLittleSurfaceIsNotJudged) {
   EXPECT_EQ(kernels::block_detail_m(unseen.data(), kMuM, 2, 4), -1.0f);
 }
 
+// The paper's criterion (det-cov) on the same kind of blocks. Its truncation here is 8 mm, so
+// most voxels lie on the plateaus (F = +1 in front, -1 behind), where the TSDF has no gradient.
+
+// Outside distance (metres) to the region x < 14 mm, z < 14 mm and, with `corner`, y < 14 mm.
+float box_distance(const Vec3f& p, bool corner) {
+  const float dx = p.x - 0.014f, dy = corner ? p.y - 0.014f : -1.0f, dz = p.z - 0.014f;
+  const float ox = std::max(dx, 0.0f), oy = std::max(dy, 0.0f), oz = std::max(dz, 0.0f);
+  const float outside = std::sqrt(ox * ox + oy * oy + oz * oz);
+  return outside > 0.0f ? outside : std::max(dx, std::max(dy, dz));
+}
+
+constexpr float kDetCovMuM = 0.008f;
+
+// Every gradient of an edge lies in the plane across the edge, so their covariance has rank 2:
+// the determinant vanishes. Voxels on a plateau must not count: their gradient is exactly zero
+// (equal int16 values). Computed as tsdf_to_float(b) - tsdf_to_float(a), a compiler may fuse
+// one product with the subtraction and leave the rounding error of the other: the same tiny
+// value along x, y and z, i.e. the direction (1, 1, 1) / sqrt(3), and a determinant above the
+// paper's threshold (1.4e-3 here, before the fix).
+TEST(DetCovCriterion, AnEdgeHasNone) {
+  const auto v = block_of([](const Vec3f& p) { return box_distance(p, false) / kDetCovMuM; });
+  EXPECT_LT(std::abs(kernels::block_det_cov(v.data(), 2)), 1e-7f);
+}
+
+TEST(DetCovCriterion, ACornerIsAboveThePapersThreshold) {
+  const auto v = block_of([](const Vec3f& p) { return box_distance(p, true) / kDetCovMuM; });
+  EXPECT_GT(kernels::block_det_cov(v.data(), 2), 1e-4f);
+}
+
+TEST(DetCovCriterion, APlateauHasNone) {
+  for (const float f : {1.0f, -1.0f}) {
+    const auto v = block_of([f](const Vec3f&) { return f; });
+    EXPECT_EQ(kernels::block_det_cov(v.data(), 2), 0.0f) << "F = " << f;
+  }
+}
+
 }  // namespace
 }  // namespace hivox
