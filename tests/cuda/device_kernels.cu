@@ -11,6 +11,7 @@
 #include "fusion/fusion_kernels.h"
 #include "raycast/coarse_occupancy.h"
 #include "raycast/raycast_kernels.h"
+#include "refine/refine_kernels.h"
 
 namespace hivox::test {
 namespace {
@@ -63,6 +64,15 @@ __global__ void integrate_blocks(MapView map, const BlockRef* blocks, int n,
   if (i >= n) return;
   const BlockRef b = blocks[i];
   kernels::integrate_block(map, b.level, b.pos, b.ptr, depth, color, k);
+}
+
+__global__ void block_criteria(MapView map, const int32_t* ptrs, int n, float mu_m, int min_weight,
+                               int min_samples, float* detail_m, float* det_cov) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  const TsdfVoxel* v = map.tsdf + static_cast<int64_t>(ptrs[i]) * kBlockVoxels;
+  detail_m[i] = kernels::block_detail_m(v, mu_m, min_weight, min_samples);
+  det_cov[i] = kernels::block_det_cov(v, min_weight);
 }
 
 __global__ void project_blocks(MapView map, int32_t high_water, Rigid3f T_cw, PinholeCamera cam,
@@ -182,6 +192,23 @@ double integrate_on_device(DeviceMap& map, const std::vector<BlockRef>& blocks,
     integrate_blocks<<<(n + kThreads - 1) / kThreads, kThreads>>>(map.view(), refs.ptr, n,
                                                                   depth_view, color_view, k);
   });
+}
+
+void block_criteria_on_device(const DeviceMap& map, const std::vector<int32_t>& ptrs, float mu_m,
+                              int min_weight, int min_samples, std::vector<float>* detail_m,
+                              std::vector<float>* det_cov) {
+  const int n = static_cast<int>(ptrs.size());
+  DeviceBuffer<int32_t> device_ptrs(ptrs.data(), ptrs.size());
+  DeviceBuffer<float> detail(ptrs.size()), cov(ptrs.size());
+  constexpr int kThreads = 64;
+  timed([&] {
+    block_criteria<<<(n + kThreads - 1) / kThreads, kThreads>>>(
+        map.view(), device_ptrs.ptr, n, mu_m, min_weight, min_samples, detail.ptr, cov.ptr);
+  });
+  detail_m->resize(ptrs.size());
+  det_cov->resize(ptrs.size());
+  detail.download(detail_m->data(), ptrs.size());
+  cov.download(det_cov->data(), ptrs.size());
 }
 
 DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccupancy& occupancy,

@@ -52,6 +52,12 @@ double integrate_on_device(DeviceMap& map, const std::vector<BlockRef>& blocks,
                            const kernels::ColorFrameView& color,
                            const kernels::IntegrationConstants& k);
 
+/// Both refinement criteria of blocks `ptrs` of `map` on the device (kernels::block_detail_m
+/// with `mu_m`, `min_weight`, `min_samples`, and kernels::block_det_cov with `min_weight`).
+void block_criteria_on_device(const DeviceMap& map, const std::vector<int32_t>& ptrs, float mu_m,
+                              int min_weight, int min_samples, std::vector<float>* detail_m,
+                              std::vector<float>* det_cov);
+
 struct DeviceRaycast {
   std::vector<float> depth_m;
   std::vector<Vec3f> points_w, normals_w;

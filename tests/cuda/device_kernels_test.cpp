@@ -2,6 +2,8 @@
 // a frame into the same blocks (voxel by voxel), and the raycast of the fused map (pixel by
 // pixel). Built with -DHIVOX_WITH_CUDA=ON; skipped where no CUDA device is present.
 //
+// The refinement criteria of every block are compared too.
+//
 // Workloads: the synthetic desk with Kinect-like noise (always), and TUM fr1/rpy when the real
 // data are found. The kernel times are printed (one GPU thread per block for integration, the
 // simplest mapping; one per pixel for the raycast): measurements, not assertions.
@@ -21,6 +23,7 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/io/dataset.h"
 #include "hivox/raycast/raycaster.h"
+#include "hivox/refine/params.h"
 #include "hivox/refine/refiner.h"
 #include "hivox/synth/synthetic_dataset.h"
 #include "test_util.h"
@@ -127,12 +130,49 @@ void compare_on_device(const Workload& w) {
   // A summary bit can only differ where a TSDF near 0 rounded to the other sign.
   EXPECT_LE(surface_differ, static_cast<int64_t>(blocks.size() / 1000));
 
+  // The refinement criteria of every block of the fused map.
+  const DeviceMap fused(map.view(), map.block_high_water());
+  {
+    std::vector<int32_t> ptrs;
+    for (int32_t ptr = 0; ptr < map.block_high_water(); ++ptr)
+      if (host.meta[ptr].level >= 0) ptrs.push_back(ptr);
+    RefineParams detail_params, det_cov_params;
+    detail_params.criterion = RefineCriterion::Detail;
+    det_cov_params.criterion = RefineCriterion::DetCov;
+    const Refiner detail(detail_params), det_cov(det_cov_params);
+    std::vector<float> gpu_detail, gpu_det_cov;
+    block_criteria_on_device(fused, ptrs, fp.truncation_m, detail_params.min_weight,
+                             detail_params.min_samples, &gpu_detail, &gpu_det_cov);
+    int64_t judged = 0, detail_far = 0, det_cov_far = 0;
+    double det_cov_max_diff = 0;
+    for (std::size_t i = 0; i < ptrs.size(); ++i) {
+      const float d = detail.complexity(map, ptrs[i], fp.truncation_m);
+      judged += d >= 0.0f;
+      // Same sums in the same order; fused multiply-adds move the last bits.
+      detail_far += std::abs(d - gpu_detail[i]) > 1e-4f * std::abs(d);
+      // A determinant of entries ~0.1 that often cancels to ~0: its rounding is absolute, ~1e-7
+      // per entry. 1e-6 is 1 % of the paper's threshold (1e-4). (Plateau voxels that rounding
+      // gave a direction made the two disagree by up to 2.8e-3, see DetCovCriterion.)
+      const float c = det_cov.complexity(map, ptrs[i], fp.truncation_m);
+      det_cov_far += std::abs(c - gpu_det_cov[i]) > 1e-6f;
+      det_cov_max_diff =
+          std::max(det_cov_max_diff, static_cast<double>(std::abs(c - gpu_det_cov[i])));
+    }
+    std::printf(
+        "[ criteria ] %s: %zu blocks (%lld judged), %lld / %lld differ (detail, det-cov; det-cov "
+        "at most by %.2g)\n",
+        w.name.c_str(), ptrs.size(), static_cast<long long>(judged),
+        static_cast<long long>(detail_far), static_cast<long long>(det_cov_far), det_cov_max_diff);
+    ASSERT_GT(judged, 1000);
+    EXPECT_EQ(detail_far, 0);
+    EXPECT_EQ(det_cov_far, 0);
+  }
+
   // Raycast: the CPU's per-ray path (no packets), with the depth just fused as the start hint
   // and without hints.
   RaycastParams rp;
   rp.truncation_m = w.truncation_m;
   rp.ray_packets = false;
-  const DeviceMap fused(map.view(), map.block_high_water());
   std::vector<int32_t> cells;
   const kernels::CoarseOccupancy occupancy = kernels::build_coarse_occupancy(map, &cells);
   for (const DepthImage* hint : {&frame.depth_m, static_cast<const DepthImage*>(nullptr)}) {
