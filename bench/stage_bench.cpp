@@ -74,15 +74,7 @@ struct Workload {
   }
 
   FusionInput make_input(const RgbdFrame& f) const {
-    FusionInput in;
-    in.depth_m = &f.depth_m;
-    in.depth_camera = reader->info().depth_camera;
-    if (!f.color.empty()) {
-      in.color = &f.color;
-      in.color_camera = reader->info().color_camera;
-    }
-    in.T_wc = f.T_wc_gt.value_or(Pose::Identity());
-    return in;
+    return fusion_input(reader->info(), f, f.T_wc_gt.value_or(Pose::Identity()));
   }
 };
 

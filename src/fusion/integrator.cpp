@@ -169,6 +169,19 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
   return stats;
 }
 
+FusionInput fusion_input(const DatasetInfo& info, const RgbdFrame& frame, const Pose& T_wc) {
+  FusionInput in;
+  in.depth_m = &frame.depth_m;
+  in.depth_camera = info.depth_camera;
+  if (!frame.color.empty()) {
+    in.color = &frame.color;
+    in.color_camera = info.color_camera;
+    in.T_color_depth = info.T_color_depth;
+  }
+  in.T_wc = T_wc;
+  return in;
+}
+
 IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& params,
                                    bool map_has_color, std::vector<uint32_t>* packed_color) {
   IntegrationFrame f;

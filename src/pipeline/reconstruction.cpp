@@ -139,15 +139,7 @@ const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_w
 void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s) {
   Stopwatch stage;
 
-  FusionInput in;
-  in.depth_m = &frame.depth_m;
-  in.depth_camera = info_.depth_camera;
-  if (!frame.color.empty()) {
-    in.color = &frame.color;
-    in.color_camera = info_.color_camera;
-    in.T_color_depth = info_.T_color_depth;
-  }
-  in.T_wc = T_wc;
+  const FusionInput in = fusion_input(info_, frame, T_wc);
   const AllocationStats a = integrator_.allocate(*map_, in);
   s.allocate_ms = stage.lap_ms();
   integrator_.integrate(*map_, in);

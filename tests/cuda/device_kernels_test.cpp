@@ -44,19 +44,6 @@ struct Workload {
   if (device.empty()) GTEST_SKIP() << "no CUDA device found; skipping the GPU tests"; \
   std::printf("[ device   ] %s\n", device.c_str())
 
-FusionInput input_of(const DatasetReader& reader, const RgbdFrame& f) {
-  FusionInput in;
-  in.depth_m = &f.depth_m;
-  in.depth_camera = reader.info().depth_camera;
-  if (!f.color.empty()) {
-    in.color = &f.color;
-    in.color_camera = reader.info().color_camera;
-    in.T_color_depth = reader.info().T_color_depth;
-  }
-  in.T_wc = f.T_wc_gt.value_or(Pose::Identity());
-  return in;
-}
-
 /// Fuses the workload's first frames on the CPU (refining between frames when it has several
 /// levels, as the pipeline does), then checks frame `frames`: integrated on the CPU and on the
 /// device into copies of the same map, then raycast from its pose by both.
@@ -71,12 +58,13 @@ void compare_on_device(const Workload& w) {
   Refiner refiner;
   for (int i = 0; i < w.frames; ++i) {
     const RgbdFrame f = w.reader->read(static_cast<std::size_t>(i));
-    const FusionInput in = input_of(*w.reader, f);
+    const FusionInput in = fusion_input(w.reader->info(), f, f.T_wc_gt.value_or(Pose::Identity()));
     integrator.fuse(map, in);
     if (w.levels > 1) refiner.refine(map, integrator.visible_blocks(), fp.truncation_m, in.T_wc);
   }
   const RgbdFrame frame = w.reader->read(static_cast<std::size_t>(w.frames));
-  const FusionInput in = input_of(*w.reader, frame);
+  const FusionInput in =
+      fusion_input(w.reader->info(), frame, frame.T_wc_gt.value_or(Pose::Identity()));
 
   // Integration: the device works on a copy of the map taken after allocation.
   integrator.allocate(map, in);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/dataset.h"
 #include "hivox/core/image.h"
 #include "hivox/core/pose.h"
 #include "hivox/fusion/params.h"
@@ -24,6 +25,10 @@ struct FusionInput {
   Pose T_color_depth = Pose::Identity();  ///< depth-camera point -> colour-camera point
   Pose T_wc = Pose::Identity();           ///< depth camera to world
 };
+
+/// The fusion input of `frame` of a dataset described by `info`, seen from pose `T_wc`: its
+/// depth, and its colour when it has any, with the dataset's cameras. `frame` must outlive it.
+FusionInput fusion_input(const DatasetInfo& info, const RgbdFrame& frame, const Pose& T_wc);
 
 struct AllocationStats {
   int64_t valid_pixels = 0;    ///< pixels with depth inside the depth range
