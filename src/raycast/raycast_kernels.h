@@ -573,6 +573,17 @@ struct RangeTiles {
   float* z_min = nullptr;  ///< per tile, initialised to +large
   float* z_max = nullptr;  ///< per tile, initialised to 0
   int tiles_x = 0, tiles_y = 0, tile_px = 8;
+
+  /// The tiles of `tile_px` pixels covering a `width` x `height` image (z_min, z_max unset).
+  HIVOX_HD static RangeTiles covering(int tile_px, int width, int height) {
+    RangeTiles t;
+    t.tile_px = tile_px;
+    t.tiles_x = (width + tile_px - 1) / tile_px;
+    t.tiles_y = (height + tile_px - 1) / tile_px;
+    return t;
+  }
+  HIVOX_HD int count() const { return tiles_x * tiles_y; }
+  HIVOX_HD int tile_of(int x, int y) const { return (y / tile_px) * tiles_x + x / tile_px; }
 };
 
 /// Projects one block's bounding box into the range tiles (atomic min/max of depth per tile).

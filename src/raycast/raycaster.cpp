@@ -21,9 +21,7 @@ struct PacketRay {
   int x = 0, y = 0;
   Vec3f dir;
   Vec3f inv_dir;  ///< kernels::inverse_direction(dir)
-  float hint = 0;
-  float second_hint = 0;          ///< searched where the search at `hint` fails (0: none)
-  bool hint_is_fallback = false;  ///< `hint` comes from the fallback hint image
+  kernels::RayHints hints;
 };
 
 /// One thread's packet: its rays, their search state and outcomes, and the cells it samples.
@@ -57,7 +55,7 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
   // The sample at the hint starts the search, and usually ends it: its cell holds the crossing.
   for (int i = 0; i < n; ++i) {
     s.found[i] = false;
-    s.points[i] = o + s.rays[i].dir * s.rays[i].hint;
+    s.points[i] = o + s.rays[i].dir * s.rays[i].hints.hint;
     s.dirs[i] = s.rays[i].dir;
     s.inv_dirs[i] = s.rays[i].inv_dir;
   }
@@ -70,9 +68,9 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
     if (!s.sampled[i]) continue;
     const PacketRay& ray = s.rays[i];
     if (s.samples[i].at_crossing()) {
-      s.bracket[i] = exact_bracket(map, ray.dir, ray.hint, s.samples[i], s.levels[i]);
+      s.bracket[i] = exact_bracket(map, ray.dir, ray.hints.hint, s.samples[i], s.levels[i]);
       bracketed[n_bracketed++] = i;
-    } else if (hint_search_begin(map, ray.dir, ray.hint, s.samples[i], s.levels[i], k,
+    } else if (hint_search_begin(map, ray.dir, ray.hints.hint, s.samples[i], s.levels[i], k,
                                  &s.search[i])) {
       s.live[live++] = i;
     }
@@ -254,13 +252,10 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   r.has_color = view.color != nullptr;
 
   // Range image: every allocated block's bounding box, projected.
-  kernels::RangeTiles tiles;
-  tiles.tile_px = params_.range_tile_px;
-  tiles.tiles_x = (w + tiles.tile_px - 1) / tiles.tile_px;
-  tiles.tiles_y = (h + tiles.tile_px - 1) / tiles.tile_px;
-  const std::size_t tile_count = static_cast<std::size_t>(tiles.tiles_x) * tiles.tiles_y;
-  tile_min_.assign(tile_count, FLT_MAX);
-  tile_max_.assign(tile_count, 0.0f);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params_.range_tile_px, w, h);
+  const int tile_count = tiles.count();
+  tile_min_.assign(static_cast<std::size_t>(tile_count), FLT_MAX);
+  tile_max_.assign(static_cast<std::size_t>(tile_count), 0.0f);
   tiles.z_min = tile_min_.data();
   tiles.z_max = tile_max_.data();
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
@@ -299,7 +294,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     };
     // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
 #pragma omp for schedule(dynamic, 8)
-    for (int t = 0; t < static_cast<int>(tile_count); ++t) {
+    for (int t = 0; t < tile_count; ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
       // The ray of pixel (x, y) and its hints.
@@ -307,16 +302,12 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         auto depth_at = [&](const DepthImage* image) {
           return image != nullptr ? (*image)(x, y) : 0.0f;
         };
-        const kernels::RayHints hints =
-            kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k.hint_margin_m,
-                               tile_min_[t], tile_max_[t]);
         PacketRay ray;
         ray.x = x;
         ray.y = y;
         ray.dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-        ray.hint = hints.hint;
-        ray.second_hint = hints.second;
-        ray.hint_is_fallback = hints.hint_is_fallback;
+        ray.hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m),
+                                       k.hint_margin_m, tile_min_[t], tile_max_[t]);
         return ray;
       };
       int packed = 0;  // hinted rays waiting in the packet
@@ -329,9 +320,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         int retried = 0;
         for (int i = 0; i < packed; ++i) {
           PacketRay& ray = scratch->rays[i];
-          found_at_fallback += scratch->found[i] && ray.hint_is_fallback;
-          if (scratch->found[i] || ray.second_hint == 0.0f) continue;
-          std::swap(ray.hint, ray.second_hint);
+          found_at_fallback += scratch->found[i] && ray.hints.hint_is_fallback;
+          if (scratch->found[i] || ray.hints.second == 0.0f) continue;
+          std::swap(ray.hints.hint, ray.hints.second);
           std::swap(scratch->rays[i], scratch->rays[retried]);
           std::swap(scratch->hits[i], scratch->hits[retried]);
           std::swap(scratch->found[i], scratch->found[retried]);
@@ -340,16 +331,16 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         if (retried > 0) search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
         for (int j = 0; j < retried; ++j) {
           found_at_fallback += scratch->found[j];
-          std::swap(scratch->rays[j].hint, scratch->rays[j].second_hint);
+          std::swap(scratch->rays[j].hints.hint, scratch->rays[j].hints.second);
         }
         for (int i = 0; i < packed; ++i) {
           const PacketRay& ray = scratch->rays[i];
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
           found_at_hint += scratch->found[i];
-          const bool found =
-              scratch->found[i] || kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hint,
-                                                            tile_min_[t], tile_max_[t], k, &hit);
+          const bool found = scratch->found[i] ||
+                             kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hints.hint,
+                                                      tile_min_[t], tile_max_[t], k, &hit);
           write_pixel(ray.x, ray.y, found, hit);
         }
         packed = 0;
@@ -357,7 +348,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           PacketRay ray = ray_at(x, y);
-          if (packets && ray.hint > 0.0f) {
+          if (packets && ray.hints.hint > 0.0f) {
             ray.inv_dir = kernels::inverse_direction(ray.dir);
             scratch->rays[packed++] = ray;
             if (packed == kPacketRays) flush_packet();
@@ -365,13 +356,13 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           }
           kernels::RayHit hit;
           const kernels::RayOutcome outcome = kernels::cast_ray(
-              view, cache, T.t, ray.dir, {ray.hint, ray.second_hint, ray.hint_is_fallback},
-              tile_min_[t], tile_max_[t], k, &hit);
+              view, cache, T.t, ray.dir, ray.hints, tile_min_[t], tile_max_[t], k, &hit);
           const bool found = outcome != kernels::RayOutcome::Miss;
           found_at_hint += outcome == kernels::RayOutcome::AtHint ||
                            outcome == kernels::RayOutcome::AtSecondHint;
-          found_at_fallback += (outcome == kernels::RayOutcome::AtHint && ray.hint_is_fallback) ||
-                               outcome == kernels::RayOutcome::AtSecondHint;
+          found_at_fallback +=
+              (outcome == kernels::RayOutcome::AtHint && ray.hints.hint_is_fallback) ||
+              outcome == kernels::RayOutcome::AtSecondHint;
           write_pixel(x, y, found, hit);
         }
       if (packed > 0) flush_packet();

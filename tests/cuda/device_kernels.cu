@@ -97,7 +97,7 @@ __global__ void cast_rays(MapView map, PinholeCamera cam, Rigid3f T_wc, kernels:
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
   if (x >= cam.width || y >= cam.height) return;
   const int64_t i = static_cast<int64_t>(y) * cam.width + x;
-  const int t = (y / tiles.tile_px) * tiles.tiles_x + x / tiles.tile_px;
+  const int t = tiles.tile_of(x, y);
   const float z_min = tiles.z_min[t], z_max = tiles.z_max[t];
   const kernels::RayHints hints = kernels::ray_hints(
       start_hint_m != nullptr ? start_hint_m[i] : 0.0f,
@@ -218,11 +218,8 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
   params.validate();
   const int w = camera.width, h = camera.height;
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
-  kernels::RangeTiles tiles;
-  tiles.tile_px = params.range_tile_px;
-  tiles.tiles_x = (w + tiles.tile_px - 1) / tiles.tile_px;
-  tiles.tiles_y = (h + tiles.tile_px - 1) / tiles.tile_px;
-  const int tile_count = tiles.tiles_x * tiles.tiles_y;
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params.range_tile_px, w, h);
+  const int tile_count = tiles.count();
   DeviceBuffer<float> z_min(static_cast<std::size_t>(tile_count));
   DeviceBuffer<float> z_max(static_cast<std::size_t>(tile_count));
   tiles.z_min = z_min.ptr;
