@@ -1,4 +1,5 @@
-// The detail criterion (refine_kernels.h) on blocks filled with known fields.
+// The complexity criteria (refine_kernels.h: detail and the paper's det-cov) on blocks filled
+// with known fields.
 
 #include <gtest/gtest.h>
 
@@ -34,6 +35,15 @@ float plane_distance(const Vec3f& p) {
   return dot(n, p) - dot(n, Vec3f{0.014f, 0.014f, 0.014f});
 }
 
+// Signed distance (metres, positive outside) to the region x < 14 mm, z < 14 mm and, with
+// `corner`, y < 14 mm.
+float box_distance(const Vec3f& p, bool corner) {
+  const float dx = p.x - 0.014f, dy = corner ? p.y - 0.014f : -1.0f, dz = p.z - 0.014f;
+  const float ox = std::max(dx, 0.0f), oy = std::max(dy, 0.0f), oz = std::max(dz, 0.0f);
+  const float outside = std::sqrt(ox * ox + oy * oy + oz * oz);
+  return outside > 0.0f ? outside : std::max(dx, std::max(dy, dz));
+}
+
 TEST(DetailCriterion, APlaneHasNoDetail) {
   const auto v = block_of([](const Vec3f& p) { return plane_distance(p) / kMuM; });
   const float detail = kernels::block_detail_m(v.data(), kMuM, 2, 4);
@@ -59,12 +69,7 @@ TEST(DetailCriterion, ASlantedViewsClampIsNotDetail) {
 // A 90-degree edge (the table's rim) crossing the block: detail well above the default split
 // threshold (0.2 mm), which is what keeps such blocks fine.
 TEST(DetailCriterion, AnEdgeIsDetail) {
-  const auto v = block_of([](const Vec3f& p) {
-    // Outside distance to the quarter space x < 14 mm, z < 14 mm (the edge along y).
-    const float dx = p.x - 0.014f, dz = p.z - 0.014f;
-    const float d = dx > 0.0f && dz > 0.0f ? std::sqrt(dx * dx + dz * dz) : std::max(dx, dz);
-    return d / kMuM;
-  });
+  const auto v = block_of([](const Vec3f& p) { return box_distance(p, false) / kMuM; });
   const float detail = kernels::block_detail_m(v.data(), kMuM, 2, 4);
   EXPECT_GT(detail, 0.0002f);
 }
@@ -79,14 +84,6 @@ TEST(DetailCriterion, TooLittleSurfaceIsNotJudged) {
 
 // The paper's criterion (det-cov) on the same kind of blocks. Its truncation here is 8 mm, so
 // most voxels lie on the plateaus (F = +1 in front, -1 behind), where the TSDF has no gradient.
-
-// Outside distance (metres) to the region x < 14 mm, z < 14 mm and, with `corner`, y < 14 mm.
-float box_distance(const Vec3f& p, bool corner) {
-  const float dx = p.x - 0.014f, dy = corner ? p.y - 0.014f : -1.0f, dz = p.z - 0.014f;
-  const float ox = std::max(dx, 0.0f), oy = std::max(dy, 0.0f), oz = std::max(dz, 0.0f);
-  const float outside = std::sqrt(ox * ox + oy * oy + oz * oz);
-  return outside > 0.0f ? outside : std::max(dx, std::max(dy, dz));
-}
 
 constexpr float kDetCovMuM = 0.008f;
 
