@@ -24,6 +24,10 @@ void RaycastParams::validate() const {
   if (!std::isfinite(hint_margin_mu) || hint_margin_mu < 0.0f)
     fail(ErrorCode::InvalidArgument,
          "raycast hint_margin_mu must be >= 0 truncation bands (finite), got {}", hint_margin_mu);
+  if (!std::isfinite(hint_agreement_mu) || hint_agreement_mu < 0.0f)
+    fail(ErrorCode::InvalidArgument,
+         "raycast hint_agreement_mu must be >= 0 truncation bands (finite), got {}",
+         hint_agreement_mu);
   if (min_weight < 1)
     fail(ErrorCode::InvalidArgument, "min_weight must be >= 1, got {}", min_weight);
 }

@@ -87,8 +87,9 @@ struct RayMarchConstants {
   float step_fraction = 0;    ///< of the TSDF distance per step
   float min_step_voxels = 2;  ///< smallest step in front of a surface, voxels of its level
   int min_weight = 1;
-  CoarseOccupancy occupancy;  ///< optional (empty: unallocated space is crossed block by block)
-  float hint_margin_m = 0;    ///< a hinted ray's march starts this far in front of its hint
+  CoarseOccupancy occupancy;   ///< optional (empty: unallocated space is crossed block by block)
+  float hint_margin_m = 0;     ///< a hinted ray's march starts this far in front of its hint
+  float hint_agreement_m = 0;  ///< hints this close search the fallback first (ray_hints)
 };
 
 /// The constants of a raycast of `map` with `p` (the same for every driver).
@@ -102,6 +103,7 @@ inline RayMarchConstants march_constants(const RaycastParams& p, const MapView& 
   const float coarsest_voxel_m = map.level[map.levels - 1].voxel_size_m;
   k.min_step_voxels = fminf(2.0f, 0.5f * p.truncation_m / coarsest_voxel_m + 0.5f);
   k.hint_margin_m = p.hint_margin_mu * p.truncation_m;
+  k.hint_agreement_m = p.hint_agreement_mu * p.truncation_m;
   return k;
 }
 
@@ -490,17 +492,23 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
 }
 
 /// A pixel's two hints (see Raycaster::raycast): `hint` is the start hint, or where it has none
-/// the fallback; `second` the fallback where it differs from `hint`. A depth counts only where a
-/// start `hint_margin_m` in front of it lies inside the pixel's range (z_min, z_max).
+/// the fallback; `second` the fallback where it differs from `hint`. Where the two lie within
+/// `k.hint_agreement_m` of each other, the other way round: both point at one surface, and the
+/// fallback (a previous raycast) says where the model holds it. A depth counts only where a
+/// start `k.hint_margin_m` in front of it lies inside the pixel's range (z_min, z_max).
 struct RayHints {
   float hint = 0;
   float second = 0;
-  bool hint_is_fallback = false;  ///< `hint` comes from the fallback
+  bool hint_is_fallback = false;  ///< `hint` comes from the fallback (`second`, if any, not)
+
+  /// Whether a surface found at `hint` (`at_second` false) or at `second` was found at the
+  /// fallback hint.
+  HIVOX_HD bool from_fallback(bool at_second) const { return at_second != hint_is_fallback; }
 };
-HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, float hint_margin_m,
+HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, const RayMarchConstants& k,
                                    float z_min, float z_max) {
   auto in_range = [&](float z) {
-    return z > 0.0f && z - hint_margin_m > z_min && z - hint_margin_m < z_max ? z : 0.0f;
+    return z > 0.0f && z - k.hint_margin_m > z_min && z - k.hint_margin_m < z_max ? z : 0.0f;
   };
   RayHints h;
   h.hint = in_range(start_m);
@@ -511,6 +519,11 @@ HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, float hint_m
     h.second = 0.0f;
   } else if (h.second == h.hint) {
     h.second = 0.0f;
+  } else if (h.second > 0.0f && fabsf(h.second - h.hint) <= k.hint_agreement_m) {
+    const float start = h.hint;
+    h.hint = h.second;
+    h.second = start;
+    h.hint_is_fallback = true;
   }
   return h;
 }

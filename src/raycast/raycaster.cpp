@@ -173,7 +173,14 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       const int u = static_cast<int>(std::floor(uv.x + 0.5f));
       const int v = static_cast<int>(std::floor(uv.y + 0.5f));
       if (u < 0 || v < 0 || u >= w || v >= h) continue;
-      atomic_min_positive(&nearest(u, v), p.z);
+      // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from the
+      // hit: at an oblique surface the hit's own depth is off by up to a voxel or more there),
+      // at most half the gap from the hit's depth (grazing planes).
+      const Vec3f n = T_cw.rotate(from.normals_w(x, y));
+      const Vec3f ray = camera.ray(static_cast<float>(u), static_cast<float>(v));
+      const float n_ray = dot(n, ray), limit = 0.5f * max_gap_m;
+      const float z = std::abs(n_ray) > 1e-6f ? dot(n, p) / n_ray : p.z;
+      atomic_min_positive(&nearest(u, v), std::clamp(z, p.z - limit, p.z + limit));
     }
   // The nearest depth landed within one pixel: a minimum over each row's 3 pixels, then over 3
   // rows (loops without branches, which vectorize).
@@ -306,8 +313,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         ray.x = x;
         ray.y = y;
         ray.dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-        ray.hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m),
-                                       k.hint_margin_m, tile_min_[t], tile_max_[t]);
+        ray.hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k,
+                                       tile_min_[t], tile_max_[t]);
         return ray;
       };
       int packed = 0;  // hinted rays waiting in the packet
@@ -320,7 +327,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         int retried = 0;
         for (int i = 0; i < packed; ++i) {
           PacketRay& ray = scratch->rays[i];
-          found_at_fallback += scratch->found[i] && ray.hints.hint_is_fallback;
+          found_at_fallback += scratch->found[i] && ray.hints.from_fallback(false);
           if (scratch->found[i] || ray.hints.second == 0.0f) continue;
           std::swap(ray.hints.hint, ray.hints.second);
           std::swap(scratch->rays[i], scratch->rays[retried]);
@@ -330,7 +337,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         }
         if (retried > 0) search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
         for (int j = 0; j < retried; ++j) {
-          found_at_fallback += scratch->found[j];
+          found_at_fallback += scratch->found[j] && scratch->rays[j].hints.from_fallback(true);
           std::swap(scratch->rays[j].hints.hint, scratch->rays[j].hints.second);
         }
         for (int i = 0; i < packed; ++i) {
@@ -358,11 +365,10 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           const kernels::RayOutcome outcome = kernels::cast_ray(
               view, cache, T.t, ray.dir, ray.hints, tile_min_[t], tile_max_[t], k, &hit);
           const bool found = outcome != kernels::RayOutcome::Miss;
-          found_at_hint += outcome == kernels::RayOutcome::AtHint ||
-                           outcome == kernels::RayOutcome::AtSecondHint;
-          found_at_fallback +=
-              (outcome == kernels::RayOutcome::AtHint && ray.hints.hint_is_fallback) ||
-              outcome == kernels::RayOutcome::AtSecondHint;
+          const bool at_second = outcome == kernels::RayOutcome::AtSecondHint;
+          const bool at_hint = outcome == kernels::RayOutcome::AtHint || at_second;
+          found_at_hint += at_hint;
+          found_at_fallback += at_hint && ray.hints.from_fallback(at_second);
           write_pixel(x, y, found, hit);
         }
       if (packed > 0) flush_packet();

@@ -99,9 +99,9 @@ __global__ void cast_rays(MapView map, PinholeCamera cam, Rigid3f T_wc, kernels:
   const int64_t i = static_cast<int64_t>(y) * cam.width + x;
   const int t = tiles.tile_of(x, y);
   const float z_min = tiles.z_min[t], z_max = tiles.z_max[t];
-  const kernels::RayHints hints = kernels::ray_hints(
-      start_hint_m != nullptr ? start_hint_m[i] : 0.0f,
-      fallback_hint_m != nullptr ? fallback_hint_m[i] : 0.0f, k.hint_margin_m, z_min, z_max);
+  const kernels::RayHints hints =
+      kernels::ray_hints(start_hint_m != nullptr ? start_hint_m[i] : 0.0f,
+                         fallback_hint_m != nullptr ? fallback_hint_m[i] : 0.0f, k, z_min, z_max);
   const Vec3f dir = T_wc.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
   kernels::BlockLookupCache cache;
   kernels::RayHit hit;

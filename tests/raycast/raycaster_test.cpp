@@ -282,6 +282,75 @@ TEST(Raycaster, FallbackHintIsSearchedWhereTheHintFails) {
   EXPECT_GT(swapped_stats.found_at_hint, 0.98 * swapped_stats.hits);
 }
 
+// Which hint a ray searches first: the start hint, unless the fallback agrees with it (then the
+// fallback, which is free of sensor noise); hints whose search would start outside the pixel's
+// range do not count.
+TEST(Raycaster, RayHintsSearchAnAgreeingFallbackFirst) {
+  kernels::RayMarchConstants k;
+  k.hint_margin_m = 0.04f;
+  k.hint_agreement_m = 0.02f;
+  const float z_min = 0.5f, z_max = 2.0f;
+  auto hints = [&](float start, float fallback) {
+    return kernels::ray_hints(start, fallback, k, z_min, z_max);
+  };
+  kernels::RayHints h = hints(1.0f, 0.0f);
+  EXPECT_EQ(h.hint, 1.0f);
+  EXPECT_EQ(h.second, 0.0f);
+  EXPECT_FALSE(h.from_fallback(false));
+  h = hints(0.0f, 1.0f);
+  EXPECT_EQ(h.hint, 1.0f);
+  EXPECT_EQ(h.second, 0.0f);
+  EXPECT_TRUE(h.from_fallback(false));
+  // A fallback 10 cm behind: another surface, searched second.
+  h = hints(1.0f, 1.1f);
+  EXPECT_EQ(h.hint, 1.0f);
+  EXPECT_EQ(h.second, 1.1f);
+  EXPECT_FALSE(h.from_fallback(false));
+  EXPECT_TRUE(h.from_fallback(true));
+  // 1.5 cm apart: one surface, the fallback first.
+  h = hints(1.0f, 1.015f);
+  EXPECT_EQ(h.hint, 1.015f);
+  EXPECT_EQ(h.second, 1.0f);
+  EXPECT_TRUE(h.from_fallback(false));
+  EXPECT_FALSE(h.from_fallback(true));
+  h = hints(1.0f, 1.0f);
+  EXPECT_EQ(h.hint, 1.0f);
+  EXPECT_EQ(h.second, 0.0f);
+  k.hint_agreement_m = 0.0f;
+  h = hints(1.0f, 1.015f);
+  EXPECT_EQ(h.hint, 1.0f);
+  EXPECT_EQ(h.second, 1.015f);
+  // The search would start in front of the range, or behind it.
+  h = hints(0.52f, 2.1f);
+  EXPECT_EQ(h.hint, 0.0f);
+  EXPECT_EQ(h.second, 0.0f);
+}
+
+// With the true depth as fallback and a start hint off by up to half a band, the rays find their
+// surface at the fallback, and the same surfaces as without hints.
+TEST(Raycaster, AgreeingHintsFindTheSurfaceAtTheFallback) {
+  const HintView v;
+  const auto& [s, rp, cam, T_wc, truth] = v;
+  DepthImage noisy = truth;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x)
+      if (noisy(x, y) > 0.0f) noisy(x, y) += ((x + y) % 2 == 0 ? 0.5f : -0.5f) * s.mu;
+  Raycaster plain(rp), hinted(rp);
+  RaycastStats stats;
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
+  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a,
+                                 hinted.raycast(*s.map, cam, T_wc, &stats, &noisy, &truth)),
+            12000);
+  EXPECT_GT(stats.found_at_fallback, 0.95 * stats.hits);
+  RaycastParams start_first = rp;
+  start_first.hint_agreement_mu = 0.0f;
+  Raycaster noisy_first(start_first);
+  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a,
+                                 noisy_first.raycast(*s.map, cam, T_wc, &stats, &noisy, &truth)),
+            12000);
+  EXPECT_LT(stats.found_at_fallback, 0.05 * stats.hits);
+}
+
 TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
@@ -460,7 +529,7 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
       if (!a.hit(x, y)) {
         if (same(x, y) != 0.0f) {
           ++filled;
-          EXPECT_EQ(same(x, y), hole_fill(x, y)) << x << "," << y;
+          EXPECT_NEAR(same(x, y), hole_fill(x, y), 1e-5f * same(x, y)) << x << "," << y;
         }
         continue;
       }
@@ -495,7 +564,7 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
   const RaycastResult& b = rb.raycast(*s.map, cam, T_b);
   DepthImage warped;
   warp_raycast_depth(a, cam, T_b, s.mu, &warped);
-  int hits = 0, covered = 0, close = 0, in_band = 0, other_surface = 0;
+  int hits = 0, covered = 0, close = 0, tight = 0, in_band = 0, other_surface = 0;
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       if (!b.hit(x, y) || b.depth_m(x, y) > kWellObservedDepth) continue;
@@ -504,19 +573,23 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
       ++covered;
       const float diff = std::abs(warped(x, y) - b.depth_m(x, y));
       close += diff < s.voxel;
+      tight += diff < 0.1f * s.voxel;
       in_band += diff < s.mu;
       other_surface += diff > 2 * s.mu;
     }
   EXPECT_GT(covered, 0.945 * hits);  // 0.933 without filling the holes between landed pixels
   // Landing on the nearest pixel moves a hit by up to half a pixel, ~5 mm at 1.5 m with this
-  // small camera: where the surface is oblique, more than a voxel in depth.
-  EXPECT_GT(close, 0.95 * covered);
+  // small camera: where the surface is oblique, more than a voxel in depth. The hit's tangent
+  // plane gives the depth at the pixel's centre instead (a third of the pixels were within a
+  // tenth of a voxel with the hit's own depth).
+  EXPECT_GT(tight, 0.9 * covered);
+  EXPECT_GT(close, 0.98 * covered);
   EXPECT_GT(in_band, 0.995 * covered);
   EXPECT_LT(other_surface, covered / 200);
   std::printf(
-      "warp to a pose 1 cm, 1.5 deg away: %d of %d hits covered, %d within a voxel, %d "
-      "within a band, %d on another surface\n",
-      covered, hits, close, in_band, other_surface);
+      "warp to a pose 1 cm, 1.5 deg away: %d of %d hits covered, %d within a tenth of a voxel, "
+      "%d within a voxel, %d within a band, %d on another surface\n",
+      covered, hits, tight, close, in_band, other_surface);
   EXPECT_THROW(warp_raycast_depth(a, cam, T_b, 0.0f, &warped), Error);
 }
 
@@ -533,6 +606,10 @@ TEST(Raycaster, ParamsAreValidated) {
   p.hint_margin_mu = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(p.validate(), Error);
   p.hint_margin_mu = 0.0f;
+  EXPECT_NO_THROW(p.validate());
+  p.hint_agreement_mu = -0.5f;
+  EXPECT_THROW(p.validate(), Error);
+  p.hint_agreement_mu = 0.0f;
   EXPECT_NO_THROW(p.validate());
 }
 

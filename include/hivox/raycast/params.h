@@ -17,6 +17,11 @@ struct RaycastParams {
   int min_weight = 1;  ///< voxels observed fewer times count as unknown
   /// With a start hint, rays begin this many truncation bands in front of the hinted depth.
   float hint_margin_mu = 2.0f;
+  /// Where a pixel's two hints (see Raycaster::raycast) lie within this many truncation bands of
+  /// each other, they point at one surface and the fallback is searched first: a previous
+  /// raycast says where the model holds that surface, without the sensor's noise, so the search
+  /// usually ends in the first cell it samples. 0: the start hint first everywhere.
+  float hint_agreement_mu = 1.0f;
   /// The CPU driver searches the hinted rays of a tile together, interpolating their samples in
   /// vectorized loops; false: ray by ray. Both give the same result up to float rounding (the
   /// per-ray search is the reference the packets are tested against).

@@ -43,13 +43,15 @@ struct RaycastStats {
 };
 
 /// The depth at which the surface points of raycast `from` are seen by `camera` from pose
-/// `T_wc` (a forward warp): each hit lands on its nearest pixel and the nearest surface wins.
-/// A pixel no hit lands on takes the nearer of two opposite neighbours' depths (left and right,
-/// up and down, or diagonal) that agree within `max_gap_m` (holes where the new view magnifies
-/// the surface); other pixels no hit lands on get 0, and so do pixels that may show a surface
-/// through a gap in the warped foreground (a pixel within one pixel of them holds a surface
-/// nearer by more than `max_gap_m`). The previous frame's raycast warped this way gives the rays of
-/// pixels without a measured depth a start hint (see Raycaster::raycast).
+/// `T_wc` (a forward warp): each hit lands on its nearest pixel, with the depth at which its
+/// tangent plane (the hit's normal) meets that pixel's centre ray (at most `max_gap_m` / 2 from
+/// the hit's own depth), and the nearest surface wins. A pixel no hit lands on takes the nearer of
+/// two opposite neighbours' depths (left and right, up and down, or diagonal) that agree within
+/// `max_gap_m` (holes where the new view magnifies the surface); other pixels no hit lands on get
+/// 0, and so do pixels that may show a surface through a gap in the warped foreground (a pixel
+/// within one pixel of them holds a surface nearer by more than `max_gap_m`). The previous frame's
+/// raycast warped this way gives the rays a second start hint, free of sensor noise (see
+/// Raycaster::raycast).
 void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
                         float max_gap_m, DepthImage* out);
 
@@ -74,7 +76,10 @@ class Raycaster {
   /// the previous frame's raycast warped into this view (warp_raycast_depth) where the start
   /// hint is the depth just measured. Where that depth is missing or disagrees with the model (it
   /// lies in front of the model's surface, or on voxels not yet observed), the model's surface is
-  /// usually where the previous frame saw it.
+  /// usually where the previous frame saw it. Where the two hints agree (within
+  /// `hint_agreement_mu` truncation bands), the fallback is searched first and the start hint
+  /// second: the measured depth says which surface, the previous raycast where the model holds it
+  /// (the measured depth is off by the sensor's noise, often more than a voxel).
   const RaycastResult& raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
                                const Pose& T_wc, RaycastStats* stats = nullptr,
                                const DepthImage* start_hint_m = nullptr,
