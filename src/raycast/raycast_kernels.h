@@ -146,14 +146,19 @@ HIVOX_HD inline CrossingBracket make_bracket(const MapView& map, const Vec3f& d,
   return b;
 }
 
-/// The bracket of a crossing that sample `s`, taken at `z` (level `level`), found inside its
-/// cell (s.at_crossing()).
-HIVOX_HD inline CrossingBracket exact_bracket(const MapView& map, const Vec3f& d, float z,
-                                              const TsdfSample& s, int level) {
+/// `b` := the bracket of a crossing that sample `s`, taken at `z` (level `level`), found inside
+/// its cell (s.at_crossing()). Written in place: the usual end of a hinted ray's search, and a
+/// bracket built aside and copied costs a stalled copy per ray.
+HIVOX_HD inline void exact_bracket(const MapView& map, const Vec3f& d, float z, const TsdfSample& s,
+                                   int level, CrossingBracket* b) {
   const float z_hit = z + s.crossing_dz;
-  CrossingBracket b = make_bracket(map, d, z_hit, s.f, z_hit, s.f, s, level);
-  b.exact = true;
-  return b;
+  b->z_lo = b->z_hi = z_hit;
+  b->f_lo = b->f_hi = s.f;
+  b->voxel_z = map.level[level].voxel_size_m / norm(d);
+  b->best = s;
+  b->level = level;
+  b->steps = 0;
+  b->exact = true;
 }
 
 /// Where the secant through the bracket's ends crosses zero: the next sample, and the hit.
@@ -433,7 +438,7 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
   }
   h.retry_z = -1.0f;
   if (s1.at_crossing()) {
-    *bracket = exact_bracket(map, d, z1, s1, l1);
+    exact_bracket(map, d, z1, s1, l1, bracket);
     return HintStep::Bracketed;
   }
   // The slope is negative, so steps go forward from free space and back from behind a
@@ -462,7 +467,7 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
   if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l, &d)) return false;
   CrossingBracket b;
   if (s.at_crossing()) {
-    b = exact_bracket(map, d, z_hint, s, l);  // the usual case: the surface is in the hint's cell
+    exact_bracket(map, d, z_hint, s, l, &b);  // the usual case: the surface is in the hint's cell
   } else {
     HintSearch h;
     if (!hint_search_begin(map, d, z_hint, s, l, k, &h)) return false;

@@ -68,7 +68,7 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
     if (!s.sampled[i]) continue;
     const PacketRay& ray = s.rays[i];
     if (s.samples[i].at_crossing()) {
-      s.bracket[i] = exact_bracket(map, ray.dir, ray.hints.hint, s.samples[i], s.levels[i]);
+      exact_bracket(map, ray.dir, ray.hints.hint, s.samples[i], s.levels[i], &s.bracket[i]);
       bracketed[n_bracketed++] = i;
     } else if (hint_search_begin(map, ray.dir, ray.hints.hint, s.samples[i], s.levels[i], k,
                                  &s.search[i])) {
