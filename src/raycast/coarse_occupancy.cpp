@@ -7,15 +7,11 @@
 
 namespace hivox::kernels {
 
-CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<uint64_t>* cells) {
+CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<int32_t>* cells) {
   constexpr int64_t kMaxCells = int64_t{1} << 22;
   const MapView view = map.view();
   const int levels = map.levels();
   const int32_t high_water = map.block_high_water();
-  auto holds_surface = [&](const BlockMeta& m) { return m.level >= 0 && m.surface.surface != 0; };
-  auto coarse_block = [&](const BlockMeta& m) {
-    return CoarseOccupancy::coarse_block_of(m.pos, m.level, levels);
-  };
   int lo_x = INT_MAX, lo_y = INT_MAX, lo_z = INT_MAX, hi_x = INT_MIN, hi_y = INT_MIN,
       hi_z = INT_MIN;
 #pragma omp parallel for schedule(static) reduction(min                 \
@@ -24,8 +20,8 @@ CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<uin
               : hi_x, hi_y, hi_z)
   for (int32_t ptr = 0; ptr < high_water; ++ptr) {
     const BlockMeta& m = view.meta[ptr];
-    if (!holds_surface(m)) continue;
-    const Vec3i c = CoarseOccupancy::super_block_of(coarse_block(m));
+    if (m.level < 0) continue;
+    const Vec3i c = CoarseOccupancy::super_block_of(m.pos, m.level, levels);
     lo_x = std::min(lo_x, c.x);
     lo_y = std::min(lo_y, c.y);
     lo_z = std::min(lo_z, c.z);
@@ -34,30 +30,19 @@ CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<uin
     hi_z = std::max(hi_z, c.z);
   }
   CoarseOccupancy grid;
-  if (lo_x > hi_x) return grid;  // no surface
-  const int64_t count =
-      (int64_t{hi_x} - lo_x + 1) * (int64_t{hi_y} - lo_y + 1) * (int64_t{hi_z} - lo_z + 1);
-  if (count > kMaxCells) return grid;
+  if (lo_x > hi_x) return grid;  // no blocks
   grid.lo = {lo_x, lo_y, lo_z};
   grid.dims = {hi_x - lo_x + 1, hi_y - lo_y + 1, hi_z - lo_z + 1};
+  const int64_t count = static_cast<int64_t>(grid.dims.x) * grid.dims.y * grid.dims.z;
+  if (count > kMaxCells) return grid;
   cells->assign(static_cast<std::size_t>(count), 0);
   grid.cells = cells->data();
-  grid.block_m = view.level[levels - 1].block_size_m;
-  grid.inv_block_m = 1.0f / grid.block_m;
-  grid.side_m = CoarseOccupancy::kSuperBlockSide * grid.block_m;
+  grid.side_m = CoarseOccupancy::kSuperBlockSide * view.level[levels - 1].block_size_m;
   grid.inv_side_m = 1.0f / grid.side_m;
 #pragma omp parallel for schedule(static)
   for (int32_t ptr = 0; ptr < high_water; ++ptr) {
     const BlockMeta& m = view.meta[ptr];
-    if (!holds_surface(m)) continue;
-    const Vec3i b = coarse_block(m);
-    const Vec3i c = CoarseOccupancy::super_block_of(b);
-    uint64_t& cell =
-        cells
-            ->data()[(static_cast<int64_t>(c.z - lo_z) * grid.dims.y + (c.y - lo_y)) * grid.dims.x +
-                     (c.x - lo_x)];
-#pragma omp atomic
-    cell |= CoarseOccupancy::bit_of(b);
+    if (m.level >= 0) grid.mark(CoarseOccupancy::super_block_of(m.pos, m.level, levels));
   }
   return grid;
 }

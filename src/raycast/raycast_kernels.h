@@ -256,22 +256,15 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
     const Vec3f p = o + d * z;
     if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
           (p.z < hi.z))) {
-      // The box the ray is in: a super-block without a surface, or a block of the coarsest level
-      // without one (one step across either), or the block stored here.
-      const Vec3i coarse_block = k.occupancy.coarse_block_at(p);
-      const Vec3i super_block = CoarseOccupancy::super_block_of(coarse_block);
-      const uint64_t mask = k.occupancy.mask(super_block);
+      // The box the ray is in: an empty super-block (no block of any level: one step across)
+      // or the block stored here.
+      const Vec3i super_block = k.occupancy.cell_of(p);
       float side_m;
-      if (mask == 0) {
+      if (k.occupancy.empty(super_block)) {
         ptr = kPtrEmpty;
         level = map.levels - 1;
         side_m = k.occupancy.side_m;
         lo = to_float(super_block) * side_m;
-      } else if ((mask & CoarseOccupancy::bit_of(coarse_block)) == 0) {
-        ptr = kPtrEmpty;
-        level = map.levels - 1;
-        side_m = k.occupancy.block_m;
-        lo = to_float(coarse_block) * side_m;
       } else {
         ptr = locate_block(map, cache, p, &level, &pos);
         side_m = map.level[level].block_size_m;

@@ -229,7 +229,7 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
       occupancy.cells != nullptr
           ? static_cast<std::size_t>(occupancy.dims.x) * occupancy.dims.y * occupancy.dims.z
           : 0;
-  DeviceBuffer<uint64_t> cells(occupancy.cells, cell_count);
+  DeviceBuffer<int32_t> cells(occupancy.cells, cell_count);
   kernels::CoarseOccupancy device_occupancy = occupancy;
   device_occupancy.cells = occupancy.cells != nullptr ? cells.ptr : nullptr;
   const kernels::RayMarchConstants k =

@@ -161,7 +161,7 @@ void compare_on_device(const Workload& w) {
   RaycastParams rp;
   rp.truncation_m = w.truncation_m;
   rp.ray_packets = false;
-  std::vector<uint64_t> cells;
+  std::vector<int32_t> cells;
   const kernels::CoarseOccupancy occupancy = kernels::build_coarse_occupancy(map, &cells);
   for (const DepthImage* hint : {&frame.depth_m, static_cast<const DepthImage*>(nullptr)}) {
     Raycaster raycaster(rp);

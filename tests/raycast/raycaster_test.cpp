@@ -370,68 +370,48 @@ TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
 // The grid of super-blocks (4x4x4 blocks of the coarsest level) holding blocks: exactly those
 // with a block of any level are marked, across negative coordinates, and points map to the
 // super-block their blocks map to.
-TEST(CoarseOccupancy, MarksTheBlocksHoldingASurfaceAtAnyLevel) {
+TEST(CoarseOccupancy, MarksTheSuperBlocksHoldingBlocksOfAnyLevel) {
   MapParams p = fixed_grid(0.01f);
   p.levels = 2;  // blocks of 8 and 16 cm, super-blocks of 64 cm
   VoxelBlockMap map(p);
-  // The last block holds free space only.
-  const std::vector<BlockKey> keys = {
-      {{-1, 0, 0}, 0}, {{-9, 3, 7}, 0}, {{5, 5, 5}, 1}, {{20, 0, 0}, 1}};
-  ASSERT_EQ(map.insert_blocks(keys).inserted, 4);
-  const MapView view = map.view();
-  for (std::size_t i = 0; i < 3; ++i) {
-    BlockMeta& m = view.meta[map.find(keys[i].level, keys[i].pos)->ptr];
-    m.surface.add(0, 0, 0, -1);
-  }
-  view.meta[map.find(1, {20, 0, 0})->ptr].surface.add(0, 0, 0, 1);
-  std::vector<uint64_t> cells;
+  const std::vector<BlockKey> keys = {{{-1, 0, 0}, 0}, {{-9, 3, 7}, 0}, {{5, 5, 5}, 1}};
+  ASSERT_EQ(map.insert_blocks(keys).inserted, 3);
+  std::vector<int32_t> cells;
   const kernels::CoarseOccupancy grid = kernels::build_coarse_occupancy(map, &cells);
   ASSERT_NE(grid.cells, nullptr);
   EXPECT_FLOAT_EQ(grid.side_m, 0.64f);
-  EXPECT_FLOAT_EQ(grid.block_m, 0.16f);
-  // Fine block (-1, 0, 0) lies in coarse block floor(-1 / 2) = (-1, 0, 0), super-block
-  // floor(-1 / 4) = (-1, 0, 0), bit 3 (x = 3); (-9, 3, 7): coarse (-5, 1, 3), super-block
-  // (-2, 0, 0), bit 3 + 4 + 48; coarse block (5, 5, 5): super-block (1, 1, 1), bit 1 + 4 + 16.
+  // Fine block (-1, 0, 0): super-block floor(-1 / 8) = -1; (-9, 3, 7): (-2, 0, 0); coarse block
+  // (5, 5, 5): floor(5 / 4) = 1.
   EXPECT_EQ(grid.lo, (Vec3i{-2, 0, 0}));
   EXPECT_EQ(grid.dims, (Vec3i{4, 2, 2}));
-  const std::vector<std::pair<Vec3i, uint64_t>> marked = {{{-1, 0, 0}, uint64_t{1} << 3},
-                                                          {{-2, 0, 0}, uint64_t{1} << 55},
-                                                          {{1, 1, 1}, uint64_t{1} << 21}};
-  int marked_cells = 0;
+  int marked = 0;
   for (int z = -1; z <= 2; ++z)
     for (int y = -1; y <= 2; ++y)
-      for (int x = -3; x <= 6; ++x) {
+      for (int x = -3; x <= 2; ++x) {
         const Vec3i c{x, y, z};
-        uint64_t expected = 0;
-        for (const auto& [cell, mask] : marked)
-          if (cell == c) expected = mask;
-        EXPECT_EQ(grid.mask(c), expected) << x << " " << y << " " << z;
-        marked_cells += !grid.empty(c);
+        const bool holds = c == Vec3i{-1, 0, 0} || c == Vec3i{-2, 0, 0} || c == Vec3i{1, 1, 1};
+        EXPECT_EQ(!grid.empty(c), holds) << x << " " << y << " " << z;
+        marked += !grid.empty(c);
       }
-  EXPECT_EQ(marked_cells, 3);
-  // A point inside each block lies in a cell that may hold a surface, except in the one of free
-  // space.
+  EXPECT_EQ(marked, 3);
+  // A point inside each block lies in its block's super-block.
   for (const BlockKey& k : keys) {
-    const float block_m = view.level[k.level].block_size_m;
+    const float block_m = map.view().level[k.level].block_size_m;
     const Vec3f inside = (to_float(k.pos) + Vec3f{0.5f, 0.5f, 0.5f}) * block_m;
-    EXPECT_EQ(grid.may_hold_surface(grid.coarse_block_at(inside)), k.pos.x != 20) << k.pos.x;
+    EXPECT_FALSE(grid.empty(grid.cell_of(inside)));
   }
-  // A map without a surface has no grid.
+  // An empty map has no grid.
   VoxelBlockMap empty(p);
-  EXPECT_EQ(kernels::build_coarse_occupancy(empty, &cells).cells, nullptr);
-  const std::vector<BlockKey> free_space = {{{0, 0, 0}, 0}};
-  ASSERT_EQ(empty.insert_blocks(free_space).inserted, 1);
   EXPECT_EQ(kernels::build_coarse_occupancy(empty, &cells).cells, nullptr);
 }
 
-// Crossing space without a surface in one step finds the surfaces that marching with a look-up of
-// every block finds.
+// Crossing empty super-blocks in one step finds the surfaces block-by-block marching finds.
 TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
   const Scene s = fused_scene(0.01f);
-  std::vector<uint64_t> cells;
+  std::vector<int32_t> cells;
   const kernels::CoarseOccupancy grid = kernels::build_coarse_occupancy(*s.map, &cells);
   ASSERT_NE(grid.cells, nullptr);
-  const int64_t empty = std::count(cells.begin(), cells.end(), uint64_t{0});
+  const int64_t empty = std::count(cells.begin(), cells.end(), 0);
   EXPECT_GT(empty, static_cast<int64_t>(cells.size()) / 4);  // there is space to skip
   RaycastParams rp;
   rp.truncation_m = s.mu;

@@ -26,9 +26,8 @@ struct RaycastParams {
   /// vectorized loops; false: ray by ray. Both give the same result up to float rounding (the
   /// per-ray search is the reference the packets are tested against).
   bool ray_packets = true;
-  /// Marches cross cubes of 4x4x4 blocks of the coarsest level that hold no surface in one step,
-  /// and blocks of the coarsest level that hold none, without looking them up (a grid rebuilt
-  /// per raycast); false: every block crossed is looked up. Both find the same surfaces (the
+  /// Marches cross cubes of 4x4x4 blocks of the coarsest level that hold no block in one step
+  /// (a grid rebuilt per raycast); false: block by block. Both find the same surfaces (the
   /// samples fall elsewhere along the ray, so hits agree up to the refinement's tolerance).
   bool coarse_skipping = true;
 

@@ -90,7 +90,7 @@ class Raycaster {
   RaycastParams params_;
   RaycastResult result_;
   std::vector<float> tile_min_, tile_max_;
-  std::vector<uint64_t> occupancy_;  ///< where blocks hold a surface (see coarse_skipping)
+  std::vector<int32_t> occupancy_;  ///< which super-blocks hold blocks (see coarse_skipping)
 };
 
 }  // namespace hivox
