@@ -132,32 +132,29 @@ struct CrossingBracket {
   bool exact = false;  ///< z_lo = z_hi is the crossing, found inside the cell of `best`
 };
 
-HIVOX_HD inline CrossingBracket make_bracket(const MapView& map, const Vec3f& d, float z_lo,
-                                             float f_lo, float z_hi, float f_hi,
-                                             const TsdfSample& at_hi, int level_hi) {
-  CrossingBracket b;
-  b.z_lo = z_lo;
-  b.f_lo = f_lo;
-  b.z_hi = z_hi;
-  b.f_hi = f_hi;
-  b.voxel_z = map.level[level_hi].voxel_size_m / norm(d);
-  b.best = at_hi;
-  b.level = level_hi;
-  return b;
+/// `b` := the bracket (z_lo, f_lo) .. (z_hi, f_hi), `at_hi` the sample at z_hi (level
+/// `level_hi`). Written in place: a bracket built aside and copied into a packet's array costs a
+/// stalled copy per ray.
+HIVOX_HD inline void make_bracket(const MapView& map, const Vec3f& d, float z_lo, float f_lo,
+                                  float z_hi, float f_hi, const TsdfSample& at_hi, int level_hi,
+                                  CrossingBracket* b) {
+  b->z_lo = z_lo;
+  b->f_lo = f_lo;
+  b->z_hi = z_hi;
+  b->f_hi = f_hi;
+  b->voxel_z = map.level[level_hi].voxel_size_m / norm(d);
+  b->best = at_hi;
+  b->level = level_hi;
+  b->steps = 0;
+  b->exact = false;
 }
 
 /// `b` := the bracket of a crossing that sample `s`, taken at `z` (level `level`), found inside
-/// its cell (s.at_crossing()). Written in place: the usual end of a hinted ray's search, and a
-/// bracket built aside and copied costs a stalled copy per ray.
+/// its cell (s.at_crossing()): the usual end of a hinted ray's search.
 HIVOX_HD inline void exact_bracket(const MapView& map, const Vec3f& d, float z, const TsdfSample& s,
                                    int level, CrossingBracket* b) {
   const float z_hit = z + s.crossing_dz;
-  b->z_lo = b->z_hi = z_hit;
-  b->f_lo = b->f_hi = s.f;
-  b->voxel_z = map.level[level].voxel_size_m / norm(d);
-  b->best = s;
-  b->level = level;
-  b->steps = 0;
+  make_bracket(map, d, z_hit, s.f, z_hit, s.f, s, level, b);
   b->exact = true;
 }
 
@@ -223,8 +220,9 @@ HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache
                                      const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
                                      const TsdfSample& fallback, int fallback_level,
                                      const RayMarchConstants& k, RayHit* hit) {
-  refine_bracket(map, cache, o, d,
-                 make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level), k, hit);
+  CrossingBracket b;
+  make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level, &b);
+  refine_bracket(map, cache, o, d, b, k, hit);
 }
 
 /// Marches ray `o + z d` for z in [z_start, z_end] to the first crossing of the TSDF from
@@ -437,8 +435,10 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
   // The slope is negative, so steps go forward from free space and back from behind a
   // surface: a sign change always brackets a front face, free space in front.
   if ((h.s0.f > 0.0f) != (s1.f > 0.0f)) {
-    *bracket = h.s0.f > 0.0f ? make_bracket(map, d, h.z0, h.s0.f, z1, s1.f, s1, l1)
-                             : make_bracket(map, d, z1, s1.f, h.z0, h.s0.f, h.s0, h.l0);
+    if (h.s0.f > 0.0f)
+      make_bracket(map, d, h.z0, h.s0.f, z1, s1.f, s1, l1, bracket);
+    else
+      make_bracket(map, d, z1, s1.f, h.z0, h.s0.f, h.s0, h.l0, bracket);
     return HintStep::Bracketed;
   }
   if (s1.f == h.s0.f || h.samples >= HintSearch::kMaxSamples) return HintStep::GiveUp;
