@@ -496,6 +496,9 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
   return found;
 }
 
+/// Where a ray's surface was found (see cast_ray).
+enum class RayOutcome { Miss, AtHint, AtSecondHint, Marched };
+
 /// A pixel's two hints (see Raycaster::raycast): `hint` is the start hint, or where it has none
 /// the fallback; `second` the fallback where it differs from `hint`. Where the two lie within
 /// `k.hint_agreement_m` of each other, the other way round: both point at one surface, and the
@@ -506,9 +509,11 @@ struct RayHints {
   float second = 0;
   bool hint_is_fallback = false;  ///< `hint` comes from the fallback (`second`, if any, not)
 
-  /// Whether a surface found at `hint` (`at_second` false) or at `second` was found at the
-  /// fallback hint.
-  HIVOX_HD bool from_fallback(bool at_second) const { return at_second != hint_is_fallback; }
+  /// Whether a ray with these hints that ended with `outcome` found its surface at the fallback.
+  HIVOX_HD bool found_at_fallback(RayOutcome outcome) const {
+    return (outcome == RayOutcome::AtHint && hint_is_fallback) ||
+           (outcome == RayOutcome::AtSecondHint && !hint_is_fallback);
+  }
 };
 HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, const RayMarchConstants& k,
                                    float z_min, float z_max) {
@@ -532,9 +537,6 @@ HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, const RayMar
   }
   return h;
 }
-
-/// Where a ray's surface was found (see cast_ray).
-enum class RayOutcome { Miss, AtHint, AtSecondHint, Marched };
 
 /// One pixel's ray, searched alone (the CPU driver's rays outside packets; a GPU thread's ray):
 /// the surface near the hint, else near the second hint, else a march over [z_min, z_max]

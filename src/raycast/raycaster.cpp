@@ -22,6 +22,7 @@ struct PacketRay {
   Vec3f dir;
   Vec3f inv_dir;  ///< kernels::inverse_direction(dir)
   kernels::RayHints hints;
+  bool at_second = false;  ///< searched again at `hints.second` after the search at `hints.hint`
 };
 
 /// One thread's packet: its rays, their search state and outcomes, and the cells it samples.
@@ -295,8 +296,13 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     if (packets) scratch = std::make_unique<PacketScratch>();
     const kernels::RaycastOutputView out{r.depth_m.data(), r.points_w.data(), r.normals_w.data(),
                                          r.colors.data(), r.levels.data()};
-    auto write_pixel = [&](int x, int y, bool found, const kernels::RayHit& hit) {
+    auto write_pixel = [&](int x, int y, kernels::RayOutcome outcome,
+                           const kernels::RayHints& hints, const kernels::RayHit& hit) {
+      using kernels::RayOutcome;
+      const bool found = outcome != RayOutcome::Miss;
       hits += found;
+      found_at_hint += outcome == RayOutcome::AtHint || outcome == RayOutcome::AtSecondHint;
+      found_at_fallback += hints.found_at_fallback(outcome);
       kernels::write_ray(out, view, static_cast<int64_t>(y) * w + x, found, hit);
     };
     // Tile by tile: neighbouring rays cross the same blocks, so their voxels stay in cache.
@@ -327,28 +333,29 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         int retried = 0;
         for (int i = 0; i < packed; ++i) {
           PacketRay& ray = scratch->rays[i];
-          found_at_fallback += scratch->found[i] && ray.hints.from_fallback(false);
           if (scratch->found[i] || ray.hints.second == 0.0f) continue;
           std::swap(ray.hints.hint, ray.hints.second);
+          ray.at_second = true;
           std::swap(scratch->rays[i], scratch->rays[retried]);
           std::swap(scratch->hits[i], scratch->hits[retried]);
           std::swap(scratch->found[i], scratch->found[retried]);
           ++retried;
         }
         if (retried > 0) search_hints(view, cache, *scratch, T.t, retried, k, tile_max_[t]);
-        for (int j = 0; j < retried; ++j) {
-          found_at_fallback += scratch->found[j] && scratch->rays[j].hints.from_fallback(true);
+        for (int j = 0; j < retried; ++j)
           std::swap(scratch->rays[j].hints.hint, scratch->rays[j].hints.second);
-        }
         for (int i = 0; i < packed; ++i) {
+          using kernels::RayOutcome;
           const PacketRay& ray = scratch->rays[i];
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
-          found_at_hint += scratch->found[i];
-          const bool found = scratch->found[i] ||
-                             kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hints.hint,
-                                                      tile_min_[t], tile_max_[t], k, &hit);
-          write_pixel(ray.x, ray.y, found, hit);
+          RayOutcome outcome = ray.at_second ? RayOutcome::AtSecondHint : RayOutcome::AtHint;
+          if (!scratch->found[i])
+            outcome = kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hints.hint,
+                                               tile_min_[t], tile_max_[t], k, &hit)
+                          ? RayOutcome::Marched
+                          : RayOutcome::Miss;
+          write_pixel(ray.x, ray.y, outcome, ray.hints, hit);
         }
         packed = 0;
       };
@@ -364,12 +371,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           kernels::RayHit hit;
           const kernels::RayOutcome outcome = kernels::cast_ray(
               view, cache, T.t, ray.dir, ray.hints, tile_min_[t], tile_max_[t], k, &hit);
-          const bool found = outcome != kernels::RayOutcome::Miss;
-          const bool at_second = outcome == kernels::RayOutcome::AtSecondHint;
-          const bool at_hint = outcome == kernels::RayOutcome::AtHint || at_second;
-          found_at_hint += at_hint;
-          found_at_fallback += at_hint && ray.hints.from_fallback(at_second);
-          write_pixel(x, y, found, hit);
+          write_pixel(x, y, outcome, ray.hints, hit);
         }
       if (packed > 0) flush_packet();
     }

@@ -296,23 +296,24 @@ TEST(Raycaster, RayHintsSearchAnAgreeingFallbackFirst) {
   kernels::RayHints h = hints(1.0f, 0.0f);
   EXPECT_EQ(h.hint, 1.0f);
   EXPECT_EQ(h.second, 0.0f);
-  EXPECT_FALSE(h.from_fallback(false));
+  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtHint));
   h = hints(0.0f, 1.0f);
   EXPECT_EQ(h.hint, 1.0f);
   EXPECT_EQ(h.second, 0.0f);
-  EXPECT_TRUE(h.from_fallback(false));
+  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtHint));
+  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::Marched));
   // A fallback 10 cm behind: another surface, searched second.
   h = hints(1.0f, 1.1f);
   EXPECT_EQ(h.hint, 1.0f);
   EXPECT_EQ(h.second, 1.1f);
-  EXPECT_FALSE(h.from_fallback(false));
-  EXPECT_TRUE(h.from_fallback(true));
+  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtHint));
+  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtSecondHint));
   // 1.5 cm apart: one surface, the fallback first.
   h = hints(1.0f, 1.015f);
   EXPECT_EQ(h.hint, 1.015f);
   EXPECT_EQ(h.second, 1.0f);
-  EXPECT_TRUE(h.from_fallback(false));
-  EXPECT_FALSE(h.from_fallback(true));
+  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtHint));
+  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtSecondHint));
   h = hints(1.0f, 1.0f);
   EXPECT_EQ(h.hint, 1.0f);
   EXPECT_EQ(h.second, 0.0f);
