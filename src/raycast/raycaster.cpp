@@ -164,6 +164,7 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
   DepthImage nearest(w, h, FLT_MAX);
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
   const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
+  const float plane_limit_m = 0.5f * max_gap_m;
 #pragma omp parallel for schedule(static)
   for (int y = 0; y < from_h; ++y)
     for (int x = 0; x < from_w; ++x) {
@@ -179,9 +180,9 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       // at most half the gap from the hit's depth (grazing planes).
       const Vec3f n = T_cw.rotate(from.normals_w(x, y));
       const Vec3f ray = camera.ray(static_cast<float>(u), static_cast<float>(v));
-      const float n_ray = dot(n, ray), limit = 0.5f * max_gap_m;
+      const float n_ray = dot(n, ray);
       const float z = std::abs(n_ray) > 1e-6f ? dot(n, p) / n_ray : p.z;
-      atomic_min_positive(&nearest(u, v), std::clamp(z, p.z - limit, p.z + limit));
+      atomic_min_positive(&nearest(u, v), std::clamp(z, p.z - plane_limit_m, p.z + plane_limit_m));
     }
   // The nearest depth landed within one pixel: a minimum over each row's 3 pixels, then over 3
   // rows (loops without branches, which vectorize).

@@ -246,7 +246,6 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
   DeviceBuffer<int8_t> levels(pixels);
   const kernels::RaycastOutputView out{depth.ptr, points.ptr, normals.ptr, colors.ptr, levels.ptr};
 
-  const Rigid3f& T = T_wc;
   const Rigid3f T_cw = T_wc.inverse();
   DeviceRaycast result;
   result.range_ms = result.rays_ms = DBL_MAX;
@@ -265,7 +264,7 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
                                 const dim3 threads(16, 8);
                                 const dim3 grid((w + threads.x - 1) / threads.x,
                                                 (h + threads.y - 1) / threads.y);
-                                cast_rays<<<grid, threads>>>(map.view(), camera, T, tiles,
+                                cast_rays<<<grid, threads>>>(map.view(), camera, T_wc, tiles,
                                                              start->ptr, fallback->ptr, k, out);
                               }));
   }
