@@ -311,18 +311,18 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     for (int t = 0; t < tile_count; ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
-      // The ray of pixel (x, y) and its hints.
-      auto ray_at = [&](int x, int y) {
+      // The ray of pixel (x, y) and its hints, written in place (a packet's ray copied in from a
+      // temporary costs a stalled copy).
+      auto set_ray = [&](int x, int y, PacketRay* ray) {
         auto depth_at = [&](const DepthImage* image) {
           return image != nullptr ? (*image)(x, y) : 0.0f;
         };
-        PacketRay ray;
-        ray.x = x;
-        ray.y = y;
-        ray.dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
-        ray.hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k,
-                                       tile_min_[t], tile_max_[t]);
-        return ray;
+        ray->x = x;
+        ray->y = y;
+        ray->dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
+        ray->hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k,
+                                        tile_min_[t], tile_max_[t]);
+        ray->at_second = false;
       };
       int packed = 0;  // hinted rays waiting in the packet
       auto flush_packet = [&] {
@@ -360,13 +360,14 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         }
         packed = 0;
       };
+      PacketRay alone;  // a ray cast by itself
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
-          PacketRay ray = ray_at(x, y);
+          PacketRay& ray = packets ? scratch->rays[packed] : alone;
+          set_ray(x, y, &ray);
           if (packets && ray.hints.hint > 0.0f) {
             ray.inv_dir = kernels::inverse_direction(ray.dir);
-            scratch->rays[packed++] = ray;
-            if (packed == kPacketRays) flush_packet();
+            if (++packed == kPacketRays) flush_packet();
             continue;
           }
           kernels::RayHit hit;
