@@ -288,11 +288,13 @@ void sample_tsdf_packet(const MapView& map, BlockLookupCache& cache, PacketLooku
   // none). On one level there is nothing to search: a point whose block is absent has a cell
   // with an absent corner.
   int32_t located[kCapacity];
-  int common = map.levels == 1 ? 0 : -1;  // the level of every point found (-2: they differ)
+  const bool one_level = map.levels == 1;  // read once: the stores below may alias it
+  int common = one_level ? 0 : -1;         // the level of every point found (-2: they differ)
   for (int i = 0; i < n; ++i) {
     level[i] = 0;
     located[i] = 0;
-    if (map.levels == 1) continue;
+  }
+  for (int i = 0; i < n && !one_level; ++i) {
     Vec3i pos;
     located[i] = lookups.locate(map, cache, points[i], &level[i], &pos);
     if (located[i] >= 0) common = common == -1 || common == level[i] ? level[i] : -2;
