@@ -360,7 +360,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
         }
         packed = 0;
       };
-      PacketRay alone;  // a ray cast by itself
+      // The pixel's ray: in the packet's next slot (kept there if it is hinted), or without
+      // packets here.
+      PacketRay alone;
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           PacketRay& ray = packets ? scratch->rays[packed] : alone;
