@@ -65,9 +65,10 @@ HIVOX_HD inline float block_det_cov(const TsdfVoxel* v, int min_weight) {
         if (c.weight < min_weight || vx.weight < min_weight || vy.weight < min_weight ||
             vz.weight < min_weight)
           continue;
-        // Differences of the int16 values (exact): on a plateau the gradient is exactly zero.
-        // Differences of tsdf_to_float values are not where a compiler fuses the product of one
-        // with the subtraction, and a plateau voxel would count with direction (1, 1, 1).
+        // Differences of the int16 values, which are exact: on a plateau the gradient is exactly
+        // zero. Differences of tsdf_to_float values need not be (a compiler may fuse one of the
+        // two scalings with the subtraction), and a plateau voxel would count with direction
+        // (1, 1, 1).
         const Vec3f g{static_cast<float>(vx.tsdf - c.tsdf), static_cast<float>(vy.tsdf - c.tsdf),
                       static_cast<float>(vz.tsdf - c.tsdf)};
         const float len = norm(g);

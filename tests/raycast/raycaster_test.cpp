@@ -286,45 +286,41 @@ TEST(Raycaster, FallbackHintIsSearchedWhereTheHintFails) {
 // fallback, which is free of sensor noise); hints whose search would start outside the pixel's
 // range do not count.
 TEST(Raycaster, RayHintsSearchAnAgreeingFallbackFirst) {
-  kernels::RayMarchConstants k;
-  k.hint_margin_m = 0.04f;
-  k.hint_agreement_m = 0.02f;
+  using kernels::RayOutcome;
   const float z_min = 0.5f, z_max = 2.0f;
-  auto hints = [&](float start, float fallback) {
-    return kernels::ray_hints(start, fallback, k, z_min, z_max);
+  struct Case {
+    const char* what;
+    float start, fallback, agreement_m;
+    float hint, second;  // expected
+    bool first_is_fallback, second_is_fallback;
   };
-  kernels::RayHints h = hints(1.0f, 0.0f);
-  EXPECT_EQ(h.hint, 1.0f);
-  EXPECT_EQ(h.second, 0.0f);
-  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtHint));
-  h = hints(0.0f, 1.0f);
-  EXPECT_EQ(h.hint, 1.0f);
-  EXPECT_EQ(h.second, 0.0f);
-  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtHint));
-  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::Marched));
-  // A fallback 10 cm behind: another surface, searched second.
-  h = hints(1.0f, 1.1f);
-  EXPECT_EQ(h.hint, 1.0f);
-  EXPECT_EQ(h.second, 1.1f);
-  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtHint));
-  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtSecondHint));
-  // 1.5 cm apart: one surface, the fallback first.
-  h = hints(1.0f, 1.015f);
-  EXPECT_EQ(h.hint, 1.015f);
-  EXPECT_EQ(h.second, 1.0f);
-  EXPECT_TRUE(h.found_at_fallback(kernels::RayOutcome::AtHint));
-  EXPECT_FALSE(h.found_at_fallback(kernels::RayOutcome::AtSecondHint));
-  h = hints(1.0f, 1.0f);
-  EXPECT_EQ(h.hint, 1.0f);
-  EXPECT_EQ(h.second, 0.0f);
-  k.hint_agreement_m = 0.0f;
-  h = hints(1.0f, 1.015f);
-  EXPECT_EQ(h.hint, 1.0f);
-  EXPECT_EQ(h.second, 1.015f);
-  // The search would start in front of the range, or behind it.
-  h = hints(0.52f, 2.1f);
-  EXPECT_EQ(h.hint, 0.0f);
-  EXPECT_EQ(h.second, 0.0f);
+  const Case cases[] = {
+      {"no fallback", 1.0f, 0.0f, 0.02f, 1.0f, 0.0f, false, false},
+      {"only a fallback", 0.0f, 1.0f, 0.02f, 1.0f, 0.0f, true, false},
+      {"a fallback 10 cm behind: another surface, second", 1.0f, 1.1f, 0.02f, 1.0f, 1.1f, false,
+       true},
+      {"1.5 cm apart: one surface, the fallback first", 1.0f, 1.015f, 0.02f, 1.015f, 1.0f, true,
+       false},
+      {"the same depth, searched once", 1.0f, 1.0f, 0.02f, 1.0f, 0.0f, false, false},
+      {"1.5 cm apart with the rule off", 1.0f, 1.015f, 0.0f, 1.0f, 1.015f, false, true},
+      {"starts in front of the range, or behind it", 0.52f, 2.1f, 0.02f, 0.0f, 0.0f, false, false},
+  };
+  for (const Case& c : cases) {
+    kernels::RayMarchConstants k;
+    k.hint_margin_m = 0.04f;
+    k.hint_agreement_m = c.agreement_m;
+    const kernels::RayHints h = kernels::ray_hints(c.start, c.fallback, k, z_min, z_max);
+    EXPECT_EQ(h.hint, c.hint) << c.what;
+    EXPECT_EQ(h.second, c.second) << c.what;
+    if (h.hint > 0.0f) {
+      EXPECT_EQ(h.found_at_fallback(RayOutcome::AtHint), c.first_is_fallback) << c.what;
+    }
+    if (h.second > 0.0f) {
+      EXPECT_EQ(h.found_at_fallback(RayOutcome::AtSecondHint), c.second_is_fallback) << c.what;
+    }
+    EXPECT_FALSE(h.found_at_fallback(RayOutcome::Marched)) << c.what;
+    EXPECT_FALSE(h.found_at_fallback(RayOutcome::Miss)) << c.what;
+  }
 }
 
 // With the true depth as fallback and a start hint off by up to half a band, the rays find their
