@@ -231,16 +231,19 @@ HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache
 /// crossing is refined by the secant method.
 /// `started_behind` (optional) is set when the first known sample already lies behind a surface
 /// (and no crossing was found right before it): a surface in front of z_start is likely.
+/// `z_first` (when > z_start): where the march begins, the ray in front of it known to cross no
+/// cell with a surface (RayStretch); a sample just behind a surface still searches back into it
+/// (as far as z_start). The march finds what it would find from z_start.
 HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                const Vec3f& d, float z_start, float z_end,
                                const RayMarchConstants& k, RayHit* hit,
-                               bool* started_behind = nullptr) {
+                               bool* started_behind = nullptr, float z_first = 0.0f) {
   bool seen_known = false;
   const float inv_len = 1.0f / norm(d);
   const Vec3f inv_d{d.x != 0.0f ? 1.0f / d.x : 0.0f, d.y != 0.0f ? 1.0f / d.y : 0.0f,
                     d.z != 0.0f ? 1.0f / d.z : 0.0f};
   const float band_step_m = k.mu_m * k.step_fraction;
-  float z = z_start;
+  float z = z_first > z_start ? z_first : z_start;
   float prev_z = z, prev_f = 0.0f;
   bool prev_valid = false;
   TsdfSample s;
@@ -476,19 +479,29 @@ HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, 
   return true;
 }
 
+/// The stretch [z_in, z_out] of a ray outside which it crosses no cell where it could meet a
+/// surface (SurfaceTiles::ray_stretch); by default the whole ray.
+struct RayStretch {
+  float z_in = 0.0f;
+  float z_out = FLT_MAX;
+};
+
 /// The march of a ray whose hint search failed, or that has no hint (`hint` 0): from
 /// `k.hint_margin_m` in front of the hint (from `z_min` without one) to `z_max`. Where the hint is
 /// wrong (a model surface in front of it, e.g. at a depth edge, or none behind it), the part in
-/// front of the hint is searched as well.
+/// front of the hint is searched as well. Both marches skip what lies outside `stretch`.
 HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                      const Vec3f& d, float hint, float z_min, float z_max,
-                                     const RayMarchConstants& k, RayHit* hit) {
+                                     const RayMarchConstants& k, RayHit* hit,
+                                     const RayStretch& stretch = {}) {
   bool behind = false;
-  bool found = march_ray(map, cache, o, d, hint > 0.0f ? hint - k.hint_margin_m : z_min, z_max, k,
-                         hit, &behind);
+  bool found = march_ray(map, cache, o, d, hint > 0.0f ? hint - k.hint_margin_m : z_min,
+                         fminf(z_max, stretch.z_out), k, hit, &behind, stretch.z_in);
   if (hint > 0.0f && (!found || behind)) {
     RayHit front;
-    if (march_ray(map, cache, o, d, z_min, hint, k, &front)) {
+    const float z_end = hint < z_max ? hint : z_max;
+    if (march_ray(map, cache, o, d, z_min, fminf(z_end, stretch.z_out), k, &front, nullptr,
+                  stretch.z_in)) {
       *hit = front;
       found = true;
     }
@@ -606,19 +619,25 @@ struct RangeTiles {
   HIVOX_HD int tile_of(int x, int y) const { return (y / tile_px) * tiles_x + x / tile_px; }
 };
 
-/// Projects one block's bounding box into the range tiles (atomic min/max of depth per tile).
-/// Returns false when the block is outside the view or the depth range.
-HIVOX_HD inline bool project_block_to_tiles(const Rigid3f& T_cw, const PinholeCamera& cam,
-                                            const Vec3i& pos, float block_m, float min_depth_m,
-                                            float max_depth_m, const RangeTiles& tiles) {
-  const Vec3f origin = to_float(pos) * block_m;
+/// The range tiles (and depths) the box [origin, origin + side_m]^3 covers seen by `cam` from
+/// `T_cw`: tiles tx0..tx1 by ty0..ty1, depths z_lo..z_hi clamped to [min_depth_m, max_depth_m].
+struct TileRect {
+  int tx0 = 0, ty0 = 0, tx1 = -1, ty1 = -1;
+  float z_lo = 0, z_hi = 0;
+};
+
+/// Projects the box's corners (see TileRect); false when the box is outside the view or the
+/// depth range.
+HIVOX_HD inline bool box_tile_rect(const Rigid3f& T_cw, const PinholeCamera& cam,
+                                   const Vec3f& origin, float side_m, float min_depth_m,
+                                   float max_depth_m, const RangeTiles& tiles, TileRect* rect) {
   float u_lo = FLT_MAX, u_hi = -FLT_MAX, v_lo = FLT_MAX, v_hi = -FLT_MAX;
   float z_lo = FLT_MAX, z_hi = -FLT_MAX;
   bool crosses_camera_plane = false;
   for (int c = 0; c < 8; ++c) {
-    const Vec3f corner{origin.x + ((c & 1) ? block_m : 0.0f),
-                       origin.y + (((c >> 1) & 1) ? block_m : 0.0f),
-                       origin.z + ((c >> 2) ? block_m : 0.0f)};
+    const Vec3f corner{origin.x + ((c & 1) ? side_m : 0.0f),
+                       origin.y + (((c >> 1) & 1) ? side_m : 0.0f),
+                       origin.z + ((c >> 2) ? side_m : 0.0f)};
     const Vec3f p = T_cw * corner;
     z_lo = p.z < z_lo ? p.z : z_lo;
     z_hi = p.z > z_hi ? p.z : z_hi;
@@ -641,20 +660,34 @@ HIVOX_HD inline bool project_block_to_tiles(const Rigid3f& T_cw, const PinholeCa
   if (u_hi < -0.5f || v_hi < -0.5f || u_lo > static_cast<float>(cam.width) - 0.5f ||
       v_lo > static_cast<float>(cam.height) - 0.5f)
     return false;
-  z_lo = z_lo > min_depth_m ? z_lo : min_depth_m;
-  z_hi = z_hi < max_depth_m ? z_hi : max_depth_m;
   const float inv_tile = 1.0f / static_cast<float>(tiles.tile_px);
   auto tile_index = [inv_tile](float px, int count) {
     const int t = static_cast<int>(floorf((px + 0.5f) * inv_tile));
     return t < 0 ? 0 : (t >= count ? count - 1 : t);
   };
-  const int tx0 = tile_index(u_lo, tiles.tiles_x), tx1 = tile_index(u_hi, tiles.tiles_x);
-  const int ty0 = tile_index(v_lo, tiles.tiles_y), ty1 = tile_index(v_hi, tiles.tiles_y);
-  for (int ty = ty0; ty <= ty1; ++ty)
-    for (int tx = tx0; tx <= tx1; ++tx) {
+  rect->tx0 = tile_index(u_lo, tiles.tiles_x);
+  rect->tx1 = tile_index(u_hi, tiles.tiles_x);
+  rect->ty0 = tile_index(v_lo, tiles.tiles_y);
+  rect->ty1 = tile_index(v_hi, tiles.tiles_y);
+  rect->z_lo = z_lo > min_depth_m ? z_lo : min_depth_m;
+  rect->z_hi = z_hi < max_depth_m ? z_hi : max_depth_m;
+  return true;
+}
+
+/// Projects one block's bounding box into the range tiles (atomic min/max of depth per tile).
+/// Returns false when the block is outside the view or the depth range.
+HIVOX_HD inline bool project_block_to_tiles(const Rigid3f& T_cw, const PinholeCamera& cam,
+                                            const Vec3i& pos, float block_m, float min_depth_m,
+                                            float max_depth_m, const RangeTiles& tiles) {
+  TileRect r;
+  if (!box_tile_rect(T_cw, cam, to_float(pos) * block_m, block_m, min_depth_m, max_depth_m, tiles,
+                     &r))
+    return false;
+  for (int ty = r.ty0; ty <= r.ty1; ++ty)
+    for (int tx = r.tx0; tx <= r.tx1; ++tx) {
       const int t = ty * tiles.tiles_x + tx;
-      atomic_min_positive(&tiles.z_min[t], z_lo);
-      atomic_max_positive(&tiles.z_max[t], z_hi);
+      atomic_min_positive(&tiles.z_min[t], r.z_lo);
+      atomic_max_positive(&tiles.z_max[t], r.z_hi);
     }
   return true;
 }

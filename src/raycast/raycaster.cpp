@@ -11,6 +11,7 @@
 #include "hivox/core/timer.h"
 #include "raycast/ray_packets.h"
 #include "raycast/raycast_kernels.h"
+#include "raycast/surface_tiles.h"
 
 namespace hivox {
 namespace {
@@ -235,6 +236,10 @@ Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
   params_.validate();
 }
 
+Raycaster::~Raycaster() = default;
+Raycaster::Raycaster(Raycaster&&) noexcept = default;
+Raycaster& Raycaster::operator=(Raycaster&&) noexcept = default;
+
 const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
                                         const Pose& T_wc, RaycastStats* stats,
                                         const DepthImage* start_hint_m,
@@ -281,10 +286,17 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   // Which super-blocks hold blocks: marches cross the others in one step.
   kernels::CoarseOccupancy occupancy;
   if (params_.coarse_skipping) occupancy = kernels::build_coarse_occupancy(map, &occupancy_);
+  // Which blocks hold a surface, per tile: marching rays march only where they cross them.
+  const Rigid3f T = to_rigid3f(T_wc);
+  kernels::SurfaceTiles surface;
+  if (params_.surface_tiles) {
+    if (!surface_tiles_) surface_tiles_ = std::make_unique<kernels::SurfaceTileStorage>();
+    surface = kernels::build_surface_tiles(map, camera, T_cw, T.t, tiles, params_.min_depth_m,
+                                           params_.max_depth_m, surface_tiles_.get());
+  }
   const double range_ms = watch.lap_ms();
 
   // March one ray per pixel.
-  const Rigid3f T = to_rigid3f(T_wc);
   const kernels::RayMarchConstants k = kernels::march_constants(params_, view, occupancy);
   const bool packets = params_.ray_packets &&
                        (start_hint_m != nullptr || fallback_hint_m != nullptr) &&
@@ -324,6 +336,18 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
                                         tile_min_[t], tile_max_[t]);
         ray->at_second = false;
       };
+      // The march of a ray whose hints failed or that has none, over the stretch of it that
+      // crosses the tile's surface boxes (a miss when it crosses none).
+      auto march = [&](const Vec3f& dir, const Vec3f& inv_dir, float hint, kernels::RayHit* hit) {
+        kernels::RayStretch stretch;
+        if (!surface.empty() && !surface.ray_stretch(t, inv_dir, tile_min_[t], tile_max_[t],
+                                                     &stretch.z_in, &stretch.z_out))
+          return kernels::RayOutcome::Miss;
+        return kernels::march_from_hint(view, cache, T.t, dir, hint, tile_min_[t], tile_max_[t], k,
+                                        hit, stretch)
+                   ? kernels::RayOutcome::Marched
+                   : kernels::RayOutcome::Miss;
+      };
       int packed = 0;  // hinted rays waiting in the packet
       auto flush_packet = [&] {
         search_hints(view, cache, *scratch, T.t, packed, k, tile_max_[t]);
@@ -351,11 +375,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
           RayOutcome outcome = ray.at_second ? RayOutcome::AtSecondHint : RayOutcome::AtHint;
-          if (!scratch->found[i])
-            outcome = kernels::march_from_hint(view, cache, T.t, ray.dir, ray.hints.hint,
-                                               tile_min_[t], tile_max_[t], k, &hit)
-                          ? RayOutcome::Marched
-                          : RayOutcome::Miss;
+          if (!scratch->found[i]) outcome = march(ray.dir, ray.inv_dir, ray.hints.hint, &hit);
           write_pixel(ray.x, ray.y, outcome, ray.hints, hit);
         }
         packed = 0;
@@ -373,8 +393,11 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
             continue;
           }
           kernels::RayHit hit;
-          const kernels::RayOutcome outcome = kernels::cast_ray(
-              view, cache, T.t, ray.dir, ray.hints, tile_min_[t], tile_max_[t], k, &hit);
+          const kernels::RayOutcome outcome =
+              ray.hints.hint > 0.0f
+                  ? kernels::cast_ray(view, cache, T.t, ray.dir, ray.hints, tile_min_[t],
+                                      tile_max_[t], k, &hit)
+                  : march(ray.dir, kernels::inverse_direction(ray.dir), 0.0f, &hit);
           write_pixel(x, y, outcome, ray.hints, hit);
         }
       if (packed > 0) flush_packet();

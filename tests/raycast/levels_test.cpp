@@ -62,6 +62,18 @@ const MixedScene& scene() {
   return s;
 }
 
+RaycastParams raycast_params() {
+  RaycastParams rp;
+  rp.truncation_m = kMu;
+  rp.max_depth_m = 2.0f;
+  return rp;
+}
+
+// Looking along +y at the sphere, so x = 0 runs down the middle of the image.
+Pose side_view() {
+  return look_at({0.0, -0.9, 0.75}, scene().shape.centre, Eigen::Vector3d::UnitZ());
+}
+
 TEST(Levels, TheSceneReallyHasTwoLevelsMeetingAtXZero) {
   int64_t fine_right = 0, coarse_left = 0, other = 0;
   for (const BlockRef& b : scene().map->allocated_blocks()) {
@@ -163,12 +175,8 @@ TEST(Levels, SamplesOneVoxelAheadEqualThreeSingleSamples) {
 }
 
 TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
-  RaycastParams rp;
-  rp.truncation_m = kMu;
-  rp.max_depth_m = 2.0f;
-  Raycaster raycaster(rp);
-  // Looking along +y at the sphere, so x = 0 runs down the middle of the image.
-  const Pose T_wc = look_at({0.0, -0.9, 0.75}, scene().shape.centre, Eigen::Vector3d::UnitZ());
+  Raycaster raycaster(raycast_params());
+  const Pose T_wc = side_view();
   const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc);
   const DepthImage truth = scene().shape.render(camera(), T_wc);
   int checked = 0, normals = 0, missed = 0, fine = 0, coarse = 0;
@@ -219,21 +227,26 @@ TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
 
 // Packets whose cells reach across the level boundary sample those cells ray by ray.
 TEST(Levels, RayPacketsGiveTheRayByRayResultAcrossLevels) {
-  RaycastParams rp;
-  rp.truncation_m = kMu;
-  rp.max_depth_m = 2.0f;
-  const Pose T_wc = look_at({0.0, -0.9, 0.75}, scene().shape.centre, Eigen::Vector3d::UnitZ());
+  const RaycastParams rp = raycast_params();
+  const Pose T_wc = side_view();
   const DepthImage truth = scene().shape.render(camera(), T_wc);
   test::expect_packets_match(*scene().map, rp, camera(), T_wc, truth, 12000);
   test::expect_packets_match(*scene().map, rp, camera(), T_wc, test::mixed_hints(truth, kMu),
                              12000);
 }
 
+// Where levels meet, a cell's corners lie up to a coarse voxel apart: the surface boxes, grown by
+// that much, still hold every surface.
+TEST(Levels, SurfaceTilesChangeNoPixelAcrossLevels) {
+  const RaycastParams rp = raycast_params();
+  const Pose T_wc = side_view();
+  const DepthImage hint = test::mixed_hints(scene().shape.render(camera(), T_wc), kMu);
+  test::expect_surface_tiles_change_nothing(*scene().map, rp, camera(), T_wc, 12000);
+  test::expect_surface_tiles_change_nothing(*scene().map, rp, camera(), T_wc, 12000, &hint);
+}
+
 TEST(Levels, NoSeamInTheRenderedSurface) {
-  RaycastParams rp;
-  rp.truncation_m = kMu;
-  rp.max_depth_m = 2.0f;
-  Raycaster raycaster(rp);
+  Raycaster raycaster(raycast_params());
   // Looking down at the floor: a plane whose depth changes linearly across the image; the
   // level boundary x = 0 crosses it. A seam shows as a kink in depth along image rows.
   const Pose T_wc = look_at({0.0, -0.6, 0.6}, {0.0, 0.15, 0.0}, Eigen::Vector3d::UnitZ());

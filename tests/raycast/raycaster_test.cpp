@@ -13,6 +13,7 @@
 #include "raycast/coarse_occupancy.h"
 #include "raycast/packet_util.h"
 #include "raycast/raycast_kernels.h"
+#include "raycast/surface_tiles.h"
 
 namespace hivox {
 namespace {
@@ -424,6 +425,82 @@ TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
                               block_by_block.raycast(*s.map, cam, T_wc), 8000,
                               "skipping vs block by block");
   }
+}
+
+// Marching only where a ray crosses its tile's surface boxes finds what marching the whole range
+// finds: without hints (every ray marches), and with hints that fail (their rays march from in
+// front of the hint, and in front of that where they find nothing).
+TEST(Raycaster, SurfaceTilesChangeNoPixel) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  const PinholeCamera cam = small_camera();
+  for (int view : {2, 9}) {
+    const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[view];
+    test::expect_surface_tiles_change_nothing(*s.map, rp, cam, T_wc, 5000);
+  }
+  for (int view : {3, 14}) {
+    const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[view];
+    const DepthImage truth = s.shape.render(cam, T_wc);
+    const DepthImage hint = test::mixed_hints(truth, s.mu);
+    test::expect_surface_tiles_change_nothing(*s.map, rp, cam, T_wc, 12000, &hint);
+    test::expect_surface_tiles_change_nothing(*s.map, rp, cam, T_wc, 12000, &hint, &truth);
+  }
+}
+
+// Every surface a raycast finds lies within the stretch of its ray that the surface boxes of its
+// tile give, while most rays that pass beside the surfaces get no stretch at all.
+TEST(SurfaceTiles, HoldEverySurfaceARayMeets) {
+  const Scene s = fused_scene(0.01f);
+  RaycastParams rp;
+  rp.truncation_m = s.mu;
+  rp.surface_tiles = false;
+  const PinholeCamera cam = small_camera();
+  const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[5];
+  Raycaster raycaster(rp);
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc);
+
+  kernels::RangeTiles tiles =
+      kernels::RangeTiles::covering(rp.range_tile_px, cam.width, cam.height);
+  std::vector<float> z_min(static_cast<std::size_t>(tiles.count()), FLT_MAX);
+  std::vector<float> z_max(static_cast<std::size_t>(tiles.count()), 0.0f);
+  tiles.z_min = z_min.data();
+  tiles.z_max = z_max.data();
+  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
+  const MapView view = s.map->view();
+  for (int32_t ptr = 0; ptr < s.map->block_high_water(); ++ptr)
+    if (view.meta[ptr].level >= 0)
+      kernels::project_block_to_tiles(T_cw, cam, view.meta[ptr].pos, view.level[0].block_size_m,
+                                      rp.min_depth_m, rp.max_depth_m, tiles);
+  kernels::SurfaceTileStorage storage;
+  const Rigid3f T = to_rigid3f(T_wc);
+  const kernels::SurfaceTiles surface = kernels::build_surface_tiles(
+      *s.map, cam, T_cw, T.t, tiles, rp.min_depth_m, rp.max_depth_m, &storage);
+  ASSERT_FALSE(surface.empty());
+
+  int hits = 0, in_range_misses = 0, spared = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const int t = tiles.tile_of(x, y);
+      const Vec3f dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+      float z_in = 0, z_out = 0;
+      const bool crosses = surface.ray_stretch(t, kernels::inverse_direction(dir), z_min[t],
+                                               z_max[t], &z_in, &z_out);
+      if (r.hit(x, y)) {
+        ++hits;
+        ASSERT_TRUE(crosses) << "pixel " << x << " " << y;
+        EXPECT_LE(z_in, r.depth_m(x, y));
+        EXPECT_GE(z_out, r.depth_m(x, y));
+      } else if (z_min[t] < z_max[t]) {
+        ++in_range_misses;  // a march over the tile's range that finds nothing
+        spared += !crosses;
+      }
+    }
+  EXPECT_GT(hits, 5000);
+  ASSERT_GT(in_range_misses, 500);
+  EXPECT_GT(spared, in_range_misses / 2) << "misses spared their march";
+  std::printf("%d hits; of %d misses in a tile's range, %d cross no surface box\n", hits,
+              in_range_misses, spared);
 }
 
 // The surface near a ray's measured depth, found from the hint alone: a hint anywhere inside the

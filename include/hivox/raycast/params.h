@@ -30,6 +30,12 @@ struct RaycastParams {
   /// (a grid rebuilt per raycast); false: block by block. Both find the same surfaces (the
   /// samples fall elsewhere along the ray, so hits agree up to the refinement's tolerance).
   bool coarse_skipping = true;
+  /// Marching rays (those without a hint, or whose hint search failed) first test the boxes
+  /// around the blocks with a surface that project into their range tile, and march only from
+  /// the first box they enter to the last they leave; a ray that enters none has no surface
+  /// (no march). Lists rebuilt per raycast; false: rays march the tile's whole depth range. Both
+  /// find the same surfaces.
+  bool surface_tiles = true;
 
   void validate() const;
   std::string to_string() const;

@@ -5,6 +5,7 @@
 /// block hit.
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "hivox/core/camera.h"
@@ -15,6 +16,10 @@
 #include "hivox/raycast/params.h"
 
 namespace hivox {
+
+namespace kernels {
+struct SurfaceTileStorage;
+}
 
 /// Per-pixel raycast outputs; a pixel without a hit has depth 0 and level -1.
 struct RaycastResult {
@@ -58,6 +63,9 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
 class Raycaster {
  public:
   explicit Raycaster(const RaycastParams& params = {});
+  ~Raycaster();
+  Raycaster(Raycaster&&) noexcept;
+  Raycaster& operator=(Raycaster&&) noexcept;
   const RaycastParams& params() const { return params_; }
 
   /// Casts every pixel of `camera` from pose `T_wc` into `map`. The result is kept (and its
@@ -91,6 +99,7 @@ class Raycaster {
   RaycastResult result_;
   std::vector<float> tile_min_, tile_max_;
   std::vector<int32_t> occupancy_;  ///< which super-blocks hold blocks (see coarse_skipping)
+  std::unique_ptr<kernels::SurfaceTileStorage> surface_tiles_;  ///< see surface_tiles
 };
 
 }  // namespace hivox
