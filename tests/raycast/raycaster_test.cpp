@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
@@ -446,6 +447,43 @@ TEST(Raycaster, SurfaceTilesChangeNoPixel) {
     test::expect_surface_tiles_change_nothing(*s.map, rp, cam, T_wc, 12000, &hint);
     test::expect_surface_tiles_change_nothing(*s.map, rp, cam, T_wc, 12000, &hint, &truth);
   }
+}
+
+// A box's tile rectangle holds the tile of every pixel that sees a point of the box within the
+// depth range (points sampled in random boxes around the camera, many out of view or straddling
+// the image's borders, the depth limits or the camera plane); boxes entirely out of view are
+// rejected.
+TEST(RangeTiles, BoxTileRectHoldsEveryPixelThatSeesTheBox) {
+  const PinholeCamera cam = small_camera();
+  const kernels::RangeTiles tiles = kernels::RangeTiles::covering(8, cam.width, cam.height);
+  const Pose T_wc = look_at({0.3, -0.2, 0.5}, {1.0, 1.5, 0.2}, Eigen::Vector3d::UnitZ());
+  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
+  const float min_depth = 0.2f, max_depth = 3.0f;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coord(-3.5f, 3.5f), size(0.01f, 0.3f), unit(0.0f, 1.0f);
+  int accepted = 0, rejected = 0;
+  for (int b = 0; b < 4000; ++b) {
+    const Vec3f origin{coord(rng), coord(rng), coord(rng)};
+    const float side = size(rng);
+    kernels::TileRect rect;
+    const bool in_view =
+        kernels::box_tile_rect(T_cw, cam, origin, side, min_depth, max_depth, tiles, &rect);
+    accepted += in_view;
+    rejected += !in_view;
+    for (int i = 0; i < 200; ++i) {
+      const Vec3f p = T_cw * (origin + Vec3f{unit(rng), unit(rng), unit(rng)} * side);
+      if (p.z < min_depth || p.z > max_depth) continue;
+      const Vec2f uv = cam.project(p);
+      const int x = static_cast<int>(std::floor(uv.x + 0.5f));
+      const int y = static_cast<int>(std::floor(uv.y + 0.5f));
+      if (x < 0 || y < 0 || x >= cam.width || y >= cam.height) continue;
+      ASSERT_TRUE(in_view) << "box " << b << " is seen at pixel " << x << " " << y;
+      EXPECT_TRUE(x / 8 >= rect.tx0 && x / 8 <= rect.tx1 && y / 8 >= rect.ty0 && y / 8 <= rect.ty1)
+          << "box " << b;
+    }
+  }
+  EXPECT_GT(accepted, 100);
+  EXPECT_GT(rejected, 1000);
 }
 
 // Every surface a raycast finds lies within the stretch of its ray that the surface boxes of its
