@@ -152,9 +152,10 @@ void BM_WarpRaycast(benchmark::State& state) {
   Raycaster previous(rp);
   previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
   DepthImage warped;
+  WarpScratch scratch;  // as the pipeline keeps it
   for (auto _ : state)
     warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
-                       &warped);
+                       &warped, &scratch);
   int64_t covered = 0;
   for (std::size_t i = 0; i < warped.size(); ++i) covered += warped.data()[i] > 0.0f;
   state.counters["covered"] = static_cast<double>(covered);

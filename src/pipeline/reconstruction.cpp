@@ -180,7 +180,8 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
     const DepthImage* fallback = nullptr;
     if (params_.previous_raycast_hints && previous.camera.width == camera.width &&
         previous.camera.height == camera.height && !previous.depth_m.empty()) {
-      warp_raycast_depth(previous, camera, T_wc, params_.fusion.truncation_m, &warped_);
+      warp_raycast_depth(previous, camera, T_wc, params_.fusion.truncation_m, &warped_,
+                         &warp_scratch_);
       fallback = &warped_;
     }
     raycaster_.raycast(*map_, camera, T_wc, &rs, hint, fallback);

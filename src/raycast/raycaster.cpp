@@ -156,47 +156,88 @@ Vec3f RaycastResult::normal_c(int x, int y) const {
 }
 
 void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
-                        float max_gap_m, DepthImage* out) {
+                        float max_gap_m, DepthImage* out, WarpScratch* scratch) {
   camera.validate("warp camera");
   if (!(max_gap_m > 0.0f))
     fail(ErrorCode::InvalidArgument, "warp max_gap_m {} must be > 0", max_gap_m);
   const int w = camera.width, h = camera.height;
-  // The nearest depth landing on each pixel (FLT_MAX: none yet).
-  DepthImage nearest(w, h, FLT_MAX);
+  WarpScratch local;
+  WarpScratch& s = scratch != nullptr ? *scratch : local;
+  // The nearest depth landing on each pixel (FLT_MAX: none yet). Each thread keeps its own
+  // (the first thread's is `nearest`), merged row by row afterwards: an atomic minimum per hit
+  // cost most of the warp.
+  DepthImage& nearest = s.nearest;
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
   const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
   const float plane_limit_m = 0.5f * max_gap_m;
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < from_h; ++y)
-    for (int x = 0; x < from_w; ++x) {
-      if (!from.hit(x, y)) continue;
-      const Vec3f p = T_cw * from.points_w(x, y);
-      if (!(p.z > 0.0f)) continue;
-      const Vec2f uv = camera.project(p);
-      const int u = static_cast<int>(std::floor(uv.x + 0.5f));
-      const int v = static_cast<int>(std::floor(uv.y + 0.5f));
-      if (u < 0 || v < 0 || u >= w || v >= h) continue;
-      // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from the
-      // hit: at an oblique surface the hit's own depth is off by up to a voxel or more there),
-      // at most half the gap from the hit's depth (grazing planes).
-      const Vec3f n = T_cw.rotate(from.normals_w(x, y));
-      const Vec3f ray = camera.ray(static_cast<float>(u), static_cast<float>(v));
-      const float n_ray = dot(n, ray);
-      const float z = std::abs(n_ray) > 1e-6f ? dot(n, p) / n_ray : p.z;
-      atomic_min_positive(&nearest(u, v), std::clamp(z, p.z - plane_limit_m, p.z + plane_limit_m));
+  int threads = 1;
+#pragma omp parallel
+  {
+#pragma omp single
+    {
+      threads = omp_get_num_threads();
+      if (static_cast<int>(s.partial.size()) < threads - 1) s.partial.resize(threads - 1);
+    }  // (a barrier)
+    const int thread = omp_get_thread_num();
+    DepthImage& mine = thread == 0 ? nearest : s.partial[thread - 1];
+    mine.resize(w, h, FLT_MAX);
+    // Row by row: where each hit lands and at which depth, in a loop without branches (it
+    // vectorizes), then the landings into `mine`.
+    std::vector<int32_t> landing(static_cast<std::size_t>(from_w));
+    std::vector<float> landing_z(static_cast<std::size_t>(from_w));
+    const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
+#pragma omp for schedule(static)
+    for (int y = 0; y < from_h; ++y) {
+      const float* depth = &from.depth_m(0, y);
+      const Vec3f* points = &from.points_w(0, y);
+      const Vec3f* normals = &from.normals_w(0, y);
+#pragma omp simd
+      for (int x = 0; x < from_w; ++x) {
+        const Vec3f p = T_cw * points[x];
+        const float inv_z = 1.0f / p.z;
+        // The nearest pixel: floor(coordinate + 1/2), which truncation gives where it is >= 0
+        // (floorf does not vectorize).
+        const float u_half = fx * p.x * inv_z + cx + 0.5f;
+        const float v_half = fy * p.y * inv_z + cy + 0.5f;
+        const bool lands = (depth[x] > 0.0f) & (p.z > 0.0f) & (u_half >= 0.0f) & (v_half >= 0.0f) &
+                           (u_half < static_cast<float>(w)) & (v_half < static_cast<float>(h));
+        const int u = static_cast<int>(lands ? u_half : 0.0f);
+        const int v = static_cast<int>(lands ? v_half : 0.0f);
+        const float uf = static_cast<float>(u), vf = static_cast<float>(v);
+        landing[x] = lands ? v * w + u : -1;
+        // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from
+        // the hit: at an oblique surface the hit's own depth is off by up to a voxel or more
+        // there), at most half the gap from the hit's depth (grazing planes).
+        const Vec3f n = T_cw.rotate(normals[x]);
+        const Vec3f ray{(uf - cx) / fx, (vf - cy) / fy, 1.0f};
+        const float n_ray = dot(n, ray);
+        const bool oblique = std::abs(n_ray) > 1e-6f;  // else the hit's own depth
+        const float z = oblique ? dot(n, p) / (oblique ? n_ray : 1.0f) : p.z;
+        const float z_lo = p.z - plane_limit_m, z_hi = p.z + plane_limit_m;
+        landing_z[x] = z < z_lo ? z_lo : (z > z_hi ? z_hi : z);
+      }
+      float* m = mine.data();
+      for (int x = 0; x < from_w; ++x)
+        if (landing[x] >= 0) m[landing[x]] = std::min(m[landing[x]], landing_z[x]);
     }
-  // The nearest depth landed within one pixel: a minimum over each row's 3 pixels, then over 3
-  // rows (loops without branches, which vectorize).
-  DepthImage row_min(w, h, FLT_MAX);
+  }
+  // The threads' landings merged, and the nearest depth landed within one pixel: a minimum over
+  // each row's 3 pixels, then over 3 rows (loops without branches, which vectorize).
+  DepthImage& row_min = s.row_min;  // every pixel written below
+  if (row_min.width() != w || row_min.height() != h) row_min.resize(w, h);
 #pragma omp parallel for schedule(static)
   for (int y = 0; y < h; ++y) {
-    const float* n = &nearest(0, y);
+    float* n = &nearest(0, y);
+    for (int t = 0; t + 1 < threads; ++t) {
+      const float* other = &s.partial[t](0, y);
+      for (int x = 0; x < w; ++x) n[x] = std::min(n[x], other[x]);
+    }
     float* r = &row_min(0, y);
     for (int x = 1; x + 1 < w; ++x) r[x] = std::min(n[x - 1], std::min(n[x], n[x + 1]));
     r[0] = std::min(n[0], w > 1 ? n[1] : FLT_MAX);
     if (w > 1) r[w - 1] = std::min(n[w - 2], n[w - 1]);
   }
-  out->resize(w, h);
+  if (out->width() != w || out->height() != h) out->resize(w, h);  // every pixel written below
   auto landed = [&](int u, int v) {
     return u >= 0 && v >= 0 && u < w && v < h ? nearest(u, v) : FLT_MAX;
   };

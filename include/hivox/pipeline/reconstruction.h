@@ -134,6 +134,7 @@ class Reconstruction {
   DepthImage hint_;    ///< the fused depth at the model camera's resolution, when it differs
   DepthImage warped_;  ///< the previous raycast's depth seen from the current pose (the
                        ///< raycast's fallback hints)
+  WarpScratch warp_scratch_;
 
   Tracker tracker_;
   TrackResult last_track_;

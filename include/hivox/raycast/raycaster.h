@@ -57,8 +57,14 @@ struct RaycastStats {
 /// within one pixel of them holds a surface nearer by more than `max_gap_m`). The previous frame's
 /// raycast warped this way gives the rays a second start hint, free of sensor noise (see
 /// Raycaster::raycast).
+/// `scratch` (optional): images the warp keeps between calls (allocating and first touching them
+/// anew costs about as much as the warp itself).
+struct WarpScratch {
+  DepthImage nearest, row_min;
+  std::vector<DepthImage> partial;  ///< the landings of threads other than the first
+};
 void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
-                        float max_gap_m, DepthImage* out);
+                        float max_gap_m, DepthImage* out, WarpScratch* scratch = nullptr);
 
 class Raycaster {
  public:
