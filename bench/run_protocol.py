@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Runs the issue-3 speed protocol and prints a Markdown table.
+"""Runs the issue-3 speed protocol and prints a Markdown table; with the stage benchmarks built,
+also the issue-5 raycast after the last frame.
 
 Protocol: TUM fr1/rpy, first N frames (default 200), ground-truth poses, 5 mm voxels, mu = 20 mm,
 depth <= 3 m, 2 threads. hivox and (when `import open3d` works: Debian package python3-open3d)
@@ -29,6 +30,22 @@ def run_hivox(binary, data, frames, extra, threads):
     stats = json.loads((Path(out) / "stats.json").read_text())
     stats["peak_rss_mib"] = max(peak_kib, before) / 1024.0
     return stats
+
+
+def run_stage_bench(binary, frames, threads, env_extra):
+    """Median ms of the stage benchmarks of the raycast after `frames` frames (the map fused with
+    them, the last frame's view): the pipeline's raycast (hints: the depth just fused and the
+    previous raycast warped), the warp that makes the second hint, and a raycast without hints."""
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), HIVOX_BENCH_WARMUP=str(frames - 1),
+               **env_extra)
+    out = subprocess.run([binary, "--benchmark_filter=BM_RaycastPipeline$|BM_WarpRaycast$|BM_Raycast$",
+                          "--benchmark_repetitions=5", "--benchmark_format=json"],
+                         check=True, env=env, capture_output=True, text=True).stdout
+    medians = {}
+    for b in json.loads(out)["benchmarks"]:
+        if b.get("aggregate_name") == "median":
+            medians[b["run_name"]] = b["real_time"]  # ms: the benchmarks report milliseconds
+    return medians
 
 
 def read_tum(data, frames):
@@ -91,8 +108,19 @@ def run_open3d(data, frames, voxel, trunc_mult, max_depth, raycast, block_count)
             vbg.ray_cast(coords, K, extrinsic, intr["width"], intr["height"],
                          ["depth", "normal", "color"], scale, 0.2, max_depth, 1.0, trunc_mult, 8)
             raycast_s += time.perf_counter() - t1
+    last_raycast_ms = 0.0
+    if raycast and items:
+        # The raycast after all frames, from the last frame's view, repeated (median).
+        times = []
+        for _ in range(10):
+            t0 = time.perf_counter()
+            vbg.ray_cast(coords, K, extrinsic, intr["width"], intr["height"],
+                         ["depth", "normal", "color"], scale, 0.2, max_depth, 1.0, trunc_mult, 8)
+            times.append(1000 * (time.perf_counter() - t0))
+        last_raycast_ms = float(np.median(times))
     n = len(items)
     return {"frames": n, "integrate_ms": 1000 * integrate_s / n, "raycast_ms": 1000 * raycast_s / n,
+            "last_raycast_ms": last_raycast_ms,
             "blocks": vbg.hashmap().size(),
             "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
 
@@ -105,6 +133,9 @@ def main():
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--skip-open3d", action="store_true")
+    ap.add_argument("--bench", default=str(root / "build/bench/hivox_bench"),
+                    help="stage benchmarks (-DHIVOX_BUILD_BENCHMARKS=ON) for the raycast after "
+                         "the last frame; skipped when absent")
     args = ap.parse_args()
     if not args.data.is_dir():
         sys.exit(f"{args.data}: data set not found (see ../shared/data/README.md)")
@@ -128,6 +159,7 @@ def main():
     rows.append(("hivox, integration + raycast", s["fps"], t["allocate"] + t["integrate"],
                  t["raycast"], s["blocks_total"], s["bytes_per_voxel"], s["memory_bytes"] / 2**20))
     open3d_rows = []
+    open3d_last_raycast_ms = None
     if not args.skip_open3d:
         try:
             import open3d  # noqa: F401
@@ -138,6 +170,8 @@ def main():
                 # Map memory: blocks x 512 voxels x 20 B (float TSDF, weight, RGB).
                 open3d_rows.append((name, 1000.0 / total, o["integrate_ms"], o["raycast_ms"],
                                     o["blocks"], 20, o["blocks"] * 512 * 20 / 2**20))
+                if raycast:
+                    open3d_last_raycast_ms = o["last_raycast_ms"]
         except ImportError:
             print("open3d not importable (apt-get install python3-open3d): peers skipped\n")
     s = run_hivox(args.hivox, args.data, args.frames,
@@ -158,6 +192,31 @@ def main():
               f"({rows[1][1] / open3d_rows[0][1]:.2f} with the nearest pixel, as Open3D); "
               f"integration + raycast fps hivox / Open3D = {rows[2][1] / open3d_rows[1][1]:.2f}; "
               f"raycast ms Open3D / hivox = {open3d_rows[1][3] / max(rows[2][3], 1e-9):.2f}")
+
+    # The raycast after the last frame (issue 5): the map fused with all frames, the last frame's
+    # view, 640x480, from the stage benchmarks.
+    if Path(args.bench).is_file():
+        maps = [("fixed 5 mm, mu 20 mm", {}),
+                ("fixed 2 mm, mu 24 mm", {"HIVOX_BENCH_VOXEL": "0.002", "HIVOX_BENCH_TRUNC": "0.024"}),
+                ("3 levels from 2 mm, mu 24 mm", {"HIVOX_BENCH_VOXEL": "0.002",
+                                                  "HIVOX_BENCH_TRUNC": "0.024",
+                                                  "HIVOX_BENCH_LEVELS": "3"})]
+        print(f"\nraycast after {args.frames} frames (the last frame's view, 640x480, median of 5; "
+              "the pipeline's raycast = the warp of the previous raycast + the hinted raycast)\n")
+        print("| map | pipeline raycast ms | of which warp | without hints ms |")
+        print("| --- | ---: | ---: | ---: |")
+        pipeline = {}
+        for name, env in maps:
+            m = run_stage_bench(args.bench, args.frames, args.threads, env)
+            pipeline[name] = m["BM_RaycastPipeline"] + m["BM_WarpRaycast"]
+            print(f"| hivox {name} | {pipeline[name]:.1f} | {m['BM_WarpRaycast']:.1f} | "
+                  f"{m['BM_Raycast']:.1f} |")
+        if open3d_last_raycast_ms is not None:
+            print(f"| Open3D VoxelBlockGrid 5 mm (the last frame's blocks) | "
+                  f"{open3d_last_raycast_ms:.1f} | – | – |")
+            print(f"\nratio Open3D / hivox pipeline raycast at 5 mm = "
+                  f"{open3d_last_raycast_ms / pipeline[maps[0][0]]:.2f}")
+        print(f"hierarchy / fixed 2 mm = {pipeline[maps[2][0]] / pipeline[maps[1][0]]:.2f}")
 
 
 if __name__ == "__main__":
