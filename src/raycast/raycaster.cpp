@@ -330,7 +330,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   // Which blocks hold a surface, per tile: marching rays march only where they cross them.
   const Rigid3f T = to_rigid3f(T_wc);
   kernels::SurfaceTiles surface;
-  if (params_.surface_tiles) {
+  const bool hinted = start_hint_m != nullptr || fallback_hint_m != nullptr;
+  if (params_.surface_tiles == SurfaceTileUse::Always ||
+      (params_.surface_tiles == SurfaceTileUse::WithoutHints && !hinted)) {
     if (!surface_tiles_) surface_tiles_ = std::make_unique<kernels::SurfaceTileStorage>();
     surface = kernels::build_surface_tiles(map, camera, T_cw, T.t, tiles, params_.min_depth_m,
                                            params_.max_depth_m, surface_tiles_.get());
@@ -339,9 +341,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
 
   // March one ray per pixel.
   const kernels::RayMarchConstants k = kernels::march_constants(params_, view, occupancy);
-  const bool packets = params_.ray_packets &&
-                       (start_hint_m != nullptr || fallback_hint_m != nullptr) &&
-                       kernels::packets_can_address(view);
+  const bool packets = params_.ray_packets && hinted && kernels::packets_can_address(view);
   int64_t hits = 0, found_at_hint = 0, found_at_fallback = 0;
 #pragma omp parallel reduction(+ : hits, found_at_hint, found_at_fallback)
   {

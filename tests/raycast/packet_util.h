@@ -83,9 +83,9 @@ inline void expect_surface_tiles_change_nothing(const VoxelBlockMap& map, Raycas
                                                 const PinholeCamera& cam, const Pose& T_wc,
                                                 int min_hits, const DepthImage* hint = nullptr,
                                                 const DepthImage* fallback = nullptr) {
-  rp.surface_tiles = true;
+  rp.surface_tiles = SurfaceTileUse::Always;
   Raycaster with(rp);
-  rp.surface_tiles = false;
+  rp.surface_tiles = SurfaceTileUse::Never;
   Raycaster without(rp);
   RaycastStats sa, sb;
   const RaycastResult& a = with.raycast(map, cam, T_wc, &sa, hint, fallback);

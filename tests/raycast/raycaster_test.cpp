@@ -492,7 +492,7 @@ TEST(SurfaceTiles, HoldEverySurfaceARayMeets) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
   rp.truncation_m = s.mu;
-  rp.surface_tiles = false;
+  rp.surface_tiles = SurfaceTileUse::Never;
   const PinholeCamera cam = small_camera();
   const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[5];
   Raycaster raycaster(rp);
