@@ -17,8 +17,9 @@ void RaycastParams::validate() const {
   if (!std::isfinite(truncation_m) || truncation_m <= 0.0f)
     fail(ErrorCode::InvalidArgument, "raycast truncation_m must be > 0 metres, got {}",
          truncation_m);
-  if (range_tile_px < 1 || range_tile_px > 64)
-    fail(ErrorCode::InvalidArgument, "range_tile_px must be in [1, 64], got {}", range_tile_px);
+  if (range_tile_px < 1 || range_tile_px > kMaxRangeTilePx)
+    fail(ErrorCode::InvalidArgument, "range_tile_px must be in [1, {}], got {}", kMaxRangeTilePx,
+         range_tile_px);
   if (!(step_fraction > 0.0f && step_fraction <= 1.0f))
     fail(ErrorCode::InvalidArgument, "step_fraction must be in (0, 1], got {}", step_fraction);
   if (!std::isfinite(hint_margin_mu) || hint_margin_mu < 0.0f)

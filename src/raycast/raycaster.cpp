@@ -366,13 +366,18 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
       // The ray of pixel (x, y) and its hints, written in place (a packet's ray copied in from a
       // temporary costs a stalled copy).
+      // The camera-frame rays' x and y components, per column and row of the tile (what
+      // camera.ray gives, with a division per tile column and row rather than two per pixel).
+      float ray_x[RaycastParams::kMaxRangeTilePx], ray_y[RaycastParams::kMaxRangeTilePx];
+      for (int x = x0; x < x1; ++x) ray_x[x - x0] = camera.ray(static_cast<float>(x), 0.0f).x;
+      for (int y = y0; y < y1; ++y) ray_y[y - y0] = camera.ray(0.0f, static_cast<float>(y)).y;
       auto set_ray = [&](int x, int y, PacketRay* ray) {
         auto depth_at = [&](const DepthImage* image) {
           return image != nullptr ? (*image)(x, y) : 0.0f;
         };
         ray->x = x;
         ray->y = y;
-        ray->dir = T.rotate(camera.ray(static_cast<float>(x), static_cast<float>(y)));
+        ray->dir = T.rotate(Vec3f{ray_x[x - x0], ray_y[y - y0], 1.0f});
         ray->hints = kernels::ray_hints(depth_at(start_hint_m), depth_at(fallback_hint_m), k,
                                         tile_min_[t], tile_max_[t]);
         ray->at_second = false;

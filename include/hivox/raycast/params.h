@@ -13,7 +13,8 @@ struct RaycastParams {
   float min_depth_m = 0.2f;     ///< rays start no nearer than this (along the optical axis)
   float max_depth_m = 3.0f;     ///< and stop no farther
   float truncation_m = 0.024f;  ///< the map's truncation band mu (turns TSDF values into metres)
-  int range_tile_px = 8;        ///< side of the tiles of the min/max depth range image
+  static constexpr int kMaxRangeTilePx = 64;
+  int range_tile_px = 8;  ///< side of the tiles of the min/max depth range image, 1 to 64
   /// Fraction of the TSDF distance taken as the step inside the truncation band (< 1 because
   /// the projective TSDF overestimates distances seen at an angle).
   float step_fraction = 0.8f;
