@@ -181,10 +181,11 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     const int thread = omp_get_thread_num();
     DepthImage& mine = thread == 0 ? nearest : s.partial[thread - 1];
     mine.resize(w, h, FLT_MAX);
-    // Row by row: where each hit lands and at which depth, in a loop without branches (it
-    // vectorizes), then the landings into `mine`.
-    std::vector<int32_t> landing(static_cast<std::size_t>(from_w));
-    std::vector<float> landing_z(static_cast<std::size_t>(from_w));
+    // Row by row: where each hit lands and at which depth, in a loop without branches or
+    // conversions (it vectorizes), then the landings into `mine`.
+    std::vector<float> landing_u(static_cast<std::size_t>(from_w));
+    std::vector<float> landing_v(static_cast<std::size_t>(from_w));
+    std::vector<float> landing_z(static_cast<std::size_t>(from_w));  // 0: lands nowhere
     const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
 #pragma omp for schedule(static)
     for (int y = 0; y < from_h; ++y) {
@@ -195,16 +196,19 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       for (int x = 0; x < from_w; ++x) {
         const Vec3f p = T_cw * points[x];
         const float inv_z = 1.0f / p.z;
-        // The nearest pixel: floor(coordinate + 1/2), which truncation gives where it is >= 0
-        // (floorf does not vectorize).
+        // The nearest pixel, floor(coordinate + 1/2): for 0 <= c < 2^23, c + 2^23 - 2^23 is c
+        // rounded to the nearest integer, one less where that rounded up (floorf does not
+        // vectorize). Elsewhere the hit lands nowhere.
         const float u_half = fx * p.x * inv_z + cx + 0.5f;
         const float v_half = fy * p.y * inv_z + cy + 0.5f;
+        constexpr float kTwo23 = 8388608.0f;
+        const float u_round = (u_half + kTwo23) - kTwo23, v_round = (v_half + kTwo23) - kTwo23;
+        const float uf = u_round > u_half ? u_round - 1.0f : u_round;
+        const float vf = v_round > v_half ? v_round - 1.0f : v_round;
         const bool lands = (depth[x] > 0.0f) & (p.z > 0.0f) & (u_half >= 0.0f) & (v_half >= 0.0f) &
                            (u_half < static_cast<float>(w)) & (v_half < static_cast<float>(h));
-        const int u = static_cast<int>(lands ? u_half : 0.0f);
-        const int v = static_cast<int>(lands ? v_half : 0.0f);
-        const float uf = static_cast<float>(u), vf = static_cast<float>(v);
-        landing[x] = lands ? v * w + u : -1;
+        landing_u[x] = uf;
+        landing_v[x] = vf;
         // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from
         // the hit: at an oblique surface the hit's own depth is off by up to a voxel or more
         // there), at most half the gap from the hit's depth (grazing planes).
@@ -214,11 +218,14 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
         const bool oblique = std::abs(n_ray) > 1e-6f;  // else the hit's own depth
         const float z = oblique ? dot(n, p) / (oblique ? n_ray : 1.0f) : p.z;
         const float z_lo = p.z - plane_limit_m, z_hi = p.z + plane_limit_m;
-        landing_z[x] = z < z_lo ? z_lo : (z > z_hi ? z_hi : z);
+        landing_z[x] = lands ? (z < z_lo ? z_lo : (z > z_hi ? z_hi : z)) : 0.0f;
       }
       float* m = mine.data();
-      for (int x = 0; x < from_w; ++x)
-        if (landing[x] >= 0) m[landing[x]] = std::min(m[landing[x]], landing_z[x]);
+      for (int x = 0; x < from_w; ++x) {
+        if (!(landing_z[x] > 0.0f)) continue;
+        const int64_t i = static_cast<int64_t>(landing_v[x]) * w + static_cast<int>(landing_u[x]);
+        m[i] = std::min(m[i], landing_z[x]);
+      }
     }
   }
   // The threads' landings merged, and the nearest depth landed within one pixel: a minimum over
