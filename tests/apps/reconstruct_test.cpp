@@ -60,7 +60,8 @@ TEST(Reconstruct, SyntheticSequenceEndToEnd) {
   test::TempDir out;
   const std::string spec = "synthetic:box?frames=12&width=160&height=120&noise=none";
   const auto r = run_hivox("reconstruct '" + spec +
-                           "' --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --out " +
+                           "' --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 "
+                           "--render-every 5 --out " +
                            out.path().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("map: voxel 10.0 mm"), std::string::npos) << "effective parameters";
@@ -76,10 +77,23 @@ TEST(Reconstruct, SyntheticSequenceEndToEnd) {
   ASSERT_EQ(poses.size(), 12u);
   for (std::size_t i = 0; i < poses.size(); ++i)
     EXPECT_TRUE(poses[i].T_wc.isApprox(*truth.read(i).T_wc_gt, 1e-6)) << "pose " << i;
-  for (const char* png : {"depth.png", "normals.png", "shaded.png", "color.png", "levels.png"}) {
-    const ColorImage img = read_color(out / png);
-    EXPECT_EQ(img.width(), 160) << png;
+  for (const char* view : {"depth", "normals", "shaded", "color", "levels"}) {
+    // The last frame's view and the views of every 5th frame (--render-every 5: frames 5 and 10,
+    // indices 4 and 9), at the frames' size; the overview from above and behind the trajectory.
+    for (const std::string prefix : {"", "frame000004_", "frame000009_", "overview_"}) {
+      const std::string png = prefix + view + ".png";
+      ASSERT_TRUE(std::filesystem::exists(out / png)) << png;
+      const ColorImage img = read_color(out / png);
+      if (prefix != "overview_") EXPECT_EQ(img.width(), 160) << png;
+    }
+    EXPECT_FALSE(std::filesystem::exists(out / (std::string("frame000003_") + view + ".png")));
   }
+  // The overview shows the model: a good part of its pixels hold a surface (not background).
+  const ColorImage overview = read_color(out / "overview_depth.png");
+  int surface = 0;
+  for (int y = 0; y < overview.height(); ++y)
+    for (int x = 0; x < overview.width(); ++x) surface += !(overview(x, y) == Rgb8{0, 0, 0});
+  EXPECT_GT(surface, overview.width() * overview.height() / 20);
 }
 
 // The default: poses by ICP from the first ground-truth pose; ATE printed and in stats.json.
