@@ -21,7 +21,8 @@ namespace hivox::kernels {
 /// blocks). A view of the grid build_coarse_occupancy fills from the map before casting; `cells`
 /// null: no grid, every super-block may hold blocks.
 struct CoarseOccupancy {
-  static constexpr int kSuperBlockSide = 4;
+  static constexpr int kSuperBlockShift = 2;
+  static constexpr int kSuperBlockSide = 1 << kSuperBlockShift;
   int32_t* cells = nullptr;  ///< 1 where a block lies, x fastest; outside [lo, lo + dims): none
   Vec3i lo, dims;
   float side_m = 0, inv_side_m = 0;
@@ -30,8 +31,7 @@ struct CoarseOccupancy {
   HIVOX_HD static Vec3i super_block_of(const Vec3i& pos, int level, int levels) {
     // floor(pos / (kSuperBlockSide << (levels - 1 - level))): a shift, which rounds towards
     // -infinity (a division by a divisor not known at compile time costs ~10x the loop).
-    static_assert(kSuperBlockSide == 4);
-    const int shift = 2 + (levels - 1 - level);
+    const int shift = kSuperBlockShift + (levels - 1 - level);
     return {pos.x >> shift, pos.y >> shift, pos.z >> shift};
   }
   HIVOX_HD Vec3i cell_of(const Vec3f& p_w) const { return floor_to_int(p_w * inv_side_m); }

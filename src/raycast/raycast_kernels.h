@@ -495,12 +495,12 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
                                      const RayMarchConstants& k, RayHit* hit,
                                      const RayStretch& stretch = {}) {
   bool behind = false;
+  auto end_at = [&](float z_end) { return z_end < stretch.z_out ? z_end : stretch.z_out; };
   bool found = march_ray(map, cache, o, d, hint > 0.0f ? hint - k.hint_margin_m : z_min,
-                         fminf(z_max, stretch.z_out), k, hit, &behind, stretch.z_in);
+                         end_at(z_max), k, hit, &behind, stretch.z_in);
   if (hint > 0.0f && (!found || behind)) {
     RayHit front;
-    const float z_end = hint < z_max ? hint : z_max;
-    if (march_ray(map, cache, o, d, z_min, fminf(z_end, stretch.z_out), k, &front, nullptr,
+    if (march_ray(map, cache, o, d, z_min, end_at(hint < z_max ? hint : z_max), k, &front, nullptr,
                   stretch.z_in)) {
       *hit = front;
       found = true;
@@ -606,13 +606,27 @@ struct RangeTiles {
   float* z_min = nullptr;  ///< per tile, initialised to +large
   float* z_max = nullptr;  ///< per tile, initialised to 0
   int tiles_x = 0, tiles_y = 0, tile_px = 8;
+  /// The planes through the camera centre and the image's borders, x = s z and y = s z (camera
+  /// frame), and sqrt(1 + s^2) for each: box_tile_rect's quick test.
+  float x_lo = 0, x_hi = 0, y_lo = 0, y_hi = 0;
+  float x_lo_len = 1, x_hi_len = 1, y_lo_len = 1, y_hi_len = 1;
 
-  /// The tiles of `tile_px` pixels covering a `width` x `height` image (z_min, z_max unset).
-  HIVOX_HD static RangeTiles covering(int tile_px, int width, int height) {
+  /// The tiles of `tile_px` pixels covering the image of `cam` (z_min, z_max unset).
+  HIVOX_HD static RangeTiles covering(int tile_px, const PinholeCamera& cam) {
     RangeTiles t;
     t.tile_px = tile_px;
-    t.tiles_x = (width + tile_px - 1) / tile_px;
-    t.tiles_y = (height + tile_px - 1) / tile_px;
+    t.tiles_x = (cam.width + tile_px - 1) / tile_px;
+    t.tiles_y = (cam.height + tile_px - 1) / tile_px;
+    t.x_lo = (-0.5f - cam.cx) / cam.fx;
+    t.x_hi = (static_cast<float>(cam.width) - 0.5f - cam.cx) / cam.fx;
+    const float y_a = (-0.5f - cam.cy) / cam.fy;
+    const float y_b = (static_cast<float>(cam.height) - 0.5f - cam.cy) / cam.fy;
+    t.y_lo = y_a < y_b ? y_a : y_b;  // fy < 0 flips the image
+    t.y_hi = y_a < y_b ? y_b : y_a;
+    t.x_lo_len = sqrtf(1.0f + t.x_lo * t.x_lo);
+    t.x_hi_len = sqrtf(1.0f + t.x_hi * t.x_hi);
+    t.y_lo_len = sqrtf(1.0f + t.y_lo * t.y_lo);
+    t.y_hi_len = sqrtf(1.0f + t.y_hi * t.y_hi);
     return t;
   }
   HIVOX_HD int count() const { return tiles_x * tiles_y; }
@@ -638,14 +652,10 @@ HIVOX_HD inline bool box_tile_rect(const Rigid3f& T_cw, const PinholeCamera& cam
   const Vec3f c = T_cw * Vec3f{origin.x + half_m, origin.y + half_m, origin.z + half_m};
   const float r = 1.7320508f * half_m;
   if (c.z + r < min_depth_m || c.z - r > max_depth_m) return false;
-  const float x_lo = (-0.5f - cam.cx) / cam.fx, x_hi = (cam.width - 0.5f - cam.cx) / cam.fx;
-  const float y_a = (-0.5f - cam.cy) / cam.fy, y_b = (cam.height - 0.5f - cam.cy) / cam.fy;
-  const float y_lo = y_a < y_b ? y_a : y_b, y_hi = y_a < y_b ? y_b : y_a;
   // Outside a plane x = s z (likewise y) by more than r: (x - s z) / sqrt(1 + s^2) < -r.
-  if (c.x - x_lo * c.z < -r * sqrtf(1.0f + x_lo * x_lo) ||
-      x_hi * c.z - c.x < -r * sqrtf(1.0f + x_hi * x_hi) ||
-      c.y - y_lo * c.z < -r * sqrtf(1.0f + y_lo * y_lo) ||
-      y_hi * c.z - c.y < -r * sqrtf(1.0f + y_hi * y_hi))
+  if (c.x - tiles.x_lo * c.z < -r * tiles.x_lo_len ||
+      tiles.x_hi * c.z - c.x < -r * tiles.x_hi_len ||
+      c.y - tiles.y_lo * c.z < -r * tiles.y_lo_len || tiles.y_hi * c.z - c.y < -r * tiles.y_hi_len)
     return false;
   float u_lo = FLT_MAX, u_hi = -FLT_MAX, v_lo = FLT_MAX, v_hi = -FLT_MAX;
   float z_lo = FLT_MAX, z_hi = -FLT_MAX;

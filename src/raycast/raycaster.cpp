@@ -186,6 +186,8 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     std::vector<float> landing_u(static_cast<std::size_t>(from_w));
     std::vector<float> landing_v(static_cast<std::size_t>(from_w));
     std::vector<float> landing_z(static_cast<std::size_t>(from_w));  // 0: lands nowhere
+    // camera.project and camera.ray written out on these copies below: called on the camera
+    // object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
     const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
 #pragma omp for schedule(static)
     for (int y = 0; y < from_h; ++y) {
@@ -195,10 +197,10 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
 #pragma omp simd
       for (int x = 0; x < from_w; ++x) {
         const Vec3f p = T_cw * points[x];
-        const float inv_z = 1.0f / p.z;
         // The nearest pixel, floor(coordinate + 1/2): for 0 <= c < 2^23, c + 2^23 - 2^23 is c
         // rounded to the nearest integer, one less where that rounded up (floorf does not
         // vectorize). Elsewhere the hit lands nowhere.
+        const float inv_z = 1.0f / p.z;
         const float u_half = fx * p.x * inv_z + cx + 0.5f;
         const float v_half = fy * p.y * inv_z + cy + 0.5f;
         constexpr float kTwo23 = 8388608.0f;
@@ -314,7 +316,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   r.has_color = view.color != nullptr;
 
   // Range image: every allocated block's bounding box, projected.
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params_.range_tile_px, w, h);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params_.range_tile_px, camera);
   const int tile_count = tiles.count();
   tile_min_.assign(static_cast<std::size_t>(tile_count), FLT_MAX);
   tile_max_.assign(static_cast<std::size_t>(tile_count), 0.0f);
@@ -371,13 +373,13 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
     for (int t = 0; t < tile_count; ++t) {
       const int x0 = (t % tiles.tiles_x) * tiles.tile_px, y0 = (t / tiles.tiles_x) * tiles.tile_px;
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
-      // The ray of pixel (x, y) and its hints, written in place (a packet's ray copied in from a
-      // temporary costs a stalled copy).
       // The camera-frame rays' x and y components, per column and row of the tile (what
       // camera.ray gives, with a division per tile column and row rather than two per pixel).
       float ray_x[RaycastParams::kMaxRangeTilePx], ray_y[RaycastParams::kMaxRangeTilePx];
       for (int x = x0; x < x1; ++x) ray_x[x - x0] = camera.ray(static_cast<float>(x), 0.0f).x;
       for (int y = y0; y < y1; ++y) ray_y[y - y0] = camera.ray(0.0f, static_cast<float>(y)).y;
+      // The ray of pixel (x, y) and its hints, written in place (a packet's ray copied in from a
+      // temporary costs a stalled copy).
       auto set_ray = [&](int x, int y, PacketRay* ray) {
         auto depth_at = [&](const DepthImage* image) {
           return image != nullptr ? (*image)(x, y) : 0.0f;
@@ -391,10 +393,11 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       };
       // The march of a ray whose hints failed or that has none, over the stretch of it that
       // crosses the tile's surface boxes (a miss when it crosses none).
-      auto march = [&](const Vec3f& dir, const Vec3f& inv_dir, float hint, kernels::RayHit* hit) {
+      auto march = [&](const Vec3f& dir, float hint, kernels::RayHit* hit) {
         kernels::RayStretch stretch;
-        if (!surface.empty() && !surface.ray_stretch(t, inv_dir, tile_min_[t], tile_max_[t],
-                                                     &stretch.z_in, &stretch.z_out))
+        if (!surface.empty() &&
+            !surface.ray_stretch(t, kernels::inverse_direction(dir), tile_min_[t], tile_max_[t],
+                                 &stretch.z_in, &stretch.z_out))
           return kernels::RayOutcome::Miss;
         return kernels::march_from_hint(view, cache, T.t, dir, hint, tile_min_[t], tile_max_[t], k,
                                         hit, stretch)
@@ -428,7 +431,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           kernels::RayHit& hit = scratch->hits[i];
           // A packed ray has a hint inside the tile's range, so the range is not empty.
           RayOutcome outcome = ray.at_second ? RayOutcome::AtSecondHint : RayOutcome::AtHint;
-          if (!scratch->found[i]) outcome = march(ray.dir, ray.inv_dir, ray.hints.hint, &hit);
+          if (!scratch->found[i]) outcome = march(ray.dir, ray.hints.hint, &hit);
           write_pixel(ray.x, ray.y, outcome, ray.hints, hit);
         }
         packed = 0;
@@ -447,10 +450,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
           }
           kernels::RayHit hit;
           const kernels::RayOutcome outcome =
-              ray.hints.hint > 0.0f
-                  ? kernels::cast_ray(view, cache, T.t, ray.dir, ray.hints, tile_min_[t],
-                                      tile_max_[t], k, &hit)
-                  : march(ray.dir, kernels::inverse_direction(ray.dir), 0.0f, &hit);
+              ray.hints.hint > 0.0f ? kernels::cast_ray(view, cache, T.t, ray.dir, ray.hints,
+                                                        tile_min_[t], tile_max_[t], k, &hit)
+                                    : march(ray.dir, 0.0f, &hit);
           write_pixel(x, y, outcome, ray.hints, hit);
         }
       if (packed > 0) flush_packet();

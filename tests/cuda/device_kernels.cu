@@ -218,7 +218,7 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
   params.validate();
   const int w = camera.width, h = camera.height;
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params.range_tile_px, w, h);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params.range_tile_px, camera);
   const int tile_count = tiles.count();
   DeviceBuffer<float> z_min(static_cast<std::size_t>(tile_count));
   DeviceBuffer<float> z_max(static_cast<std::size_t>(tile_count));

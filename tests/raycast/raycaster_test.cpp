@@ -455,7 +455,7 @@ TEST(Raycaster, SurfaceTilesChangeNoPixel) {
 // rejected.
 TEST(RangeTiles, BoxTileRectHoldsEveryPixelThatSeesTheBox) {
   const PinholeCamera cam = small_camera();
-  const kernels::RangeTiles tiles = kernels::RangeTiles::covering(8, cam.width, cam.height);
+  const kernels::RangeTiles tiles = kernels::RangeTiles::covering(8, cam);
   const Pose T_wc = look_at({0.3, -0.2, 0.5}, {1.0, 1.5, 0.2}, Eigen::Vector3d::UnitZ());
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
   const float min_depth = 0.2f, max_depth = 3.0f;
@@ -498,8 +498,7 @@ TEST(SurfaceTiles, HoldEverySurfaceARayMeets) {
   Raycaster raycaster(rp);
   const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc);
 
-  kernels::RangeTiles tiles =
-      kernels::RangeTiles::covering(rp.range_tile_px, cam.width, cam.height);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(rp.range_tile_px, cam);
   std::vector<float> z_min(static_cast<std::size_t>(tiles.count()), FLT_MAX);
   std::vector<float> z_max(static_cast<std::size_t>(tiles.count()), 0.0f);
   tiles.z_min = z_min.data();

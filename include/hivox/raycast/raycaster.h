@@ -47,6 +47,13 @@ struct RaycastStats {
   double march_ms = 0;            ///< marching the rays
 };
 
+/// Images warp_raycast_depth keeps between calls (allocating and first touching them anew costs
+/// about as much as the warp itself).
+struct WarpScratch {
+  DepthImage nearest, row_min;
+  std::vector<DepthImage> partial;  ///< the landings of threads other than the first
+};
+
 /// The depth at which the surface points of raycast `from` are seen by `camera` from pose
 /// `T_wc` (a forward warp): each hit lands on its nearest pixel, with the depth at which its
 /// tangent plane (the hit's normal) meets that pixel's centre ray (at most `max_gap_m` / 2 from
@@ -57,12 +64,7 @@ struct RaycastStats {
 /// within one pixel of them holds a surface nearer by more than `max_gap_m`). The previous frame's
 /// raycast warped this way gives the rays a second start hint, free of sensor noise (see
 /// Raycaster::raycast).
-/// `scratch` (optional): images the warp keeps between calls (allocating and first touching them
-/// anew costs about as much as the warp itself).
-struct WarpScratch {
-  DepthImage nearest, row_min;
-  std::vector<DepthImage> partial;  ///< the landings of threads other than the first
-};
+/// `scratch` (optional): the images the warp keeps between calls.
 void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
                         float max_gap_m, DepthImage* out, WarpScratch* scratch = nullptr);
 
