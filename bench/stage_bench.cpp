@@ -20,6 +20,7 @@
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
+#include "hivox/track/tracker.h"
 
 namespace hivox {
 namespace {
@@ -161,6 +162,24 @@ void BM_WarpRaycast(benchmark::State& state) {
   state.counters["covered"] = static_cast<double>(covered);
 }
 
+/// Tracking the frame against the model raycast from the previous frame's pose at the pipeline's
+/// resolution (TrackParams::model_subsample), starting from that pose.
+void BM_Track(benchmark::State& state) {
+  Workload& w = workload();
+  const TrackParams tp;
+  RaycastParams rp;
+  rp.truncation_m = w.fusion.truncation_m;
+  Raycaster model(rp);
+  model.raycast(*w.map, w.input.depth_camera.subsampled(tp.model_subsample), w.previous_T_wc);
+  Tracker tracker(tp);
+  TrackResult r;
+  for (auto _ : state)
+    r = tracker.track(*w.input.depth_m, w.input.depth_camera, model.result(), w.previous_T_wc);
+  state.counters["iterations"] = r.iterations;
+  state.counters["inlier_ratio"] = r.inlier_ratio;
+  state.counters["icp_ms"] = r.icp_ms;
+}
+
 void BM_ExtractMesh(benchmark::State& state) {
   Workload& w = workload();
   TriangleMesh mesh;
@@ -174,6 +193,7 @@ BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastHinted)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RaycastPipeline)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_WarpRaycast)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Track)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 }  // namespace
