@@ -197,16 +197,12 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
 #pragma omp simd
       for (int x = 0; x < from_w; ++x) {
         const Vec3f p = T_cw * points[x];
-        // The nearest pixel, floor(coordinate + 1/2): for 0 <= c < 2^23, c + 2^23 - 2^23 is c
-        // rounded to the nearest integer, one less where that rounded up (floorf does not
-        // vectorize). Elsewhere the hit lands nowhere.
+        // The nearest pixel, floor(coordinate + 1/2) (the hit lands nowhere where that is
+        // negative or beyond the image).
         const float inv_z = 1.0f / p.z;
         const float u_half = fx * p.x * inv_z + cx + 0.5f;
         const float v_half = fy * p.y * inv_z + cy + 0.5f;
-        constexpr float kTwo23 = 8388608.0f;
-        const float u_round = (u_half + kTwo23) - kTwo23, v_round = (v_half + kTwo23) - kTwo23;
-        const float uf = u_round > u_half ? u_round - 1.0f : u_round;
-        const float vf = v_round > v_half ? v_round - 1.0f : v_round;
+        const float uf = floor_nonnegative(u_half), vf = floor_nonnegative(v_half);
         const bool lands = (depth[x] > 0.0f) & (p.z > 0.0f) & (u_half >= 0.0f) & (v_half >= 0.0f) &
                            (u_half < static_cast<float>(w)) & (v_half < static_cast<float>(h));
         landing_u[x] = uf;

@@ -127,6 +127,15 @@ HIVOX_HD inline float clampf(float v, float lo, float hi) {
   return v < lo ? lo : (v > hi ? hi : v);
 }
 
+/// floor(x) for 0 <= x < 2^23, branch-free and free of library calls so that loops over it
+/// vectorize (floorf does not without fast-math): x + 2^23 - 2^23 is x rounded to the nearest
+/// integer, one less where that rounded up. Other x give some value without trapping.
+HIVOX_HD inline float floor_nonnegative(float x) {
+  constexpr float kTwo23 = 8388608.0f;
+  const float rounded = (x + kTwo23) - kTwo23;
+  return rounded > x ? rounded - 1.0f : rounded;
+}
+
 /// e^x for finite x <= 0 to a relative error below 3e-6 (0 below -87, where e^x leaves the
 /// normal floats), branch-free and free of library calls so that loops over it vectorize
 /// (std::exp and floorf do not without fast-math): x log2(e) = n + f with n an integer and
