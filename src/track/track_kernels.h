@@ -3,7 +3,9 @@
 // point image, robust weights, point-to-plane residuals and their Jacobians.
 
 #include <cmath>
+#include <numbers>
 
+#include "hivox/core/camera.h"
 #include "hivox/core/hd.h"
 #include "hivox/core/image.h"
 #include "hivox/core/math.h"
@@ -42,9 +44,10 @@ HIVOX_HD inline float bilateral_depth(ImageView<const float> in, int x, int y, i
   return sum / wsum;  // wsum >= 1: the centre pixel counts
 }
 
-/// The zero vector marks "no normal" in normal images.
+/// The zero vector marks "no normal" in normal images. (Without short-circuits: loops over it
+/// vectorize.)
 HIVOX_HD inline bool is_zero(const Vec3f& v) {
-  return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
+  return (v.x == 0.0f) & (v.y == 0.0f) & (v.z == 0.0f);
 }
 
 /// Whether depths a and b (both valid) lie on one surface.
@@ -83,36 +86,127 @@ HIVOX_HD inline Vec3f normal_from_points(ImageView<const Vec3f> p, int x, int y,
 }
 
 /// Weight of a residual `r_sigmas` (in units of its sigma) under `loss` with threshold `k`.
+/// Every loss's weight is computed (each finite) and one kept by multiplying with 0 or 1:
+/// straight-line code, so that loops over pixels vectorize (GCC does not vectorize a choice
+/// between their values made by the loss).
 HIVOX_HD inline float robust_weight(float r_sigmas, RobustLoss loss, float k) {
   const float a = fabsf(r_sigmas);
-  switch (loss) {
-    case RobustLoss::None:
-      return 1.0f;
-    case RobustLoss::Huber:
-      return a <= k ? 1.0f : k / a;
-    case RobustLoss::Tukey: {
-      if (a >= k) return 0.0f;
-      const float t = 1.0f - (a / k) * (a / k);
-      return t * t;
-    }
-  }
-  return 1.0f;
+  const float huber = a <= k ? 1.0f : k / a;
+  const float t = 1.0f - (a / k) * (a / k);
+  const float tukey = a >= k ? 0.0f : t * t;
+  const float is_huber = loss == RobustLoss::Huber ? 1.0f : 0.0f;
+  const float is_tukey = loss == RobustLoss::Tukey ? 1.0f : 0.0f;
+  return is_huber * huber + is_tukey * tukey + (1.0f - is_huber - is_tukey);
 }
+
+/// The derivative of a point-to-plane residual with respect to a small world-frame motion
+/// (t, w) of the camera: [d/dt, d/dw].
+struct PlaneJacobian {
+  Vec3f t, w;
+};
 
 /// Point-to-plane residual of frame point `p_w` against model point `q_w` with normal `n_w`,
 /// and its derivative with respect to a small world-frame motion (t, w) of the camera about its
 /// centre `c_w` (p -> p + w x (p - c) + t): J = [n, (p - c) x n]. Rotating about the camera
 /// keeps the system well conditioned wherever the world origin is.
 HIVOX_HD inline float point_to_plane(const Vec3f& p_w, const Vec3f& q_w, const Vec3f& n_w,
-                                     const Vec3f& c_w, float J[6]) {
-  const Vec3f pxn = cross(p_w - c_w, n_w);
-  J[0] = n_w.x;
-  J[1] = n_w.y;
-  J[2] = n_w.z;
-  J[3] = pxn.x;
-  J[4] = pxn.y;
-  J[5] = pxn.z;
+                                     const Vec3f& c_w, PlaneJacobian* J) {
+  J->t = Vec3f{n_w.x, n_w.y, n_w.z};  // (a copy of the whole vector keeps loops scalar)
+  J->w = cross(p_w - c_w, n_w);
   return dot(n_w, p_w - q_w);
+}
+
+/// What one pass of projective association at a pose needs (ICP), in plain fields: loops over
+/// pixels that read the fields of the camera and pose objects themselves do not vectorize.
+struct IcpPass {
+  Rigid3f T_wc;                          ///< the frame's pose being refined
+  Rigid3f T_model_cw;                    ///< world to the model's camera
+  float fx = 0, fy = 0, cx = 0, cy = 0;  ///< the model's camera
+  int width = 0, height = 0;
+  float max_distance2_m2 = 0;  ///< squared distance beyond which a pair is rejected
+  float cos_max_angle = 0;     ///< normals less aligned than this are rejected
+  float residual_floor2_m2 = 0;
+  float robust_scale = 0;
+  RobustLoss loss = RobustLoss::Huber;
+  SensorNoise noise;
+
+  IcpPass(const Rigid3f& T_wc_, const Rigid3f& T_model_cw_, const PinholeCamera& model,
+          float max_distance_m, const TrackParams& p)
+      : T_wc(T_wc_),
+        T_model_cw(T_model_cw_),
+        fx(model.fx),
+        fy(model.fy),
+        cx(model.cx),
+        cy(model.cy),
+        width(model.width),
+        height(model.height),
+        max_distance2_m2(max_distance_m * max_distance_m),
+        cos_max_angle(std::cos(p.max_normal_angle_deg * std::numbers::pi_v<float> / 180.0f)),
+        residual_floor2_m2(p.residual_floor_m * p.residual_floor_m),
+        robust_scale(p.robust_scale),
+        loss(p.loss),
+        noise(p.noise) {}
+};
+
+/// The model pixel nearest to where world point `p_w` projects in the model's camera, as an
+/// index into its row-major images; false (and index 0, so that reads stay in the image) where
+/// the point lies behind the camera or projects outside the image.
+HIVOX_HD inline bool icp_model_pixel(const IcpPass& c, const Vec3f& p_w, int32_t* index) {
+  const Vec3f p_m = c.T_model_cw * p_w;
+  const bool in_front = p_m.z > 0.0f;
+  const float inv_z = 1.0f / (in_front ? p_m.z : 1.0f);
+  // floor(coordinate + 1/2)
+  const float u_half = (c.fx * p_m.x * inv_z + c.cx) + 0.5f;
+  const float v_half = (c.fy * p_m.y * inv_z + c.cy) + 0.5f;
+  const bool inside = in_front & (u_half >= 0.0f) & (v_half >= 0.0f) &
+                      (u_half < static_cast<float>(c.width)) &
+                      (v_half < static_cast<float>(c.height));
+  const int u = static_cast<int>(floor_nonnegative(inside ? u_half : 0.0f));
+  const int v = static_cast<int>(floor_nonnegative(inside ? v_half : 0.0f));
+  *index = v * c.width + u;
+  return inside;
+}
+
+/// One frame pixel's term of the point-to-plane normal equations (see icp_pair_term).
+struct IcpTerm {
+  bool paired = false;  ///< false: no pair, the other fields mean nothing
+  PlaneJacobian J;
+  float r = 0;            ///< point-to-plane residual (metres)
+  float sqrt_weight = 0;  ///< square root of the pair's weight
+  float distance_m = 0;   ///< the point's distance from the camera centre
+};
+
+/// The term of a frame pixel with point `p_c` (camera frame; `p_w` in the world) and normal
+/// `n_c` (zero: no point), paired with the model's point `q_w` and normal `m_w` (zero: no
+/// surface) at the model pixel its point projects to (`inside`: there is one, see
+/// icp_model_pixel). No pair where the pixel has no normal or no model pixel or surface, or
+/// where the two lie farther apart than the maximum distance or their normals more than the
+/// maximum angle. The weight is the robust loss's over the sensor's noise at the point's depth.
+/// Branch-free, so that loops over a row vectorize: every field is computed, whatever the
+/// verdict.
+HIVOX_HD HIVOX_FORCEINLINE IcpTerm icp_pair_term(const IcpPass& c, const Vec3f& p_c,
+                                                 const Vec3f& n_c, const Vec3f& p_w, bool inside,
+                                                 const Vec3f& q_w, const Vec3f& m_w) {
+  IcpTerm term;
+  const Vec3f diff = p_w - q_w;
+  term.paired = !is_zero(n_c) & inside & !is_zero(m_w) & !(dot(diff, diff) > c.max_distance2_m2) &
+                !(dot(c.T_wc.rotate(n_c), m_w) < c.cos_max_angle);
+  term.r = point_to_plane(p_w, q_w, m_w, c.T_wc.t, &term.J);
+  const float s = c.noise.sigma_m(p_c.z);
+  const float sigma2 = s * s + c.residual_floor2_m2;
+  term.sqrt_weight =
+      std::sqrt(robust_weight(term.r / std::sqrt(sigma2), c.loss, c.robust_scale) / sigma2);
+  term.distance_m = norm(p_w - c.T_wc.t);
+  return term;
+}
+
+/// One frame pixel's term with its model pixel found and read (what one thread does per pixel).
+HIVOX_HD inline IcpTerm icp_term(const IcpPass& c, const Vec3f& p_c, const Vec3f& n_c,
+                                 const Vec3f* model_points_w, const Vec3f* model_normals_w) {
+  const Vec3f p_w = c.T_wc * p_c;
+  int32_t i;
+  const bool inside = icp_model_pixel(c, p_w, &i);
+  return icp_pair_term(c, p_c, n_c, p_w, inside, model_points_w[i], model_normals_w[i]);
 }
 
 }  // namespace hivox::kernels

@@ -112,62 +112,64 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
   result.preprocess_ms = watch.lap_ms();
 
   const Rigid3f T_model_cw = to_rigid3f(model.T_wc.inverse());
-  const float cos_max_angle =
-      std::cos(params_.max_normal_angle_deg * std::numbers::pi_v<float> / 180.0f);
-  const float floor2 = params_.residual_floor_m * params_.residual_floor_m;
 
   // One pass over a pyramid level at pose T: projective association and the normal equations.
   auto accumulate = [&](int level, const Pose& T) {
     const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
     const ModelLevel& M = model_[static_cast<std::size_t>(level)];
-    const Rigid3f T_wc = to_rigid3f(T);
-    const Vec3f c_w = T_wc.t;
-    const float max_dist = params_.max_distance_m * static_cast<float>(1 << level);
+    const kernels::IcpPass pass(to_rigid3f(T), T_model_cw, M.camera,
+                                params_.max_distance_m * static_cast<float>(1 << level), params_);
+    const Vec3f* model_points = M.points_w.data();
+    const Vec3f* model_normals = M.normals_w.data();
     const int w = F.depth_m.width(), h = F.depth_m.height();
     std::vector<Normals> partial(static_cast<std::size_t>(thread_count()));
     parallel_threads([&](int tid, int nthreads) {
       if (tid >= static_cast<int>(partial.size())) return;
       Normals& acc = partial[static_cast<std::size_t>(tid)];
-      // Per row: the inliers' weighted Jacobian rows and residuals are collected first (the
-      // association branches), then summed over the row in floats by loops that vectorize;
-      // rows are summed in doubles.
+      // A copy of the pass's constants: read through the closure, they are loaded again in every
+      // iteration (the stores below might alias them), which keeps the loops from vectorizing.
+      const kernels::IcpPass c = pass;
+      // Per row: the pixels' weighted Jacobian rows and residuals are written first, then summed
+      // over the row in floats; rows are summed in doubles.
       std::vector<float> rows(static_cast<std::size_t>(7 * w));
       float* const Jw = rows.data();  // 6 columns: sqrt(weight) * J
       float* const rw = Jw + 6 * w;   // sqrt(weight) * r
+      // Each pixel's world point, its model pixel and that pixel's point and normal.
+      std::vector<Vec3f> p_w(static_cast<std::size_t>(w)), q_w(p_w.size()), m_w(p_w.size());
+      std::vector<int32_t> model_pixel(p_w.size());
+      std::vector<int32_t> inside(p_w.size());  // (as wide as a float: the loops vectorize)
       for (int y = tid; y < h; y += nthreads) {
         float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
         int n = 0;
+        const Vec3f* points_c = &F.points_c(0, y);
+        const Vec3f* normals_c = &F.normals_c(0, y);
+        // Three loops: the model pixels (without branches: it vectorizes), their reads (the
+        // reads scattered over the model's images do not vectorize here), and every pixel's
+        // terms, zero where it has no pair (vectorizes).
+#pragma omp simd
         for (int x = 0; x < w; ++x) {
-          const Vec3f n_c = F.normals_c(x, y);
-          if (kernels::is_zero(n_c)) continue;
-          const Vec3f p_c = F.points_c(x, y);
-          const Vec3f p_w = T_wc * p_c;
-          const Vec3f p_m = T_model_cw * p_w;
-          if (p_m.z <= 0.0f) continue;
-          const Vec2f uv = M.camera.project(p_m);
-          const float uf = std::floor(uv.x + 0.5f), vf = std::floor(uv.y + 0.5f);
-          if (!(uf >= 0.0f && vf >= 0.0f && uf < static_cast<float>(M.camera.width) &&
-                vf < static_cast<float>(M.camera.height)))
-            continue;
-          const int u = static_cast<int>(uf), v = static_cast<int>(vf);
-          const Vec3f m_w = M.normals_w(u, v);
-          if (kernels::is_zero(m_w)) continue;
-          const Vec3f q_w = M.points_w(u, v);
-          const Vec3f diff = p_w - q_w;
-          if (dot(diff, diff) > max_dist * max_dist) continue;
-          if (dot(T_wc.rotate(n_c), m_w) < cos_max_angle) continue;
-          float J[6];
-          const float r = kernels::point_to_plane(p_w, q_w, m_w, c_w, J);
-          const float s = params_.noise.sigma_m(p_c.z);
-          const float sigma2 = s * s + floor2;
-          const float sqrt_w = std::sqrt(
-              kernels::robust_weight(r / std::sqrt(sigma2), params_.loss, params_.robust_scale) /
-              sigma2);
-          for (int i = 0; i < 6; ++i) Jw[i * w + n] = sqrt_w * J[i];
-          rw[n] = sqrt_w * r;
-          row_r2 += r * r;
-          row_distance += norm(p_w - c_w);
-          ++n;
+          p_w[x] = c.T_wc * points_c[x];
+          inside[x] = kernels::icp_model_pixel(c, p_w[x], &model_pixel[x]);
+        }
+        for (int x = 0; x < w; ++x) {
+          q_w[x] = model_points[model_pixel[x]];
+          m_w[x] = model_normals[model_pixel[x]];
+        }
+#pragma omp simd reduction(+ : n, row_r2, row_distance)
+        for (int x = 0; x < w; ++x) {
+          const kernels::IcpTerm t = kernels::icp_pair_term(c, points_c[x], normals_c[x], p_w[x],
+                                                            inside[x] != 0, q_w[x], m_w[x]);
+          const float sw = t.paired ? t.sqrt_weight : 0.0f;
+          Jw[x] = sw * t.J.t.x;
+          Jw[w + x] = sw * t.J.t.y;
+          Jw[2 * w + x] = sw * t.J.t.z;
+          Jw[3 * w + x] = sw * t.J.w.x;
+          Jw[4 * w + x] = sw * t.J.w.y;
+          Jw[5 * w + x] = sw * t.J.w.z;
+          rw[x] = sw * t.r;
+          row_r2 += t.paired ? t.r * t.r : 0.0f;
+          row_distance += t.paired ? t.distance_m : 0.0f;
+          n += t.paired;
         }
         int k = 0;
         for (int i = 0; i < 6; ++i) {
@@ -176,12 +178,12 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
             const float* Jj = Jw + j * w;
             float a = 0.0f;
 #pragma omp simd reduction(+ : a)
-            for (int m = 0; m < n; ++m) a += Ji[m] * Jj[m];
+            for (int m = 0; m < w; ++m) a += Ji[m] * Jj[m];
             row_A[k++] = a;
           }
           float b = 0.0f;
 #pragma omp simd reduction(+ : b)
-          for (int m = 0; m < n; ++m) b += Ji[m] * rw[m];
+          for (int m = 0; m < w; ++m) b += Ji[m] * rw[m];
           row_b[i] = b;
         }
         k = 0;
