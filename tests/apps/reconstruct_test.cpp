@@ -84,7 +84,9 @@ TEST(Reconstruct, SyntheticSequenceEndToEnd) {
       const std::string png = prefix + view + ".png";
       ASSERT_TRUE(std::filesystem::exists(out / png)) << png;
       const ColorImage img = read_color(out / png);
-      if (prefix != "overview_") EXPECT_EQ(img.width(), 160) << png;
+      if (prefix != "overview_") {
+        EXPECT_EQ(img.width(), 160) << png;
+      }
     }
     EXPECT_FALSE(std::filesystem::exists(out / (std::string("frame000003_") + view + ".png")));
   }
