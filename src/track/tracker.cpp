@@ -159,14 +159,17 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
         for (int x = 0; x < w; ++x) {
           const kernels::IcpTerm t = kernels::icp_pair_term(c, points_c[x], normals_c[x], p_w[x],
                                                             inside[x] != 0, q_w[x], m_w[x]);
-          const float sw = t.paired ? t.sqrt_weight : 0.0f;
-          Jw[x] = sw * t.J.t.x;
-          Jw[w + x] = sw * t.J.t.y;
-          Jw[2 * w + x] = sw * t.J.t.z;
-          Jw[3 * w + x] = sw * t.J.w.x;
-          Jw[4 * w + x] = sw * t.J.w.y;
-          Jw[5 * w + x] = sw * t.J.w.z;
-          rw[x] = sw * t.r;
+          // Zero without a pair (chosen, not multiplied: a pixel without a pair may hold
+          // anything). Written out: a loop or a lambda here keeps the loop over x scalar.
+          const bool in = t.paired;
+          const float sw = t.sqrt_weight;
+          Jw[x] = in ? sw * t.J.t.x : 0.0f;
+          Jw[w + x] = in ? sw * t.J.t.y : 0.0f;
+          Jw[2 * w + x] = in ? sw * t.J.t.z : 0.0f;
+          Jw[3 * w + x] = in ? sw * t.J.w.x : 0.0f;
+          Jw[4 * w + x] = in ? sw * t.J.w.y : 0.0f;
+          Jw[5 * w + x] = in ? sw * t.J.w.z : 0.0f;
+          rw[x] = in ? sw * t.r : 0.0f;
           row_r2 += t.paired ? t.r * t.r : 0.0f;
           row_distance += t.paired ? t.distance_m : 0.0f;
           n += t.paired;
