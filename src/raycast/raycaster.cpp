@@ -319,16 +319,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   tiles.z_min = tile_min_.data();
   tiles.z_max = tile_max_.data();
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
-  const int32_t high_water = map.block_high_water();
-  int64_t projected = 0;
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : projected)
-  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
-    const BlockMeta& m = view.meta[ptr];
-    if (m.level < 0) continue;
-    projected +=
-        kernels::project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
-                                        params_.min_depth_m, params_.max_depth_m, tiles);
-  }
+  const int64_t projected =
+      kernels::fill_range_tiles(map, camera, T_cw, params_.min_depth_m, params_.max_depth_m, tiles);
   // Which super-blocks hold blocks: marches cross the others in one step.
   kernels::CoarseOccupancy occupancy;
   if (params_.coarse_skipping) occupancy = kernels::build_coarse_occupancy(map, &occupancy_);

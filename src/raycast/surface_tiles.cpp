@@ -7,6 +7,21 @@
 
 namespace hivox::kernels {
 
+int64_t fill_range_tiles(const VoxelBlockMap& map, const PinholeCamera& camera, const Rigid3f& T_cw,
+                         float min_depth_m, float max_depth_m, const RangeTiles& tiles) {
+  const MapView view = map.view();
+  const int32_t high_water = map.block_high_water();
+  int64_t projected = 0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : projected)
+  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
+    const BlockMeta& m = view.meta[ptr];
+    if (m.level < 0) continue;
+    projected += project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
+                                        min_depth_m, max_depth_m, tiles);
+  }
+  return projected;
+}
+
 SurfaceTiles build_surface_tiles(const VoxelBlockMap& map, const PinholeCamera& camera,
                                  const Rigid3f& T_cw, const Vec3f& camera_centre_w,
                                  const RangeTiles& tiles, float min_depth_m, float max_depth_m,

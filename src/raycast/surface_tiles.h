@@ -1,7 +1,8 @@
 #pragma once
-// Per range tile, the boxes around the blocks that hold a surface: a marching ray tests its tile's
-// boxes and marches only over the stretch they span (none: no surface on the ray). Written once
-// for the CPU and CUDA drivers (the view and its ray test); filled on the CPU
+// The range tiles' CPU passes over the map's blocks: their depth ranges (fill_range_tiles) and,
+// per tile, the boxes around the blocks that hold a surface: a marching ray tests its tile's
+// boxes and marches only over the stretch they span (none: no surface on the ray). The view and
+// its ray test are written once for the CPU and CUDA drivers; the lists are filled on the CPU
 // (build_surface_tiles).
 
 #include <cstdint>
@@ -76,6 +77,13 @@ struct SurfaceTileStorage {
   std::vector<int32_t> rects;   ///< per block: its tile rectangle (tx0, ty0, tx1, ty1), scratch
   std::vector<int32_t> cursor;  ///< per tile: the next free slot while filling, scratch
 };
+
+/// The range image: every block of `map` projected into the tiles of `tiles` it covers, seen by
+/// `camera` from `T_cw` (the depth range of each tile widened to its blocks' within [min_depth_m,
+/// max_depth_m]; `tiles.z_min` and `z_max` must be set to FLT_MAX and 0 first). Returns the
+/// number of blocks in view.
+int64_t fill_range_tiles(const VoxelBlockMap& map, const PinholeCamera& camera, const Rigid3f& T_cw,
+                         float min_depth_m, float max_depth_m, const RangeTiles& tiles);
 
 /// Lists the boxes (see SurfaceTiles) of every block of `map` with a surface, seen by `camera`
 /// from `T_cw`, in the tiles of `tiles` (whose depth ranges are not touched) their projection

@@ -504,11 +504,7 @@ TEST(SurfaceTiles, HoldEverySurfaceARayMeets) {
   tiles.z_min = z_min.data();
   tiles.z_max = z_max.data();
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
-  const MapView view = s.map->view();
-  for (int32_t ptr = 0; ptr < s.map->block_high_water(); ++ptr)
-    if (view.meta[ptr].level >= 0)
-      kernels::project_block_to_tiles(T_cw, cam, view.meta[ptr].pos, view.level[0].block_size_m,
-                                      rp.min_depth_m, rp.max_depth_m, tiles);
+  kernels::fill_range_tiles(*s.map, cam, T_cw, rp.min_depth_m, rp.max_depth_m, tiles);
   kernels::SurfaceTileStorage storage;
   const Rigid3f T = to_rigid3f(T_wc);
   const kernels::SurfaceTiles surface = kernels::build_surface_tiles(
