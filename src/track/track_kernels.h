@@ -200,13 +200,4 @@ HIVOX_HD HIVOX_FORCEINLINE IcpTerm icp_pair_term(const IcpPass& c, const Vec3f& 
   return term;
 }
 
-/// One frame pixel's term with its model pixel found and read (what one thread does per pixel).
-HIVOX_HD inline IcpTerm icp_term(const IcpPass& c, const Vec3f& p_c, const Vec3f& n_c,
-                                 const Vec3f* model_points_w, const Vec3f* model_normals_w) {
-  const Vec3f p_w = c.T_wc * p_c;
-  int32_t i;
-  const bool inside = icp_model_pixel(c, p_w, &i);
-  return icp_pair_term(c, p_c, n_c, p_w, inside, model_points_w[i], model_normals_w[i]);
-}
-
 }  // namespace hivox::kernels

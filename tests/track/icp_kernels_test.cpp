@@ -14,14 +14,16 @@ namespace {
 using kernels::IcpPass;
 using kernels::IcpTerm;
 
-TEST(RobustWeight, MatchesEachLossDefinition) {
+TEST(RobustWeight, EachLossAtWorkedResiduals) {
   const float k = 2.0f;
-  for (const float r : {-5.0f, -2.5f, -2.0f, -1.0f, -0.1f, 0.0f, 0.3f, 1.9f, 2.0f, 3.0f, 40.0f}) {
-    const float a = std::fabs(r);
-    EXPECT_EQ(kernels::robust_weight(r, RobustLoss::None, k), 1.0f) << r;
-    EXPECT_FLOAT_EQ(kernels::robust_weight(r, RobustLoss::Huber, k), a <= k ? 1.0f : k / a) << r;
-    const float t = 1.0f - (a / k) * (a / k);
-    EXPECT_FLOAT_EQ(kernels::robust_weight(r, RobustLoss::Tukey, k), a >= k ? 0.0f : t * t) << r;
+  // {residual in sigmas, Huber (1 up to k, k / |r| beyond), Tukey ((1 - (r / k)^2)^2 up to k)}
+  const float cases[][3] = {{0.0f, 1.0f, 1.0f},   {1.0f, 1.0f, 0.5625f},    {-1.0f, 1.0f, 0.5625f},
+                            {2.0f, 1.0f, 0.0f},   {4.0f, 0.5f, 0.0f},       {-8.0f, 0.25f, 0.0f},
+                            {40.0f, 0.05f, 0.0f}, {0.5f, 1.0f, 0.87890625f}};
+  for (const auto& c : cases) {
+    EXPECT_EQ(kernels::robust_weight(c[0], RobustLoss::None, k), 1.0f) << c[0];
+    EXPECT_FLOAT_EQ(kernels::robust_weight(c[0], RobustLoss::Huber, k), c[1]) << c[0];
+    EXPECT_FLOAT_EQ(kernels::robust_weight(c[0], RobustLoss::Tukey, k), c[2]) << c[0];
   }
 }
 
@@ -48,8 +50,13 @@ struct Scene {
   IcpPass pass(const Rigid3f& T_wc) const {
     return IcpPass(T_wc, Rigid3f{Mat3f{}, {0, 0, 0}}, camera, 0.05f, params);
   }
+  // The pixel's term as the tracker computes it: its model pixel, then the pair.
   IcpTerm term(const IcpPass& c, const Vec3f& p_c, const Vec3f& n_c) const {
-    return kernels::icp_term(c, p_c, n_c, points.data(), normals.data());
+    const Vec3f p_w = c.T_wc * p_c;
+    int32_t i = -1;
+    const bool inside = kernels::icp_model_pixel(c, p_w, &i);
+    const auto k = static_cast<std::size_t>(i);
+    return kernels::icp_pair_term(c, p_c, n_c, p_w, inside, points[k], normals[k]);
   }
 };
 
