@@ -248,11 +248,18 @@ void run_reconstruct(ReconstructOptions options) {
       const TrackingCounts& tc = rec.tracking_counts();
       fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", tc.good, tc.poor, tc.lost);
     }
-    if (ate)
+    if (ate) {
+      // Centimetres, or millimetres below one (a synthetic or short run's error would read
+      // "0.00 cm").
+      auto length = [](double m) {
+        return m < 0.01 ? fmt::format("{:.2f} mm", 1000.0 * m)
+                        : fmt::format("{:.2f} cm", 100.0 * m);
+      };
       fmt::print(
-          "trajectory error (ATE, {} poses aligned to the ground truth): RMSE {:.2f} cm, "
-          "mean {:.2f} cm, max {:.2f} cm\n",
-          ate->matched, 100.0 * ate->rmse_m, 100.0 * ate->mean_m, 100.0 * ate->max_m);
+          "trajectory error (ATE, {} poses aligned to the ground truth): RMSE {}, mean {}, max "
+          "{}\n",
+          ate->matched, length(ate->rmse_m), length(ate->mean_m), length(ate->max_m));
+    }
     fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
                mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
     fmt::print(
