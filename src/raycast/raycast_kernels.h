@@ -551,17 +551,27 @@ HIVOX_HD inline RayHints ray_hints(float start_m, float fallback_m, const RayMar
   return h;
 }
 
-/// One pixel's ray, searched alone (the CPU driver's rays outside packets; a GPU thread's ray):
-/// the surface near the hint, else near the second hint, else a march over [z_min, z_max]
-/// (march_from_hint). Hits beyond z_max do not count.
-HIVOX_HD inline RayOutcome cast_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                                    const Vec3f& d, const RayHints& hints, float z_min, float z_max,
-                                    const RayMarchConstants& k, RayHit* hit) {
+/// One pixel's ray searched alone near its hints: the surface near the hint, else near the
+/// second hint; Miss when both fail (or there are none), where the caller marches. Hits beyond
+/// z_max do not count.
+HIVOX_HD inline RayOutcome search_at_hints(const MapView& map, BlockLookupCache& cache,
+                                           const Vec3f& o, const Vec3f& d, const RayHints& hints,
+                                           float z_max, const RayMarchConstants& k, RayHit* hit) {
   auto near = [&](float hint) {
     return hint > 0.0f && hit_near_hint(map, cache, o, d, hint, k, hit) && hit->depth_m <= z_max;
   };
   if (near(hints.hint)) return RayOutcome::AtHint;  // usually: the surface is at the depth fused
   if (near(hints.second)) return RayOutcome::AtSecondHint;
+  return RayOutcome::Miss;
+}
+
+/// One pixel's ray, searched alone (a GPU thread's ray): search_at_hints, else a march over
+/// [z_min, z_max] (march_from_hint). Hits beyond z_max do not count.
+HIVOX_HD inline RayOutcome cast_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                    const Vec3f& d, const RayHints& hints, float z_min, float z_max,
+                                    const RayMarchConstants& k, RayHit* hit) {
+  const RayOutcome at_hints = search_at_hints(map, cache, o, d, hints, z_max, k, hit);
+  if (at_hints != RayOutcome::Miss) return at_hints;
   if (z_max > 0.0f && march_from_hint(map, cache, o, d, hints.hint, z_min, z_max, k, hit))
     return RayOutcome::Marched;
   return RayOutcome::Miss;

@@ -379,9 +379,10 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
                                         tile_min_[t], tile_max_[t]);
         ray->at_second = false;
       };
-      // The march of a ray whose hints failed or that has none, over the stretch of it that
-      // crosses the tile's surface boxes (a miss when it crosses none).
+      // The march of a ray whose hints failed or that has none (as cast_ray's), over the stretch
+      // of it that crosses the tile's surface boxes (a miss when it crosses none).
       auto march = [&](const Vec3f& dir, float hint, kernels::RayHit* hit) {
+        if (!(tile_max_[t] > 0.0f)) return kernels::RayOutcome::Miss;  // no block in range
         kernels::RayStretch stretch;
         if (!surface.empty() &&
             !surface.ray_stretch(t, kernels::inverse_direction(dir), tile_min_[t], tile_max_[t],
@@ -437,10 +438,9 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
             continue;
           }
           kernels::RayHit hit;
-          const kernels::RayOutcome outcome =
-              ray.hints.hint > 0.0f ? kernels::cast_ray(view, cache, T.t, ray.dir, ray.hints,
-                                                        tile_min_[t], tile_max_[t], k, &hit)
-                                    : march(ray.dir, 0.0f, &hit);
+          kernels::RayOutcome outcome =
+              kernels::search_at_hints(view, cache, T.t, ray.dir, ray.hints, tile_max_[t], k, &hit);
+          if (outcome == kernels::RayOutcome::Miss) outcome = march(ray.dir, ray.hints.hint, &hit);
           write_pixel(x, y, outcome, ray.hints, hit);
         }
       if (packed > 0) flush_packet();

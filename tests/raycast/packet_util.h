@@ -77,31 +77,35 @@ inline void expect_packets_match(const VoxelBlockMap& map, RaycastParams rp,
 }
 
 /// Raycasts `map` from `T_wc` (with `hint` and `fallback`, both optional) with and without the
-/// surface tiles (RaycastParams::surface_tiles): they only spare marches over space where no
-/// surface can be, so every pixel must come out bit for bit the same.
+/// surface tiles (RaycastParams::surface_tiles), in packets and ray by ray: they only spare
+/// marches over space where no surface can be, so every pixel must come out bit for bit the same.
 inline void expect_surface_tiles_change_nothing(const VoxelBlockMap& map, RaycastParams rp,
                                                 const PinholeCamera& cam, const Pose& T_wc,
                                                 int min_hits, const DepthImage* hint = nullptr,
                                                 const DepthImage* fallback = nullptr) {
-  rp.surface_tiles = SurfaceTileUse::Always;
-  Raycaster with(rp);
-  rp.surface_tiles = SurfaceTileUse::Never;
-  Raycaster without(rp);
-  RaycastStats sa, sb;
-  const RaycastResult& a = with.raycast(map, cam, T_wc, &sa, hint, fallback);
-  const RaycastResult& b = without.raycast(map, cam, T_wc, &sb, hint, fallback);
-  int hits = 0, differ = 0;
-  for (int y = 0; y < cam.height; ++y)
-    for (int x = 0; x < cam.width; ++x) {
-      hits += a.hit(x, y);
-      const bool same = a.depth_m(x, y) == b.depth_m(x, y) && a.levels(x, y) == b.levels(x, y) &&
-                        a.normals_w(x, y) == b.normals_w(x, y) &&
-                        a.points_w(x, y) == b.points_w(x, y);
-      differ += !same;
-    }
-  EXPECT_GT(hits, min_hits);
-  EXPECT_EQ(differ, 0) << "pixels that differ with and without the surface tiles";
-  EXPECT_EQ(sa.found_at_hint, sb.found_at_hint);
+  for (const bool packets : {true, false}) {
+    rp.ray_packets = packets;
+    rp.surface_tiles = SurfaceTileUse::Always;
+    Raycaster with(rp);
+    rp.surface_tiles = SurfaceTileUse::Never;
+    Raycaster without(rp);
+    RaycastStats sa, sb;
+    const RaycastResult& a = with.raycast(map, cam, T_wc, &sa, hint, fallback);
+    const RaycastResult& b = without.raycast(map, cam, T_wc, &sb, hint, fallback);
+    int hits = 0, differ = 0;
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) {
+        hits += a.hit(x, y);
+        const bool same = a.depth_m(x, y) == b.depth_m(x, y) && a.levels(x, y) == b.levels(x, y) &&
+                          a.normals_w(x, y) == b.normals_w(x, y) &&
+                          a.points_w(x, y) == b.points_w(x, y);
+        differ += !same;
+      }
+    EXPECT_GT(hits, min_hits) << "packets " << packets;
+    EXPECT_EQ(differ, 0) << "pixels that differ with and without the surface tiles, packets "
+                         << packets;
+    EXPECT_EQ(sa.found_at_hint, sb.found_at_hint) << "packets " << packets;
+  }
 }
 
 }  // namespace hivox::test
