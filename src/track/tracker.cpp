@@ -170,9 +170,9 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
           Jw[4 * w + x] = in ? sw * t.J.w.y : 0.0f;
           Jw[5 * w + x] = in ? sw * t.J.w.z : 0.0f;
           rw[x] = in ? sw * t.r : 0.0f;
-          row_r2 += t.paired ? t.r * t.r : 0.0f;
-          row_distance += t.paired ? t.distance_m : 0.0f;
-          n += t.paired;
+          row_r2 += in ? t.r * t.r : 0.0f;
+          row_distance += in ? t.distance_m : 0.0f;
+          n += in;
         }
         int k = 0;
         for (int i = 0; i < 6; ++i) {

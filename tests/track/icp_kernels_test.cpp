@@ -117,7 +117,7 @@ TEST(IcpTerm, NearestModelPixelRoundsHalfUp) {
   const Scene s;
   const IcpPass c = s.pass(translation({0.0f, 0.0f, 0.0f}));
   int32_t index = -1;
-  // Column 4.49 -> 4, 4.5 -> 5; the image's last half pixel still lands in it, beyond does not.
+  // Column 4.49 -> 4, 4.51 -> 5; the image's last half pixel still lands in it, beyond does not.
   EXPECT_TRUE(kernels::icp_model_pixel(c, s.camera.unproject(4.49f, 3.0f, 1.0f), &index));
   EXPECT_EQ(index, 3 * s.camera.width + 4);
   EXPECT_TRUE(kernels::icp_model_pixel(c, s.camera.unproject(4.51f, 3.0f, 1.0f), &index));
