@@ -310,12 +310,12 @@ HIVOX_HD inline float depth_bilinear(const PinholeCamera& cam, const float* dept
 /// `integrate_block` for one way of sampling the depth image. The voxels are taken a z-slice
 /// (64 voxels, contiguous in memory) at a time, so that the loops fill the widest vectors.
 template <bool kBilinearDepth>
-HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const Vec3i& pos,
+HIVOX_HD inline void integrate_block_slices(const MutableMapView& map, int level, const Vec3i& pos,
                                             int32_t ptr, const DepthFrameView& depth,
                                             const ColorFrameView& color,
                                             const IntegrationConstants& k) {
   constexpr int kSlice = kBlockSide * kBlockSide;
-  const float s = map.level[level].voxel_size_m;
+  const float s = map.read.level[level].voxel_size_m;
   const Vec3f origin_w = to_float(pos) * (static_cast<float>(kBlockSide) * s);
   const Vec3f origin_c = k.T_cw * origin_w;
   const Vec3f step_x = k.T_cw.R.col(0) * s;
@@ -434,9 +434,9 @@ HIVOX_HD inline void integrate_block_slices(const MapView& map, int level, const
 /// voxel size: project the voxel into the depth image; where a valid depth d (nearest pixel, or
 /// bilinear when `k.bilinear_depth`) lies at or beyond z - mu, fuse the truncated distance
 /// eta = d - z.
-HIVOX_HD inline void integrate_block(const MapView& map, int level, const Vec3i& pos, int32_t ptr,
-                                     const DepthFrameView& depth, const ColorFrameView& color,
-                                     const IntegrationConstants& k) {
+HIVOX_HD inline void integrate_block(const MutableMapView& map, int level, const Vec3i& pos,
+                                     int32_t ptr, const DepthFrameView& depth,
+                                     const ColorFrameView& color, const IntegrationConstants& k) {
   if (k.bilinear_depth)
     integrate_block_slices<true>(map, level, pos, ptr, depth, color, k);
   else

@@ -8,6 +8,7 @@
 #include "hivox/core/dataset.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
+#include "map/map_access.h"
 
 namespace hivox {
 
@@ -212,7 +213,7 @@ IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& pa
 
 void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
   validate_input(in);
-  const MapView view = map.view();
+  const MutableMapView view = MapAccess::storage(map);
   const IntegrationFrame f =
       integration_frame(in, params_, view.color != nullptr, &scratch_->packed_color);
   const std::vector<BlockRef>& blocks = visible_;

@@ -31,8 +31,9 @@ HIVOX_HD inline void free_list_push(const FreeListView& list, int32_t item) {
 /// Reuses an Empty slot of the chain when there is one (compare-and-swap on `ptr`), otherwise
 /// appends an excess entry at the tail (compare-and-swap on `next`). Returns the entry index or
 /// kNoEntry when the excess list is exhausted.
-HIVOX_HD inline int32_t reserve_entry(const LevelView& lv, const Vec3i& pos) {
-  int32_t i = static_cast<int32_t>(block_hash(pos, lv.bucket_mask));
+HIVOX_HD inline int32_t reserve_entry(const MutableMapView& map, int level, const Vec3i& pos) {
+  const MutableLevelView& lv = map.level[level];
+  int32_t i = static_cast<int32_t>(block_hash(pos, map.read.level[level].bucket_mask));
   int32_t spare = kNoEntry;  // an excess entry claimed for appending, not yet linked
   for (;;) {
     HashEntry& e = lv.entries[i];
@@ -60,7 +61,7 @@ HIVOX_HD inline int32_t reserve_entry(const LevelView& lv, const Vec3i& pos) {
 }
 
 /// Resets a block's voxels to "unobserved".
-HIVOX_HD inline void clear_block(const MapView& map, int32_t block) {
+HIVOX_HD inline void clear_block(const MutableMapView& map, int32_t block) {
   TsdfVoxel* v = map.tsdf + static_cast<int64_t>(block) * kBlockVoxels;
   for (int i = 0; i < kBlockVoxels; ++i) v[i] = TsdfVoxel{};
   if (map.color != nullptr) {
@@ -69,15 +70,29 @@ HIVOX_HD inline void clear_block(const MapView& map, int32_t block) {
   }
 }
 
+/// Takes a free pool block the caller has made sure is there (the hierarchy's edits count their
+/// room first), keeping the high-water mark.
+HIVOX_HD inline int32_t take_block(const MutableMapView& map) {
+  const int32_t b = free_list_pop(map.blocks);
+  atomic_max(map.block_high_water, b + 1);
+  return b;
+}
+
+/// Returns pool block `block` to the free list, its metadata cleared (level -1 = free).
+HIVOX_HD inline void return_block(const MutableMapView& map, int32_t block) {
+  map.meta[block] = BlockMeta{};
+  free_list_push(map.blocks, block);
+}
+
 enum class AllocResult { Allocated, HashFull, PoolFull };
 
 /// Inserts block `pos` at `level` with a fresh (cleared) voxel block. On failure nothing is
 /// left behind: a reserved slot is released to Empty (a linked excess entry stays in its chain
 /// as a reusable empty slot). `entry_out` / `block_out` receive the indices on success.
-HIVOX_HD inline AllocResult allocate_block(const MapView& map, int level, const Vec3i& pos,
+HIVOX_HD inline AllocResult allocate_block(const MutableMapView& map, int level, const Vec3i& pos,
                                            int32_t* entry_out, int32_t* block_out) {
-  const LevelView& lv = map.level[level];
-  const int32_t entry = reserve_entry(lv, pos);
+  const MutableLevelView& lv = map.level[level];
+  const int32_t entry = reserve_entry(map, level, pos);
   if (entry == kNoEntry) return AllocResult::HashFull;
   const int32_t block = free_list_pop(map.blocks);
   if (block < 0) {

@@ -80,27 +80,33 @@ VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
     const LazyBuffer color = reserve_lazily(voxels * sizeof(ColorVoxel), "colour voxels");
     color_ = {static_cast<ColorVoxel*>(color.data), color.bytes};
   }
-  view_.levels = params_.levels;
-  view_.tsdf = tsdf_.data;
-  view_.color = color_.data;
-  view_.block_capacity = static_cast<int32_t>(params_.max_blocks);
-  view_.level_block_count = counters_.data() + kLevelCountBase;
+  MapView& read = storage_.read;
+  read.levels = params_.levels;
+  storage_.tsdf = tsdf_.data;
+  storage_.color = color_.data;
+  read.tsdf = storage_.tsdf;
+  read.color = storage_.color;
+  read.block_capacity = static_cast<int32_t>(params_.max_blocks);
+  storage_.level_block_count = counters_.data() + kLevelCountBase;
   block_free_.resize(static_cast<std::size_t>(params_.max_blocks));
   meta_.resize(static_cast<std::size_t>(params_.max_blocks));
-  view_.meta = meta_.data();
-  view_.block_high_water = counters_.data() + kHighWaterCounter;
-  view_.blocks = {block_free_.data(), counters_.data() + kBlockFreeCounter,
-                  static_cast<int32_t>(params_.max_blocks)};
+  storage_.meta = meta_.data();
+  read.meta = storage_.meta;
+  storage_.block_high_water = counters_.data() + kHighWaterCounter;
+  storage_.blocks = {block_free_.data(), counters_.data() + kBlockFreeCounter,
+                     static_cast<int32_t>(params_.max_blocks)};
   for (int l = 0; l < params_.levels; ++l) {
     const int64_t total = params_.buckets_per_level + params_.excess_per_level;
     entries_[l].resize(static_cast<std::size_t>(total));
     excess_free_[l].resize(static_cast<std::size_t>(params_.excess_per_level));
-    LevelView& lv = view_.level[l];
-    lv.entries = entries_[l].data();
+    MutableLevelView& edit = storage_.level[l];
+    edit.entries = entries_[l].data();
+    edit.excess = {excess_free_[l].data(), counters_.data() + l,
+                   static_cast<int32_t>(params_.excess_per_level)};
+    LevelView& lv = read.level[l];
+    lv.entries = edit.entries;
     lv.bucket_mask = static_cast<uint32_t>(params_.buckets_per_level - 1);
     lv.entry_count = static_cast<int32_t>(total);
-    lv.excess = {excess_free_[l].data(), counters_.data() + l,
-                 static_cast<int32_t>(params_.excess_per_level)};
     lv.voxel_size_m = params_.voxel_size_at(l);
     lv.block_size_m = params_.block_size_at(l);
     lv.inv_voxel_size = 1.0f / lv.voxel_size_m;
@@ -138,7 +144,7 @@ InsertStats VoxelBlockMap::insert_blocks(std::span<const BlockKey> keys,
   const int64_t n = static_cast<int64_t>(keys.size());
   std::vector<BlockRef> refs(keys.size());
   std::vector<uint8_t> outcome(keys.size());
-  const MapView map = view_;
+  const MutableMapView map = storage_;
   parallel_for(n, [&](int64_t i) {
     const BlockKey& k = keys[i];
     int32_t entry = kNoEntry, block = kPtrEmpty;
@@ -179,9 +185,10 @@ InsertStats VoxelBlockMap::insert_blocks(std::span<const BlockKey> keys,
 
 std::optional<BlockRef> VoxelBlockMap::find(int level, const Vec3i& pos) const {
   if (level < 0 || level >= params_.levels) return std::nullopt;
-  const int32_t e = find_entry(view_.level[level], pos);
+  const LevelView& lv = storage_.read.level[level];
+  const int32_t e = find_entry(lv, pos);
   if (e == kNoEntry) return std::nullopt;
-  return BlockRef{pos, level, e, view_.level[level].entries[e].ptr};
+  return BlockRef{pos, level, e, lv.entries[e].ptr};
 }
 
 std::vector<BlockRef> VoxelBlockMap::allocated_blocks() const {
@@ -202,16 +209,9 @@ std::vector<int64_t> VoxelBlockMap::split_entries_per_level() const {
   return out;
 }
 
-void VoxelBlockMap::refresh_block_surface(int32_t ptr) {
-  if (ptr < 0 || ptr >= block_high_water())
-    fail(ErrorCode::InvalidArgument, "refresh_block_surface: pool block {} is not in [0, {})", ptr,
-         block_high_water());
-  meta_[static_cast<std::size_t>(ptr)].surface = block_surface(block_tsdf(ptr));
-}
-
 std::optional<TsdfVoxel> VoxelBlockMap::voxel(int level, const Vec3i& v) const {
   if (level < 0 || level >= params_.levels) return std::nullopt;
-  const int32_t ptr = find_block_ptr(view_.level[level], block_of_voxel(v));
+  const int32_t ptr = find_block_ptr(storage_.read.level[level], block_of_voxel(v));
   if (ptr < 0) return std::nullopt;
   return block_tsdf(ptr)[local_voxel_index(v)];
 }

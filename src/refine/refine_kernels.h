@@ -1,7 +1,7 @@
 #pragma once
-// Complexity criteria and the data side of split and merge, written once for CPU and CUDA.
+// The complexity criteria that decide where blocks split and merge, written once for CPU and
+// CUDA (the edits themselves are the map's: src/map/hierarchy_kernels.h).
 
-#include "hivox/core/atomic.h"
 #include "hivox/core/hd.h"
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
@@ -90,119 +90,6 @@ HIVOX_HD inline float block_det_cov(const TsdfVoxel* v, int min_weight) {
   const float xz = s2[2] * k - m[0] * m[2], yy = s2[3] * k - m[1] * m[1];
   const float yz = s2[4] * k - m[1] * m[2], zz = s2[5] * k - m[2] * m[2];
   return xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
-}
-
-// ---- split: children from the parent ---------------------------------------------------------
-
-/// Fills child `child` (offset (child & 1, (child >> 1) & 1, child >> 2)) of a splitting parent
-/// by trilinear interpolation of the parent's voxels. `parent_blocks[d]` holds the parent's block
-/// (d = 0) and its +x/+y/+z neighbours at the parent's level (d = dx | dy << 1 | dz << 2;
-/// kPtrEmpty when absent): the last half voxel of the parent interpolates towards the neighbour,
-/// or takes the parent's border voxel when there is none. Unobserved voxels do not enter the
-/// average (their default value is not a measurement). Weights are interpolated and scaled by
-/// `weight_scale`. Returns the child's surface summary.
-HIVOX_HD inline BlockSurface fill_split_child(const MapView& map, const int32_t parent_blocks[8],
-                                              int child, int32_t child_ptr, float weight_scale) {
-  const int ox = child & 1, oy = (child >> 1) & 1, oz = child >> 2;
-  TsdfVoxel* out = map.tsdf + static_cast<int64_t>(child_ptr) * kBlockVoxels;
-  ColorVoxel* out_c =
-      map.color ? map.color + static_cast<int64_t>(child_ptr) * kBlockVoxels : nullptr;
-  for (int i = 0; i < kBlockVoxels; ++i) {
-    const Vec3i j = voxel_coords(i);
-    // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
-    const int qx = 4 * ox + (j.x >> 1), qy = 4 * oy + (j.y >> 1), qz = 4 * oz + (j.z >> 1);
-    const int hx = j.x & 1, hy = j.y & 1, hz = j.z & 1;  // 1: halfway to the next parent voxel
-    float f_sum = 0.0f, f_w = 0.0f, w_sum = 0.0f;
-    float r = 0.0f, g = 0.0f, b = 0.0f, c_w = 0.0f, cw_sum = 0.0f;
-    for (int c = 0; c < 8; ++c) {
-      const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
-      if ((cx > hx) | (cy > hy) | (cz > hz)) continue;  // corner not involved
-      const float a = (hx ? 0.5f : 1.0f) * (hy ? 0.5f : 1.0f) * (hz ? 0.5f : 1.0f);
-      int px = qx + cx, py = qy + cy, pz = qz + cz;
-      const int d = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
-      int32_t ptr = parent_blocks[d];
-      if (ptr < 0) {  // no neighbour at this level: take the parent's border voxel
-        ptr = parent_blocks[0];
-        px = px > 7 ? 7 : px;
-        py = py > 7 ? 7 : py;
-        pz = pz > 7 ? 7 : pz;
-      }
-      const int vi = voxel_index(px & 7, py & 7, pz & 7);
-      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-      w_sum += a * static_cast<float>(vox.weight);
-      if (vox.weight > 0) {
-        f_sum += a * tsdf_to_float(vox.tsdf);
-        f_w += a;
-      }
-      if (out_c != nullptr) {
-        const ColorVoxel col = map.color[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-        cw_sum += a * static_cast<float>(col.weight);
-        if (col.weight > 0) {
-          r += a * col.r;
-          g += a * col.g;
-          b += a * col.b;
-          c_w += a;
-        }
-      }
-    }
-    TsdfVoxel v;
-    if (f_w > 0.0f) {
-      v.tsdf = tsdf_from_float(f_sum / f_w);
-      const float w = w_sum * weight_scale + 0.5f;
-      v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
-    }
-    out[i] = v;
-    if (out_c != nullptr) {
-      ColorVoxel cv;
-      if (c_w > 0.0f) {
-        const float inv = 1.0f / c_w;
-        cv.r = static_cast<uint8_t>(r * inv + 0.5f);
-        cv.g = static_cast<uint8_t>(g * inv + 0.5f);
-        cv.b = static_cast<uint8_t>(b * inv + 0.5f);
-        const float w = cw_sum * weight_scale + 0.5f;
-        cv.weight = static_cast<uint8_t>(w < 1.0f ? 1.0f : (w > 255.0f ? 255.0f : w));
-      }
-      out_c[i] = cv;
-    }
-  }
-  return block_surface(out);
-}
-
-// ---- merge: the parent from its children -----------------------------------------------------
-
-/// Fills a merged parent block by subsampling its 8 children (`child_ptrs[c]`, c = cx | cy << 1 |
-/// cz << 2): parent voxel i takes child voxel 2 (i mod 4) of child i / 4 along each axis, the
-/// sample at the same position. A split followed by a merge gives back the parent exactly.
-/// Returns the parent's surface summary.
-HIVOX_HD inline BlockSurface fill_merged_parent(const MapView& map, const int32_t child_ptrs[8],
-                                                int32_t parent_ptr) {
-  TsdfVoxel* out = map.tsdf + static_cast<int64_t>(parent_ptr) * kBlockVoxels;
-  ColorVoxel* out_c =
-      map.color ? map.color + static_cast<int64_t>(parent_ptr) * kBlockVoxels : nullptr;
-  for (int i = 0; i < kBlockVoxels; ++i) {
-    const Vec3i p = voxel_coords(i);
-    const int child = (p.x >> 2) | ((p.y >> 2) << 1) | ((p.z >> 2) << 2);
-    const int src = voxel_index(2 * (p.x & 3), 2 * (p.y & 3), 2 * (p.z & 3));
-    const int64_t at = static_cast<int64_t>(child_ptrs[child]) * kBlockVoxels + src;
-    out[i] = map.tsdf[at];
-    if (out_c != nullptr) out_c[i] = map.color[at];
-  }
-  return block_surface(out);
-}
-
-/// Removes entry `e` (already Empty) from its chain when it is the chain's tail and lies in the
-/// excess area, so that chains shrink only at their end; returns true when unlinked (the caller
-/// returns it to the level's excess free list). Safe against other threads doing the same.
-HIVOX_HD inline bool unlink_tail_entry(const LevelView& lv, int32_t e, const Vec3i& pos) {
-  if (e <= static_cast<int32_t>(lv.bucket_mask) || atomic_load(&lv.entries[e].next) != kNoEntry)
-    return false;
-  int32_t i = static_cast<int32_t>(block_hash(pos, lv.bucket_mask));
-  while (i != kNoEntry) {
-    const int32_t next = atomic_load(&lv.entries[i].next);
-    if (next == e) return atomic_cas(&lv.entries[i].next, e, kNoEntry) == e;
-    i = next;
-  }
-  return false;
 }
 
 }  // namespace hivox::kernels

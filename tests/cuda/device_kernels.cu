@@ -9,6 +9,7 @@
 #include <string>
 
 #include "fusion/fusion_kernels.h"
+#include "map/map_access.h"
 #include "raycast/coarse_occupancy.h"
 #include "raycast/raycast_kernels.h"
 #include "refine/refine_kernels.h"
@@ -57,7 +58,7 @@ double timed(Launch&& launch) {
   return ms;
 }
 
-__global__ void integrate_blocks(MapView map, const BlockRef* blocks, int n,
+__global__ void integrate_blocks(MutableMapView map, const BlockRef* blocks, int n,
                                  kernels::DepthFrameView depth, kernels::ColorFrameView color,
                                  kernels::IntegrationConstants k) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
@@ -123,8 +124,9 @@ std::string cuda_device_name() {
   return prop.name;
 }
 
-DeviceMap::DeviceMap(const MapView& host, int32_t high_water)
-    : view_(host), high_water_(high_water) {
+DeviceMap::DeviceMap(const VoxelBlockMap& map)
+    : storage_(MapAccess::storage(map)), high_water_(map.block_high_water()) {
+  const MutableMapView host = storage_;
   auto upload = [&](const auto* host, std::size_t n) {
     using T = std::remove_const_t<std::remove_pointer_t<decltype(host)>>;
     T* device = nullptr;
@@ -133,19 +135,23 @@ DeviceMap::DeviceMap(const MapView& host, int32_t high_water)
     if (n > 0) check(cudaMemcpy(device, host, n * sizeof(T), cudaMemcpyHostToDevice), "upload");
     return device;
   };
-  for (int l = 0; l < host.levels; ++l) {
-    view_.level[l].entries =
-        upload(host.level[l].entries, static_cast<std::size_t>(host.level[l].entry_count));
-    view_.level[l].excess = {};  // nothing is allocated on the device
+  for (int l = 0; l < host.read.levels; ++l) {
+    storage_.level[l].entries =
+        upload(host.level[l].entries, static_cast<std::size_t>(host.read.level[l].entry_count));
+    storage_.level[l].excess = {};  // nothing is allocated on the device
+    storage_.read.level[l].entries = storage_.level[l].entries;
   }
   const std::size_t voxels = static_cast<std::size_t>(high_water_) * kBlockVoxels;
-  view_.tsdf = upload(host.tsdf, voxels);
-  view_.color = host.color != nullptr ? upload(host.color, voxels) : nullptr;
-  view_.meta = upload(host.meta, static_cast<std::size_t>(high_water_));
-  view_.blocks = {};
-  view_.block_capacity = high_water_;
-  view_.level_block_count = upload(host.level_block_count, kMaxLevels);
-  view_.block_high_water = upload(host.block_high_water, 1);
+  storage_.tsdf = upload(host.tsdf, voxels);
+  storage_.color = host.color != nullptr ? upload(host.color, voxels) : nullptr;
+  storage_.meta = upload(host.meta, static_cast<std::size_t>(high_water_));
+  storage_.blocks = {};
+  storage_.level_block_count = upload(host.level_block_count, kMaxLevels);
+  storage_.block_high_water = upload(host.block_high_water, 1);
+  storage_.read.tsdf = storage_.tsdf;
+  storage_.read.color = storage_.color;
+  storage_.read.meta = storage_.meta;
+  storage_.read.block_capacity = high_water_;
 }
 
 DeviceMap::~DeviceMap() {
@@ -156,17 +162,17 @@ void DeviceMap::download(std::vector<TsdfVoxel>* tsdf, std::vector<ColorVoxel>* 
                          std::vector<BlockMeta>* meta) const {
   const std::size_t voxels = static_cast<std::size_t>(high_water_) * kBlockVoxels;
   tsdf->resize(voxels);
-  check(cudaMemcpy(tsdf->data(), view_.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyDeviceToHost),
+  check(cudaMemcpy(tsdf->data(), storage_.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyDeviceToHost),
         "download");
   color->clear();
-  if (view_.color != nullptr) {
+  if (storage_.color != nullptr) {
     color->resize(voxels);
-    check(
-        cudaMemcpy(color->data(), view_.color, voxels * sizeof(ColorVoxel), cudaMemcpyDeviceToHost),
-        "download");
+    check(cudaMemcpy(color->data(), storage_.color, voxels * sizeof(ColorVoxel),
+                     cudaMemcpyDeviceToHost),
+          "download");
   }
   meta->resize(static_cast<std::size_t>(high_water_));
-  check(cudaMemcpy(meta->data(), view_.meta, meta->size() * sizeof(BlockMeta),
+  check(cudaMemcpy(meta->data(), storage_.meta, meta->size() * sizeof(BlockMeta),
                    cudaMemcpyDeviceToHost),
         "download");
 }
@@ -189,7 +195,7 @@ double integrate_on_device(DeviceMap& map, const std::vector<BlockRef>& blocks,
   const int n = static_cast<int>(blocks.size());
   constexpr int kThreads = 64;
   return timed([&] {
-    integrate_blocks<<<(n + kThreads - 1) / kThreads, kThreads>>>(map.view(), refs.ptr, n,
+    integrate_blocks<<<(n + kThreads - 1) / kThreads, kThreads>>>(map.storage(), refs.ptr, n,
                                                                   depth_view, color_view, k);
   });
 }

@@ -26,13 +26,14 @@ std::string cuda_device_name();
 /// their metadata. The copy can be read and its voxels updated, not allocated into.
 class DeviceMap {
  public:
-  /// Copies the map `host` views, whose blocks lie below `high_water`.
-  DeviceMap(const MapView& host, int32_t high_water);
+  /// Copies `host`'s tables and its blocks below its high-water mark.
+  explicit DeviceMap(const VoxelBlockMap& host);
   ~DeviceMap();
   DeviceMap(const DeviceMap&) = delete;
   DeviceMap& operator=(const DeviceMap&) = delete;
 
-  const MapView& view() const { return view_; }  ///< device pointers
+  const MapView& view() const { return storage_.read; }  ///< device pointers
+  const MutableMapView& storage() const { return storage_; }
   int32_t high_water() const { return high_water_; }
   /// The device's voxels (and colours, when the map stores them) and block metadata, blocks
   /// [0, high_water()).
@@ -40,7 +41,7 @@ class DeviceMap {
                 std::vector<BlockMeta>* meta) const;
 
  private:
-  MapView view_;
+  MutableMapView storage_;
   int32_t high_water_ = 0;
   std::vector<void*> buffers_;
 };

@@ -69,7 +69,7 @@ void compare_on_device(const Workload& w) {
   // Integration: the device works on a copy of the map taken after allocation.
   integrator.allocate(map, in);
   const std::vector<BlockRef> blocks = integrator.visible_blocks();
-  DeviceMap device_map(map.view(), map.block_high_water());
+  DeviceMap device_map(map);
   integrator.integrate(map, in);
   std::vector<uint32_t> packed;
   const IntegrationFrame f = integration_frame(in, fp, map.view().color != nullptr, &packed);
@@ -119,7 +119,7 @@ void compare_on_device(const Workload& w) {
   EXPECT_LE(surface_differ, static_cast<int64_t>(blocks.size() / 1000));
 
   // The refinement criteria of every block of the fused map.
-  const DeviceMap fused(map.view(), map.block_high_water());
+  const DeviceMap fused(map);
   {
     std::vector<int32_t> ptrs;
     for (int32_t ptr = 0; ptr < map.block_high_water(); ++ptr)

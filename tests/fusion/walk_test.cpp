@@ -13,7 +13,7 @@
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/map/voxel_block_map.h"
-#include "refine/split_util.h"
+#include "map/split_util.h"
 
 namespace hivox {
 namespace {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "hivox/map/voxel_block_map.h"
+#include "map/map_access.h"
 
 namespace hivox::test {
 
@@ -39,6 +40,7 @@ inline BlockSurface surface_from_voxels(const TsdfVoxel* voxels) {
 /// per-level counters match the tables.
 inline void expect_map_consistent(const VoxelBlockMap& map) {
   const MapView v = map.view();
+  const MutableMapView storage = MapAccess::storage(map);
   std::vector<int> owner(static_cast<std::size_t>(v.block_capacity), 0);
   for (int l = 0; l < v.levels; ++l) {
     const LevelView& lv = v.level[l];
@@ -75,8 +77,9 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
     EXPECT_EQ(allocated, map.blocks_per_level()[l]) << "level " << l << " counter";
     // Excess entries not linked from any chain must be on the free list.
     std::vector<uint8_t> free_excess(static_cast<std::size_t>(lv.entry_count), 0);
-    for (int32_t k = 0; k < *lv.excess.count; ++k) {
-      const int32_t e = lv.excess.items[k];
+    const FreeListView& excess = storage.level[l].excess;
+    for (int32_t k = 0; k < *excess.count; ++k) {
+      const int32_t e = excess.items[k];
       ASSERT_GE(e, buckets);
       ASSERT_FALSE(free_excess[e]) << "excess entry " << e << " free twice";
       free_excess[e] = 1;
@@ -85,8 +88,8 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
     for (int32_t e = buckets; e < lv.entry_count; ++e)
       EXPECT_TRUE(seen[e] || free_excess[e]) << "excess entry " << e << " leaked";
   }
-  for (int32_t k = 0; k < *v.blocks.count; ++k) {
-    const int32_t b = v.blocks.items[k];
+  for (int32_t k = 0; k < *storage.blocks.count; ++k) {
+    const int32_t b = storage.blocks.items[k];
     ASSERT_GE(b, 0);
     ASSERT_LT(b, v.block_capacity);
     ++owner[b];

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "hivox/map/voxel_block_map.h"
+#include "map/map_access.h"
 #include "map/sample_kernels.h"
 
 namespace hivox {
@@ -242,17 +243,18 @@ std::unique_ptr<VoxelBlockMap> lattice_map(const std::vector<Vec3i>& coarse,
   EXPECT_EQ(inserted.size(), keys.size());
   for (const BlockRef& b : inserted) {
     const int k = b.level == 1 ? 2 : 1;  // level-0 voxels per voxel of the block's level
-    TsdfVoxel* vox = map->block_tsdf(b.ptr);
+    TsdfVoxel* vox = MapAccess::tsdf(*map, b.ptr);
     for (int i = 0; i < kBlockVoxels; ++i) {
       const Vec3i c = voxel_coords(i);
       vox[i].tsdf = static_cast<int16_t>(
           lattice_f(k * (b.pos.x * 8 + c.x), k * (b.pos.y * 8 + c.y), k * (b.pos.z * 8 + c.z)));
       vox[i].weight = 2;
     }
-    map->refresh_block_surface(b.ptr);
+    MapAccess::refresh_surface(*map, b.ptr);
   }
   const LevelView lv = map->view().level[1];
-  for (const Vec3i& b : split) lv.entries[find_entry(lv, b)].ptr = kPtrSplit;
+  HashEntry* entries = MapAccess::storage(*map).level[1].entries;
+  for (const Vec3i& b : split) entries[find_entry(lv, b)].ptr = kPtrSplit;
   return map;
 }
 

@@ -12,9 +12,10 @@
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
+#include "map/map_access.h"
+#include "map/split_util.h"
 #include "mesh/mesh_test_util.h"
 #include "mesh/mesh_topology.h"
-#include "refine/split_util.h"
 
 namespace hivox {
 namespace {
@@ -165,8 +166,8 @@ TEST(ExtractMesh, UnobservedAndLowWeightVoxelsMakeNoSurface) {
   // every vertex on an edge of that voxel.
   const Vec3i hole{5, 6, 4};
   const int32_t ptr = map.find(0, {0, 0, 0})->ptr;
-  map.block_tsdf(ptr)[local_voxel_index(hole)].weight = 0;
-  map.refresh_block_surface(ptr);
+  MapAccess::tsdf(map, ptr)[local_voxel_index(hole)].weight = 0;
+  MapAccess::refresh_surface(map, ptr);
   const TriangleMesh holed = extract_mesh(map);
   EXPECT_EQ(holed.vertex_count(), full.vertex_count() - 1);
   EXPECT_EQ(holed.triangle_count(), full.triangle_count() - 8);

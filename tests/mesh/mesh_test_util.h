@@ -10,6 +10,7 @@
 #include "analytic_scene.h"
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/voxel_block_map.h"
+#include "map/map_access.h"
 
 namespace hivox::test {
 
@@ -30,14 +31,14 @@ using Sdf = std::function<double(const Eigen::Vector3d&)>;
 inline void write_sdf_voxels(VoxelBlockMap& map, const BlockRef& b, double mu_m, const Sdf& sdf,
                              uint16_t weight = 1) {
   const double s = map.params().voxel_size_at(b.level);
-  TsdfVoxel* vox = map.block_tsdf(b.ptr);
+  TsdfVoxel* vox = MapAccess::tsdf(map, b.ptr);
   for (int i = 0; i < kBlockVoxels; ++i) {
     const Vec3i c = voxel_coords(i);
     const Eigen::Vector3d p(b.pos.x * 8 + c.x, b.pos.y * 8 + c.y, b.pos.z * 8 + c.z);
     vox[i].tsdf = tsdf_from_float(static_cast<float>(sdf(p * s) / mu_m));
     vox[i].weight = weight;
   }
-  map.refresh_block_surface(b.ptr);
+  MapAccess::refresh_surface(map, b.ptr);
 }
 
 /// Writes F = clamp(sdf / mu) with weight `weight` into every voxel of the level-`level`

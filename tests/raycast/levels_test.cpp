@@ -10,8 +10,8 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/raycast/raycaster.h"
 #include "map/sample_kernels.h"
+#include "map/split_util.h"
 #include "raycast/packet_util.h"
-#include "refine/split_util.h"
 
 namespace hivox {
 namespace {

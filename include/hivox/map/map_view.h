@@ -106,26 +106,45 @@ struct BlockMeta {
 };
 static_assert(sizeof(BlockMeta) == 24);
 
+/// One level's hash table and geometry, read-only: what lookups and readers need.
 struct LevelView {
-  HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries
-  uint32_t bucket_mask = 0;      ///< bucket_count - 1
-  int32_t entry_count = 0;       ///< bucket_count + excess capacity
-  FreeListView excess;           ///< free excess entry indices (absolute indices in `entries`)
+  const HashEntry* entries = nullptr;  ///< bucket_count heads followed by the excess entries
+  uint32_t bucket_mask = 0;            ///< bucket_count - 1
+  int32_t entry_count = 0;             ///< bucket_count + excess capacity
   float voxel_size_m = 0;
   float block_size_m = 0;
   float inv_voxel_size = 0;  ///< 1 / voxel_size_m (kernels multiply, never divide)
   float inv_block_size = 0;  ///< 1 / block_size_m
 };
 
+/// The map as readers see it (raycasting, meshing, refinement criteria, evaluation): tables,
+/// voxels and block metadata, read-only.
 struct MapView {
   LevelView level[kMaxLevels];
   int32_t levels = 0;
-  TsdfVoxel* tsdf = nullptr;    ///< block_capacity * 512 voxels
-  ColorVoxel* color = nullptr;  ///< same layout, or null when colour is not stored
-  FreeListView blocks;          ///< free voxel-block indices
+  const TsdfVoxel* tsdf = nullptr;    ///< block_capacity * 512 voxels
+  const ColorVoxel* color = nullptr;  ///< same layout, or null when colour is not stored
   int32_t block_capacity = 0;
+  const BlockMeta* meta = nullptr;  ///< per pool block
+};
+
+/// One level's table as the map's own edits see it: entries and the free excess entries.
+struct MutableLevelView {
+  HashEntry* entries = nullptr;
+  FreeListView excess;  ///< free excess entry indices (absolute indices in `entries`)
+};
+
+/// Write access to the map's storage, for the code that keeps its invariants: the map module's
+/// edits (insertion, split, merge) and integration (voxels and their surface summaries). Only
+/// `MapAccess` (src/map/map_access.h) hands it out; everyone else reads through `MapView`.
+struct MutableMapView {
+  MapView read;  ///< the same storage, read-only (geometry and lookups)
+  MutableLevelView level[kMaxLevels];
+  TsdfVoxel* tsdf = nullptr;
+  ColorVoxel* color = nullptr;
+  BlockMeta* meta = nullptr;
+  FreeListView blocks;                   ///< free voxel-block indices
   int32_t* level_block_count = nullptr;  ///< allocated blocks per level (kMaxLevels counters)
-  BlockMeta* meta = nullptr;             ///< per pool block
   int32_t* block_high_water = nullptr;   ///< 1 + the largest pool index ever handed out
 };
 

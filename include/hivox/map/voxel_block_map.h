@@ -49,8 +49,9 @@ class VoxelBlockMap {
 
   const MapParams& params() const { return params_; }
   int levels() const { return params_.levels; }
-  /// Plain-data view for kernels (pointers into this map's memory).
-  MapView view() const { return view_; }
+  /// Read-only plain-data view for kernels (pointers into this map's memory). Writing goes
+  /// through the map's own operations (insert_blocks, split_blocks, merge_blocks) and fusion.
+  MapView view() const { return storage_.read; }
 
   /// Inserts blocks that are not in the map yet (`keys` unique and absent), in parallel.
   /// Every new block is cleared to "unobserved". When a capacity runs out the block is dropped,
@@ -65,18 +66,17 @@ class VoxelBlockMap {
   /// What pool block `ptr` holds (level -1 when free).
   const BlockMeta& block_meta(int32_t ptr) const { return meta_[static_cast<std::size_t>(ptr)]; }
   /// 1 + the largest pool index handed out so far: pool blocks [0, high water) cover all blocks.
-  int32_t block_high_water() const { return *view_.block_high_water; }
+  int32_t block_high_water() const { return *storage_.block_high_water; }
   /// Number of entries marked Split at each level.
   std::vector<int64_t> split_entries_per_level() const;
 
-  /// The voxels of pool block `ptr`. Whoever writes them directly (fusion and refinement keep
-  /// it themselves) calls refresh_block_surface afterwards.
-  TsdfVoxel* block_tsdf(int32_t ptr) const { return view_.tsdf + int64_t{ptr} * kBlockVoxels; }
-  /// Recomputes the surface summary of pool block `ptr` (BlockMeta::surface, which raycasting
-  /// relies on) from its voxels.
-  void refresh_block_surface(int32_t ptr);
-  ColorVoxel* block_color(int32_t ptr) const {
-    return view_.color ? view_.color + int64_t{ptr} * kBlockVoxels : nullptr;
+  /// The voxels of pool block `ptr` (read-only).
+  const TsdfVoxel* block_tsdf(int32_t ptr) const {
+    return storage_.tsdf + int64_t{ptr} * kBlockVoxels;
+  }
+  /// The colours of pool block `ptr`, or null when the map stores no colour.
+  const ColorVoxel* block_color(int32_t ptr) const {
+    return storage_.color ? storage_.color + int64_t{ptr} * kBlockVoxels : nullptr;
   }
   /// Voxel at global voxel coordinate `v` of `level`, when its block is allocated there.
   std::optional<TsdfVoxel> voxel(int level, const Vec3i& v) const;
@@ -89,8 +89,6 @@ class VoxelBlockMap {
   int64_t memory_bytes() const;
   /// Blocks dropped so far because a capacity ran out.
   int64_t dropped_blocks() const { return dropped_blocks_; }
-  /// Records blocks dropped by another stage (e.g. a split that found the pool full).
-  void add_dropped_blocks(int64_t n) { dropped_blocks_ += n; }
 
   /// Empties the map (all blocks free, tables cleared).
   void clear();
@@ -111,8 +109,10 @@ class VoxelBlockMap {
   std::vector<int32_t> counters_;
   Reservation<TsdfVoxel> tsdf_;
   Reservation<ColorVoxel> color_;
-  MapView view_;
+  MutableMapView storage_;  ///< every pointer into the above; readers get storage_.read
   int64_t dropped_blocks_ = 0;
+
+  friend struct MapAccess;  // write access for the map's own edits and fusion
 };
 
 }  // namespace hivox

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
-/// Split and merge between frames (DESIGN §4): blocks move to a finer level where the surface is
-/// complex and back where it is simple. All passes are parallel, lock-free and give the same
-/// map whatever the thread count.
+/// Where blocks move between levels (DESIGN §4): to a finer level where the surface is complex,
+/// back where it is simple. The refiner judges blocks by their complexity and asks the map to
+/// split or merge them (hivox/map/hierarchy_edit.h); the result does not depend on the thread
+/// count.
 
 #include <cstdint>
 #include <span>
@@ -13,24 +14,6 @@
 #include "hivox/refine/params.h"
 
 namespace hivox {
-
-struct SplitMergeResult {
-  int64_t done = 0;     ///< blocks split (or parents merged)
-  int64_t waiting = 0;  ///< wanted, but the pool or an overflow list lacked room: retried later
-  int64_t invalid = 0;  ///< not in a state that allows it (e.g. no longer allocated)
-};
-
-/// Splits each allocated block of `blocks` above the finest level into its 8 children one level
-/// finer, filled by trilinear interpolation of the parent (weights times `weight_scale`); the
-/// parent's entry becomes Split and its block returns to the pool. A full pool makes splits
-/// wait (counted), never lose data: either all 8 children exist or the parent stays.
-SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> blocks,
-                              float weight_scale = 0.5f);
-
-/// Merges each Split parent of `parents` whose 8 children are allocated leaves: the parent gets a
-/// fresh block filled by subsampling the children, the children's entries become Empty (chains
-/// shortened at their tail only) and their blocks return to the pool.
-SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> parents);
 
 struct RefineStats {
   int64_t evaluated = 0;  ///< blocks whose complexity was computed

@@ -6,8 +6,8 @@
 #include <functional>
 #include <vector>
 
+#include "hivox/map/hierarchy_edit.h"
 #include "hivox/map/voxel_block_map.h"
-#include "hivox/refine/refiner.h"
 
 namespace hivox::test {
 

@@ -1,0 +1,182 @@
+#include "hivox/map/hierarchy_edit.h"
+
+#include <algorithm>
+#include <array>
+#include <vector>
+
+#include "hivox/core/atomic.h"
+#include "hivox/core/log.h"
+#include "hivox/core/parallel.h"
+#include "map/hierarchy_kernels.h"
+#include "map/map_access.h"
+#include "map/map_kernels.h"
+
+namespace hivox {
+
+SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> blocks,
+                              float weight_scale) {
+  const MutableMapView view = MapAccess::storage(map);
+  SplitMergeResult result;
+  // Still-allocated blocks above the finest level, in a fixed order (the same subset waits
+  // whatever the thread count).
+  std::vector<BlockRef> todo;
+  for (const BlockRef& b : blocks) {
+    const bool valid = b.level > 0 && b.level < view.read.levels && b.entry >= 0 &&
+                       view.read.level[b.level].entries[b.entry].ptr == b.ptr && b.ptr >= 0 &&
+                       view.read.level[b.level].entries[b.entry].pos == b.pos;
+    if (valid)
+      todo.push_back(b);
+    else
+      ++result.invalid;
+  }
+  std::sort(todo.begin(), todo.end(), [](const BlockRef& a, const BlockRef& b) {
+    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+  });
+  todo.erase(std::unique(todo.begin(), todo.end(),
+                         [](const BlockRef& a, const BlockRef& b) { return a.ptr == b.ptr; }),
+             todo.end());
+  // Room: 8 pool blocks per split (the parent's block comes back only afterwards) and, in the
+  // worst case, 8 overflow entries at the child level.
+  int64_t free_blocks = *view.blocks.count;
+  std::array<int64_t, kMaxLevels> free_excess{};
+  for (int l = 0; l < view.read.levels; ++l) free_excess[l] = *view.level[l].excess.count;
+  std::vector<BlockRef> go;
+  for (const BlockRef& b : todo) {
+    if (free_blocks >= kBlockChildren && free_excess[b.level - 1] >= kBlockChildren) {
+      free_blocks -= kBlockChildren;
+      free_excess[b.level - 1] -= kBlockChildren;
+      go.push_back(b);
+    } else {
+      ++result.waiting;
+    }
+  }
+  if (result.waiting > 0)
+    log::warn_once("refine.split_waiting",
+                   "voxel block pool or hash overflow list too small for all splits ({} blocks "
+                   "free): splits wait and are counted in stats; raise --max-blocks",
+                   *view.blocks.count);
+  const int64_t n = static_cast<int64_t>(go.size());
+  std::vector<std::array<int32_t, kBlockChildren>> child_block(go.size()), child_entry(go.size());
+  std::vector<std::array<BlockSurface, kBlockChildren>> child_surface(go.size());
+
+  // Pass 1: claim blocks and entries, fill the children. No entry of the parents' level changes
+  // here, so every split reads its neighbours as they were.
+  parallel_for(n, [&](int64_t s) {
+    const BlockRef& p = go[static_cast<std::size_t>(s)];
+    const LevelView& lv = view.read.level[p.level];
+    int32_t parents[kBlockChildren];
+    for (int d = 0; d < kBlockChildren; ++d) {
+      if (d == 0) {
+        parents[0] = p.ptr;
+        continue;
+      }
+      const int32_t ptr =
+          find_block_ptr(lv, {p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)});
+      parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
+    }
+    for (int c = 0; c < kBlockChildren; ++c) {
+      child_entry[s][c] = kernels::reserve_entry(view, p.level - 1, child_block_pos(p.pos, c));
+      child_block[s][c] = kernels::take_block(view);
+      child_surface[s][c] =
+          kernels::fill_split_child(view, parents, c, child_block[s][c], weight_scale);
+    }
+  });
+  // Pass 2: publish the children, mark the parents Split.
+  parallel_for(n, [&](int64_t s) {
+    const BlockRef& p = go[static_cast<std::size_t>(s)];
+    const MutableLevelView& child_level = view.level[p.level - 1];
+    for (int c = 0; c < kBlockChildren; ++c) {
+      const int32_t b = child_block[s][c];
+      view.meta[b] = BlockMeta{child_block_pos(p.pos, c), child_entry[s][c],
+                               static_cast<int16_t>(p.level - 1), 0, child_surface[s][c]};
+      atomic_store(&child_level.entries[child_entry[s][c]].ptr, b);
+    }
+    atomic_store(&view.level[p.level].entries[p.entry].ptr, kPtrSplit);
+  });
+  // Pass 3: the parents' blocks go back to the pool.
+  for (const BlockRef& p : go) {
+    kernels::return_block(view, p.ptr);
+    view.level_block_count[p.level] -= 1;
+    view.level_block_count[p.level - 1] += kBlockChildren;
+  }
+  result.done = n;
+  return result;
+}
+
+SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> parents) {
+  const MutableMapView view = MapAccess::storage(map);
+  SplitMergeResult result;
+  struct Merge {
+    BlockKey parent;
+    int32_t entry;
+    std::array<int32_t, kBlockChildren> child_entry;
+    std::array<int32_t, kBlockChildren> child_block;
+  };
+  std::vector<BlockKey> keys(parents.begin(), parents.end());
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  std::vector<Merge> todo;
+  for (const BlockKey& k : keys) {
+    Merge m{k, kNoEntry, {}, {}};
+    bool ok = k.level > 0 && k.level < view.read.levels;
+    if (ok) {
+      m.entry = find_entry(view.read.level[k.level], k.pos);
+      ok = m.entry != kNoEntry && view.read.level[k.level].entries[m.entry].ptr == kPtrSplit;
+    }
+    for (int c = 0; ok && c < kBlockChildren; ++c) {
+      const LevelView& lv = view.read.level[k.level - 1];
+      m.child_entry[c] = find_entry(lv, child_block_pos(k.pos, c));
+      ok = m.child_entry[c] != kNoEntry && lv.entries[m.child_entry[c]].ptr >= 0;
+      if (ok) m.child_block[c] = lv.entries[m.child_entry[c]].ptr;
+    }
+    if (ok)
+      todo.push_back(m);
+    else
+      ++result.invalid;
+  }
+  const int64_t room = *view.blocks.count;
+  if (static_cast<int64_t>(todo.size()) > room) {  // each merge needs a block before it frees 8
+    result.waiting = static_cast<int64_t>(todo.size()) - room;
+    todo.resize(static_cast<std::size_t>(room));
+  }
+  const int64_t n = static_cast<int64_t>(todo.size());
+  std::vector<int32_t> parent_block(todo.size());
+  std::vector<BlockSurface> parent_surface(todo.size());
+  // Pass 1: claim a block per parent and fill it from the children.
+  parallel_for(n, [&](int64_t i) {
+    const Merge& m = todo[static_cast<std::size_t>(i)];
+    parent_block[i] = kernels::take_block(view);
+    parent_surface[i] = kernels::fill_merged_parent(view, m.child_block.data(), parent_block[i]);
+  });
+  // Pass 2: publish the parents; empty the children's entries, unlinking chain tails.
+  std::vector<std::array<int32_t, kBlockChildren>> unlinked(todo.size());
+  parallel_for(n, [&](int64_t i) {
+    const Merge& m = todo[static_cast<std::size_t>(i)];
+    const int pl = m.parent.level;
+    view.meta[parent_block[i]] =
+        BlockMeta{m.parent.pos, m.entry, static_cast<int16_t>(pl), 0, parent_surface[i]};
+    atomic_store(&view.level[pl].entries[m.entry].ptr, parent_block[i]);
+    const MutableLevelView& lv = view.level[pl - 1];
+    for (int c = 0; c < kBlockChildren; ++c) {
+      atomic_store(&lv.entries[m.child_entry[c]].ptr, kPtrEmpty);
+      const bool gone = kernels::unlink_tail_entry(view, pl - 1, m.child_entry[c],
+                                                   child_block_pos(m.parent.pos, c));
+      unlinked[i][c] = gone ? m.child_entry[c] : kNoEntry;
+    }
+  });
+  // Pass 3: return the children's blocks and unlinked entries.
+  for (std::size_t i = 0; i < todo.size(); ++i) {
+    const Merge& m = todo[i];
+    for (int c = 0; c < kBlockChildren; ++c) {
+      kernels::return_block(view, m.child_block[c]);
+      if (unlinked[i][c] != kNoEntry)
+        kernels::free_list_push(view.level[m.parent.level - 1].excess, unlinked[i][c]);
+    }
+    view.level_block_count[m.parent.level] += 1;
+    view.level_block_count[m.parent.level - 1] -= kBlockChildren;
+  }
+  result.done = n;
+  return result;
+}
+
+}  // namespace hivox
