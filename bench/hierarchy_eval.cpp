@@ -73,7 +73,7 @@ int main(int argc, char** argv) try {
 
   ReconstructionParams base;
   base.map.voxel_size_m = voxel;
-  base.fusion.truncation_m = mu;
+  base.map.truncation_m = mu;
   if (const auto d = given(argc, argv, "--depth-sampling"))
     base.fusion.depth_sampling = parse_depth_sampling(*d);
   base.raycast_every_frame = false;
@@ -92,11 +92,11 @@ int main(int argc, char** argv) try {
   coarse.map.voxel_size_m = voxel * static_cast<float>(1 << (levels - 1));
   std::vector<Run> runs;
   runs.push_back({fmt::format("fixed {:g} mm", voxel * 1000),
-                  std::make_unique<Reconstruction>(fine, reader->info())});
+                  std::make_unique<Reconstruction>(fine, reader->info().rig)});
   runs.push_back({fmt::format("adaptive ({} levels, {})", levels, criterion),
-                  std::make_unique<Reconstruction>(adaptive, reader->info())});
+                  std::make_unique<Reconstruction>(adaptive, reader->info().rig)});
   runs.push_back({fmt::format("fixed {:g} mm", coarse.map.voxel_size_m * 1000),
-                  std::make_unique<Reconstruction>(coarse, reader->info())});
+                  std::make_unique<Reconstruction>(coarse, reader->info().rig)});
 
   std::ofstream out_csv;
   if (!csv.empty()) {
@@ -134,7 +134,7 @@ int main(int argc, char** argv) try {
       for (int y = 0; y < cam.height; y += 4)
         for (int x = 0; x < cam.width; x += 4) {
           const float d = clean.depth_m(x, y);
-          if (d <= 0.0f || d > base.fusion.max_depth_m) continue;
+          if (d <= 0.0f || d > base.fusion.depth_range.max_m) continue;
           const Eigen::Vector3d p =
               clean.T_wc * Eigen::Vector3d((x - cam.cx) / cam.fx * d, (y - cam.cy) / cam.fy * d, d);
           points.push_back(
@@ -157,7 +157,7 @@ int main(int argc, char** argv) try {
       "(alloc, integrate, refine) |\n");
   std::printf("| --- | ---: | --- | ---: | ---: | ---: | ---: | --- |\n");
   for (const Run& r : runs) {
-    const SurfaceEval e = evaluate_at_points(r.rec->map(), points, mu);
+    const SurfaceEval e = evaluate_at_points(r.rec->map(), points);
     const auto per = r.rec->map().blocks_per_level();
     std::string per_level;
     for (std::size_t l = 0; l < per.size(); ++l)

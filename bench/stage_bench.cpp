@@ -18,6 +18,7 @@
 #include "hivox/io/dataset.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/extract_mesh.h"
+#include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
 #include "hivox/track/tracker.h"
@@ -47,8 +48,8 @@ struct Workload {
     MapParams mp;
     mp.voxel_size_m = static_cast<float>(env_or("HIVOX_BENCH_VOXEL", 0.005));
     mp.levels = static_cast<int>(env_or("HIVOX_BENCH_LEVELS", 1));
+    mp.truncation_m = static_cast<float>(env_or("HIVOX_BENCH_TRUNC", 0.02));
     map = std::make_unique<VoxelBlockMap>(mp);
-    fusion.truncation_m = static_cast<float>(env_or("HIVOX_BENCH_TRUNC", 0.02));
     TsdfIntegrator integrator(fusion);
     Refiner refiner;  // with several levels, blocks split and merge as in the pipeline
     const auto warmup = static_cast<std::size_t>(env_or("HIVOX_BENCH_WARMUP", 100));
@@ -57,9 +58,8 @@ struct Workload {
       if (!f.T_wc_gt) continue;
       const FusionInput in = make_input(f);
       previous_T_wc = in.T_wc;
-      integrator.fuse(*map, in);
-      if (mp.levels > 1)
-        refiner.refine(*map, integrator.visible_blocks(), fusion.truncation_m, in.T_wc);
+      const Allocation a = integrator.fuse(*map, in);
+      if (mp.levels > 1) refiner.refine(*map, a.visible_blocks, in.T_wc);
     }
     frame = reader->read(warmup);
     input = make_input(frame);
@@ -75,8 +75,10 @@ struct Workload {
   }
 
   FusionInput make_input(const RgbdFrame& f) const {
-    return fusion_input(reader->info(), f, f.T_wc_gt.value_or(Pose::Identity()));
+    return fusion_input(reader->info().rig, f, f.T_wc_gt.value_or(Pose::Identity()));
   }
+  const PinholeCamera& camera() const { return input.rig.depth_camera; }
+  const DepthRange& range() const { return fusion.depth_range; }
 };
 
 Workload& workload() {
@@ -87,9 +89,9 @@ Workload& workload() {
 void BM_Allocate(benchmark::State& state) {
   Workload& w = workload();
   TsdfIntegrator integrator(w.fusion);
-  AllocationStats s;
-  for (auto _ : state) s = integrator.allocate(*w.map, w.input);
-  state.counters["visible_blocks"] = static_cast<double>(s.visible_blocks);
+  Allocation a;
+  for (auto _ : state) a = integrator.allocate(*w.map, w.input);
+  state.counters["visible_blocks"] = static_cast<double>(a.visible_blocks.size());
   state.SetLabel(w.name);
 }
 
@@ -99,63 +101,57 @@ void BM_Integrate(benchmark::State& state) {
   FusionParams fp = w.fusion;
   fp.depth_sampling = state.range(0) == 0 ? DepthSampling::Nearest : DepthSampling::Bilinear;
   TsdfIntegrator integrator(fp);
-  integrator.allocate(*w.map, w.input);
-  for (auto _ : state) integrator.integrate(*w.map, w.input);
+  const Allocation a = integrator.allocate(*w.map, w.input);
+  for (auto _ : state) integrator.integrate(*w.map, w.input, a.visible_blocks);
   w.frame_fused = true;
-  state.counters["visible_blocks"] = static_cast<double>(integrator.visible_blocks().size());
+  state.counters["visible_blocks"] = static_cast<double>(a.visible_blocks.size());
   state.SetLabel(std::string(to_string(fp.depth_sampling)));
 }
 
-enum class RaycastHints { None, Depth, DepthAndWarped };
+enum class HintKind { None, Depth, DepthAndWarped };
 
-void raycast(benchmark::State& state, RaycastHints hints) {
+void raycast(benchmark::State& state, HintKind kind) {
   Workload& w = workload();
   w.fuse_frame_once();  // as in the pipeline: the frame is fused, then raycast
-  RaycastParams rp;
-  rp.truncation_m = w.fusion.truncation_m;
-  Raycaster raycaster(rp);
-  const DepthImage& hint = w.frame.depth_m;
-  DepthImage warped;
-  if (hints == RaycastHints::DepthAndWarped) {
-    // As in the pipeline: where the frame has no depth or the search at it fails, the previous
-    // frame's raycast warped into this view.
-    Raycaster previous(rp);
-    previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
-    warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
-                       &warped);
-  }
+  Raycaster raycaster;
+  // As in the pipeline: the depth just fused, and where the frame has no depth or the search at
+  // it fails, the previous frame's raycast warped into this view.
+  Raycaster previous;
+  if (kind == HintKind::DepthAndWarped)
+    previous.raycast(*w.map, w.camera(), w.previous_T_wc, w.range());
+  FrameHints builder;
+  RaycastHints hints;
+  if (kind != HintKind::None)
+    hints = builder.build(w.frame.depth_m, w.camera(), 1, w.input.T_wc,
+                          kind == HintKind::DepthAndWarped ? &previous.result() : nullptr,
+                          w.map->params().truncation_m);
   RaycastStats s;
-  for (auto _ : state)
-    raycaster.raycast(*w.map, w.input.depth_camera, w.input.T_wc, &s,
-                      hints == RaycastHints::None ? nullptr : &hint,
-                      hints == RaycastHints::DepthAndWarped ? &warped : nullptr);
+  for (auto _ : state) raycaster.raycast(*w.map, w.camera(), w.input.T_wc, w.range(), hints, &s);
   state.counters["hits"] = static_cast<double>(s.hits);
   state.counters["at_hint"] = static_cast<double>(s.found_at_hint);
   state.counters["at_fallback"] = static_cast<double>(s.found_at_fallback);
   state.counters["blocks"] = static_cast<double>(w.map->blocks_in_use());
 }
 void BM_Raycast(benchmark::State& state) {
-  raycast(state, RaycastHints::None);
+  raycast(state, HintKind::None);
 }
 void BM_RaycastHinted(benchmark::State& state) {
-  raycast(state, RaycastHints::Depth);
+  raycast(state, HintKind::Depth);
 }
 /// The pipeline's raycast: hints from the depth just fused and the previous raycast, warped.
 void BM_RaycastPipeline(benchmark::State& state) {
-  raycast(state, RaycastHints::DepthAndWarped);
+  raycast(state, HintKind::DepthAndWarped);
 }
 
 /// The previous frame's raycast warped into this view (the pipeline's fallback hints).
 void BM_WarpRaycast(benchmark::State& state) {
   Workload& w = workload();
-  RaycastParams rp;
-  rp.truncation_m = w.fusion.truncation_m;
-  Raycaster previous(rp);
-  previous.raycast(*w.map, w.input.depth_camera, w.previous_T_wc);
+  Raycaster previous;
+  previous.raycast(*w.map, w.camera(), w.previous_T_wc, w.range());
   DepthImage warped;
   WarpScratch scratch;  // as the pipeline keeps it
   for (auto _ : state)
-    warp_raycast_depth(previous.result(), w.input.depth_camera, w.input.T_wc, rp.truncation_m,
+    warp_raycast_depth(previous.result(), w.camera(), w.input.T_wc, w.map->params().truncation_m,
                        &warped, &scratch);
   int64_t covered = 0;
   for (std::size_t i = 0; i < warped.size(); ++i) covered += warped.data()[i] > 0.0f;
@@ -167,14 +163,12 @@ void BM_WarpRaycast(benchmark::State& state) {
 void BM_Track(benchmark::State& state) {
   Workload& w = workload();
   const TrackParams tp;
-  RaycastParams rp;
-  rp.truncation_m = w.fusion.truncation_m;
-  Raycaster model(rp);
-  model.raycast(*w.map, w.input.depth_camera.subsampled(tp.model_subsample), w.previous_T_wc);
-  Tracker tracker(tp);
+  Raycaster model;
+  model.raycast(*w.map, w.camera().subsampled(tp.model_subsample), w.previous_T_wc, w.range());
+  Tracker tracker(tp, w.range());
   TrackResult r;
   for (auto _ : state)
-    r = tracker.track(*w.input.depth_m, w.input.depth_camera, model.result(), w.previous_T_wc);
+    r = tracker.track(*w.input.depth_m, w.camera(), model.result(), w.previous_T_wc);
   state.counters["iterations"] = r.iterations;
   state.counters["inlier_ratio"] = r.inlier_ratio;
   state.counters["icp_ms"] = r.icp_ms;

@@ -98,10 +98,8 @@ void run_reconstruct(ReconstructOptions options) {
   }
   r.split_threshold = options.split_threshold.value_or(r.split_threshold);
   r.merge_threshold = options.merge_threshold.value_or(r.merge_threshold);
-  if (options.sensor_noise != "dataset") {  // else Reconstruction takes the dataset's model
+  if (options.sensor_noise != "dataset")  // else the refinement takes the dataset's model
     r.noise = options.sensor_noise == "none" ? SensorNoise::none() : SensorNoise::kinect();
-    r.noise_from_dataset = false;
-  }
   options.params.fusion.depth_sampling = parse_depth_sampling(options.depth_sampling);
   options.params.track.loss = parse_robust_loss(options.icp_loss);
   if (options.no_color) {
@@ -138,13 +136,14 @@ void run_reconstruct(ReconstructOptions options) {
 
   const std::size_t total =
       options.frames > 0 ? std::min(options.frames, reader->size()) : reader->size();
-  Reconstruction rec(options.params, info);
-  const std::string params_text = rec.params().to_string();  // with the dataset's noise model
+  Reconstruction rec(options.params, info.rig);
+  const std::string params_text = rec.describe();  // with the dataset's noise model
   if (!options.quiet) {
     fmt::print("hivox reconstruct {}\n", info.source);
     fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", total, reader->size(),
-               info.depth_camera.width, info.depth_camera.height, options.poses, thread_count());
-    fmt::print("camera: {} [{}]\n", info.depth_camera.to_string(), info.intrinsics_source);
+               info.rig.depth_camera.width, info.rig.depth_camera.height, options.poses,
+               thread_count());
+    fmt::print("camera: {} [{}]\n", info.rig.depth_camera.to_string(), info.intrinsics_source);
     if (!info.distortion.none())
       fmt::print("lens distortion: {} ({})\n", info.distortion.to_string(),
                  info.undistorted ? "removed from every frame" : "kept: --keep-distortion");
@@ -156,7 +155,7 @@ void run_reconstruct(ReconstructOptions options) {
   // Per-frame renders and the progress line.
   auto progress = [&](std::size_t i, const FrameStats& s, const Pose& T_wc) {
     if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
-      write_renders(rec.render(info.depth_camera, T_wc), out, fmt::format("frame{:06d}_", i));
+      write_renders(rec.render(info.rig.depth_camera, T_wc), out, fmt::format("frame{:06d}_", i));
     if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
       const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
       fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "",
@@ -207,7 +206,7 @@ void run_reconstruct(ReconstructOptions options) {
   write_tum_trajectory(out / "trajectory.txt", rec.trajectory(),
                        fmt::format("hivox reconstruct {} (poses: {})", info.source, options.poses));
   const Pose last_pose = rec.trajectory().back().T_wc;
-  write_renders(rec.render(info.depth_camera, last_pose), out, "");
+  write_renders(rec.render(info.rig.depth_camera, last_pose), out, "");
   // The whole model from above and behind the trajectory, with its refinement levels.
   const PinholeCamera overview_camera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
   float overview_depth = 0.0f;
@@ -279,11 +278,13 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
       ->capture_default_str();
   cmd->add_option("--voxel-size", p.map.voxel_size_m, "finest voxel size, metres")
       ->capture_default_str();
-  cmd->add_option("--truncation", p.fusion.truncation_m, "truncation band mu, metres")
+  cmd->add_option("--truncation", p.map.truncation_m, "truncation band mu, metres")
       ->capture_default_str();
-  cmd->add_option("--min-depth", p.fusion.min_depth_m, "ignore depth nearer than this, metres")
+  cmd->add_option("--min-depth", p.fusion.depth_range.min_m,
+                  "ignore depth nearer than this, metres")
       ->capture_default_str();
-  cmd->add_option("--max-depth", p.fusion.max_depth_m, "ignore depth farther than this, metres")
+  cmd->add_option("--max-depth", p.fusion.depth_range.max_m,
+                  "ignore depth farther than this, metres")
       ->capture_default_str();
   cmd->add_option("--max-weight", p.fusion.max_weight, "cap of the per-voxel observation count")
       ->capture_default_str();

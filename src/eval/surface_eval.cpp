@@ -1,12 +1,18 @@
 #include "hivox/eval/surface_eval.h"
 
+#include "hivox/core/error.h"
 #include "hivox/core/parallel.h"
 #include "map/sample_kernels.h"
 
 namespace hivox {
 
 SurfaceEval evaluate_at_points(const VoxelBlockMap& map, std::span<const Vec3f> points_w,
-                               float truncation_m, int min_weight) {
+                               int min_weight) {
+  if (min_weight < 1)
+    fail(ErrorCode::InvalidArgument,
+         "evaluate_at_points: min_weight must be >= 1 (0 would count unobserved voxels), got {}",
+         min_weight);
+  const float truncation_m = map.params().truncation_m;
   SurfaceEval out;
   out.points = static_cast<int64_t>(points_w.size());
   out.per_point.resize(points_w.size());

@@ -16,10 +16,12 @@ struct IntegrationFrame {
   kernels::IntegrationConstants constants;
 };
 
-/// The views and constants for integrating `in` with `params` into a map that stores colour or
-/// not (`map_has_color`). When the colour is registered to the depth, `packed_color` receives it
-/// as 32-bit words (ColorFrameView::packed) and must outlive the views.
+/// The views and constants for integrating `in` with `params` into a map with `map_params`
+/// (its truncation band, and whether it stores colour). When the colour is registered to the
+/// depth, `packed_color` receives it as 32-bit words (ColorFrameView::packed) and must outlive
+/// the views.
 IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& params,
-                                   bool map_has_color, std::vector<uint32_t>* packed_color);
+                                   const MapParams& map_params,
+                                   std::vector<uint32_t>* packed_color);
 
 }  // namespace hivox

@@ -69,9 +69,9 @@ struct AllocationVisitor {
 kernels::DepthFrameView depth_view(const FusionInput& in, const FusionParams& p) {
   kernels::DepthFrameView v;
   v.depth_m = {in.depth_m->data(), in.depth_m->width(), in.depth_m->height()};
-  v.camera = in.depth_camera;
-  v.min_depth_m = std::max(p.min_depth_m, 1e-6f);
-  v.max_depth_m = p.max_depth_m;
+  v.camera = in.rig.depth_camera;
+  v.min_depth_m = std::max(p.depth_range.min_m, 1e-6f);
+  v.max_depth_m = p.depth_range.max_m;
   return v;
 }
 
@@ -82,6 +82,7 @@ struct TsdfIntegrator::Scratch {
   std::vector<uint32_t> packed_color;  // registered colour as 32-bit words, per frame
   std::vector<int32_t> stamps;         // per pool block: frame counter of the last visit
   int32_t frame = 0;
+  std::size_t last_visible = 0;  // blocks the last frame touched (reserved for the next)
 };
 
 TsdfIntegrator::TsdfIntegrator(const FusionParams& params)
@@ -95,21 +96,22 @@ TsdfIntegrator& TsdfIntegrator::operator=(TsdfIntegrator&&) noexcept = default;
 void validate_input(const FusionInput& in) {
   if (in.depth_m == nullptr || in.depth_m->empty())
     fail(ErrorCode::InvalidArgument, "fusion input: depth image is missing");
-  in.depth_camera.validate("depth camera");
-  if (in.depth_m->width() != in.depth_camera.width ||
-      in.depth_m->height() != in.depth_camera.height)
+  const PinholeCamera& depth = in.rig.depth_camera;
+  depth.validate("depth camera");
+  if (in.depth_m->width() != depth.width || in.depth_m->height() != depth.height)
     fail(ErrorCode::InvalidArgument, "fusion input: depth image is {}x{} but the camera is {}x{}",
-         in.depth_m->width(), in.depth_m->height(), in.depth_camera.width, in.depth_camera.height);
+         in.depth_m->width(), in.depth_m->height(), depth.width, depth.height);
   if (in.color != nullptr && !in.color->empty()) {
-    in.color_camera.validate("colour camera");
-    if (in.color->width() != in.color_camera.width || in.color->height() != in.color_camera.height)
+    const PinholeCamera& color = in.rig.color_camera;
+    color.validate("colour camera");
+    if (in.color->width() != color.width || in.color->height() != color.height)
       fail(ErrorCode::InvalidArgument,
            "fusion input: colour image is {}x{} but the colour camera is {}x{}", in.color->width(),
-           in.color->height(), in.color_camera.width, in.color_camera.height);
+           in.color->height(), color.width, color.height);
   }
 }
 
-AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& in) {
+Allocation TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& in) {
   validate_input(in);
   Scratch& s = *scratch_;
   const MapView view = map.view();
@@ -127,7 +129,7 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
   s.threads.resize(static_cast<std::size_t>(threads));
   const kernels::DepthFrameView depth = depth_view(in, params_);
   const Rigid3f T_wc = to_rigid3f(in.T_wc);
-  const float mu = params_.truncation_m;
+  const float mu = map.params().truncation_m;
   const int height = depth.depth_m.height, width = depth.depth_m.width;
 
   // Stage 1: every valid pixel walks its band; rows in chunks keep neighbouring pixels (which
@@ -150,49 +152,49 @@ AllocationStats TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& 
     }
   });
 
-  AllocationStats stats;
+  Allocation out;
+  AllocationStats& stats = out.stats;
+  std::vector<BlockRef>& visible = out.visible_blocks;
+  visible.reserve(s.last_visible + s.last_visible / 4);
   std::vector<BlockKey> missing;
-  visible_.clear();
   for (const ThreadState& ts : s.threads) {
     missing.insert(missing.end(), ts.missing.begin(), ts.missing.end());
-    visible_.insert(visible_.end(), ts.found.begin(), ts.found.end());
+    visible.insert(visible.end(), ts.found.begin(), ts.found.end());
     stats.valid_pixels += ts.valid_pixels;
   }
   // Stage 2: de-duplicate (threads may have recorded the same block) and insert.
   std::sort(missing.begin(), missing.end());
   missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
-  const std::size_t before = visible_.size();
-  const InsertStats inserted = map.insert_blocks(missing, &visible_);
-  for (std::size_t i = before; i < visible_.size(); ++i) s.stamps[visible_[i].ptr] = frame;
+  const std::size_t before = visible.size();
+  const InsertStats inserted = map.insert_blocks(missing, &visible);
+  for (std::size_t i = before; i < visible.size(); ++i) s.stamps[visible[i].ptr] = frame;
   stats.new_blocks = inserted.inserted;
   stats.dropped_blocks = inserted.dropped();
-  stats.visible_blocks = static_cast<int64_t>(visible_.size());
-  return stats;
+  s.last_visible = visible.size();
+  return out;
 }
 
-FusionInput fusion_input(const DatasetInfo& info, const RgbdFrame& frame, const Pose& T_wc) {
+FusionInput fusion_input(const CameraRig& rig, const RgbdFrame& frame, const Pose& T_wc) {
   FusionInput in;
   in.depth_m = &frame.depth_m;
-  in.depth_camera = info.depth_camera;
-  if (!frame.color.empty()) {
-    in.color = &frame.color;
-    in.color_camera = info.color_camera;
-    in.T_color_depth = info.T_color_depth;
-  }
+  if (!frame.color.empty()) in.color = &frame.color;
+  in.rig = rig;
   in.T_wc = T_wc;
   return in;
 }
 
 IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& params,
-                                   bool map_has_color, std::vector<uint32_t>* packed_color) {
+                                   const MapParams& map_params,
+                                   std::vector<uint32_t>* packed_color) {
   IntegrationFrame f;
   f.depth = depth_view(in, params);
-  if (params.integrate_color && in.color != nullptr && !in.color->empty() && map_has_color) {
+  if (params.integrate_color && in.color != nullptr && !in.color->empty() &&
+      map_params.store_color) {
     kernels::ColorFrameView& color = f.color;
     color.image = {in.color->data(), in.color->width(), in.color->height()};
-    color.camera = in.color_camera;
-    color.T_color_depth = to_rigid3f(in.T_color_depth);
-    color.registered = color_registered(in.color_camera, in.depth_camera, in.T_color_depth);
+    color.camera = in.rig.color_camera;
+    color.T_color_depth = to_rigid3f(in.rig.T_color_depth);
+    color.registered = in.rig.color_registered();
     if (color.registered) {
       packed_color->resize(in.color->size());
       const Rgb8* src = in.color->data();
@@ -204,29 +206,28 @@ IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& pa
   }
   kernels::IntegrationConstants& k = f.constants;
   k.T_cw = to_rigid3f(in.T_wc.inverse());
-  k.mu_m = params.truncation_m;
-  k.inv_mu = 1.0f / params.truncation_m;
+  k.mu_m = map_params.truncation_m;
+  k.inv_mu = 1.0f / map_params.truncation_m;
   k.max_weight = params.max_weight;
   k.bilinear_depth = params.depth_sampling == DepthSampling::Bilinear;
   return f;
 }
 
-void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in) {
+void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in,
+                               std::span<const BlockRef> blocks) {
   validate_input(in);
   const MutableMapView view = MapAccess::storage(map);
-  const IntegrationFrame f =
-      integration_frame(in, params_, view.color != nullptr, &scratch_->packed_color);
-  const std::vector<BlockRef>& blocks = visible_;
+  const IntegrationFrame f = integration_frame(in, params_, map.params(), &scratch_->packed_color);
   parallel_for_dynamic(static_cast<int64_t>(blocks.size()), 16, [&](int64_t i) {
     const BlockRef& b = blocks[static_cast<std::size_t>(i)];
     kernels::integrate_block(view, b.level, b.pos, b.ptr, f.depth, f.color, f.constants);
   });
 }
 
-AllocationStats TsdfIntegrator::fuse(VoxelBlockMap& map, const FusionInput& in) {
-  const AllocationStats stats = allocate(map, in);
-  integrate(map, in);
-  return stats;
+Allocation TsdfIntegrator::fuse(VoxelBlockMap& map, const FusionInput& in) {
+  Allocation a = allocate(map, in);
+  integrate(map, in, a.visible_blocks);
+  return a;
 }
 
 }  // namespace hivox

@@ -100,7 +100,7 @@ void check_depth_scale(detail::FileDataset& dataset) {
   if (median_m >= 0.1 && median_m <= 10.0) return;
   // Suggest the common scale that brings the median nearest to a typical 2 m, else the scale
   // that puts it at 2 m.
-  const double raw_median = median_m * info.depth_scale;
+  const double raw_median = median_m * info.rig.depth_scale;
   double suggested = 0;
   for (double candidate : {1000.0, 5000.0}) {
     const double d = raw_median / candidate;
@@ -114,7 +114,7 @@ void check_depth_scale(detail::FileDataset& dataset) {
       "median valid depth of frames {} is {:.3g} m with depth scale {:g} ({}), outside the "
       "plausible 0.1-10 m: the depth scale is probably wrong; {:g} would give {:.2f} m "
       "(--depth-scale {:g})",
-      list_frames(indices), median_m, info.depth_scale, info.depth_scale_source, suggested,
+      list_frames(indices), median_m, info.rig.depth_scale, info.depth_scale_source, suggested,
       raw_median / suggested, suggested));
   log::warn("{}", info.warnings.back());
 }
@@ -260,24 +260,26 @@ std::string describe_dataset(DatasetReader& reader) {
   line("dataset", info.source);
   line("layout", std::string(to_string(info.layout)));
   line("frames", std::to_string(info.frame_count));
-  line("resolution", fmt::format("{}x{}", info.depth_camera.width, info.depth_camera.height));
+  line("resolution",
+       fmt::format("{}x{}", info.rig.depth_camera.width, info.rig.depth_camera.height));
   line("intrinsics",
-       fmt::format("{}  [{}]", info.depth_camera.to_string(), info.intrinsics_source));
+       fmt::format("{}  [{}]", info.rig.depth_camera.to_string(), info.intrinsics_source));
   if (!info.distortion.none())
     line("distortion",
          fmt::format("{}  ({})", info.distortion.to_string(),
                      info.undistorted ? "removed from every frame as it is read" : "kept"));
-  const PinholeCamera& cc = info.color_camera;
-  if (info.has_color && !info.color_registered()) {
+  const PinholeCamera& cc = info.rig.color_camera;
+  if (info.has_color && !info.rig.color_registered()) {
     line("colour camera", cc.to_string());
-    const Eigen::Vector3d t = info.T_color_depth.translation();
+    const Eigen::Vector3d t = info.rig.T_color_depth.translation();
     line("T_color_depth",
          fmt::format("translation ({:.4f}, {:.4f}, {:.4f}) m, rotation {:.3f} deg", t.x(), t.y(),
-                     t.z(), rotation_angle_rad(info.T_color_depth) * 180.0 / std::numbers::pi));
+                     t.z(), rotation_angle_rad(info.rig.T_color_depth) * 180.0 / std::numbers::pi));
   }
-  line("depth scale", info.depth_scale > 0 ? fmt::format("{:g} raw units per metre  [{}]",
-                                                         info.depth_scale, info.depth_scale_source)
-                                           : "none (depth is metric)");
+  line("depth scale", info.rig.depth_scale > 0
+                          ? fmt::format("{:g} raw units per metre  [{}]", info.rig.depth_scale,
+                                        info.depth_scale_source)
+                          : "none (depth is metric)");
 
   const auto indices = spread_indices(reader.size(), 5);
   std::vector<float> values;

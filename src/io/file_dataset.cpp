@@ -91,7 +91,7 @@ FileDataset::FileDataset(DatasetInfo info, std::vector<FrameFiles> frames, Depth
   if (frames_.empty()) fail(ErrorCode::InvalidData, "{}: the dataset has no frames", info_.source);
   truncate(0);  // fills the frame-derived fields of info_
   if (info_.undistorted)
-    undistorter_ = std::make_unique<Undistorter>(info_.depth_camera, info_.distortion);
+    undistorter_ = std::make_unique<Undistorter>(info_.rig.depth_camera, info_.distortion);
 }
 
 void FileDataset::truncate(std::size_t max_frames) {
@@ -115,7 +115,7 @@ const FrameFiles& FileDataset::frame(std::size_t index) const {
 DepthImage FileDataset::read_depth(std::size_t index) const {
   const FrameFiles& f = frame(index);
   const Image<uint16_t> raw = read_depth16(f.depth);
-  check_size(f.depth, "depth", raw.width(), raw.height(), info_.depth_camera,
+  check_size(f.depth, "depth", raw.width(), raw.height(), info_.rig.depth_camera,
              info_.intrinsics_source);
   DepthImage depth =
       depth_to_metres(raw, decoding_.scale, decoding_.invalid_raw, decoding_.offset_m);
@@ -135,10 +135,10 @@ RgbdFrame FileDataset::read(std::size_t index) {
   if (undistorter_) out.depth_m = undistorter_->depth(out.depth_m);
   if (!f.color.empty()) {
     out.color = read_color(f.color);
-    check_size(f.color, "colour", out.color.width(), out.color.height(), info_.color_camera,
+    check_size(f.color, "colour", out.color.width(), out.color.height(), info_.rig.color_camera,
                info_.intrinsics_source);
     // Registered colour shares the depth camera and its distortion.
-    if (undistorter_ && info_.color_registered()) out.color = undistorter_->color(out.color);
+    if (undistorter_ && info_.rig.color_registered()) out.color = undistorter_->color(out.color);
   }
   if (f.T_wc_gt) {
     out.T_wc_gt = f.T_wc_gt;
@@ -151,12 +151,12 @@ RgbdFrame FileDataset::read(std::size_t index) {
 // ---- calibration -----------------------------------------------------------------------------
 
 void Calibration::apply_to(DatasetInfo& info, bool undistort) const {
-  info.depth_camera = camera;
-  info.color_camera = camera;
+  info.rig.depth_camera = camera;
+  info.rig.color_camera = camera;
   info.intrinsics_source = intrinsics_source;
   info.distortion = distortion;
   info.undistorted = undistort && !distortion.none();
-  info.depth_scale = depth_scale;
+  info.rig.depth_scale = depth_scale;
   info.depth_scale_source = depth_scale_source;
 }
 

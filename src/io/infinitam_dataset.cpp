@@ -225,9 +225,9 @@ std::unique_ptr<FileDataset> open_infinitam(const fs::path& dir, const DatasetPa
   DatasetInfo info;
   info.source = dir.string();
   info.layout = DatasetLayout::InfiniTam;
-  info.depth_camera = calib.depth;
-  info.color_camera = calib.color;
-  info.T_color_depth = calib.T_depth_color.inverse();
+  info.rig.depth_camera = calib.depth;
+  info.rig.color_camera = calib.color;
+  info.rig.T_color_depth = calib.T_depth_color.inverse();
   info.intrinsics_source = calib_path.string();
   DepthDecoding decoding{1.0 / calib.a, 0, calib.b};
   info.depth_scale_source =
@@ -237,7 +237,7 @@ std::unique_ptr<FileDataset> open_infinitam(const fs::path& dir, const DatasetPa
   // the affine offset stay), and the depth scale unless --depth-scale gives one.
   if (!params.intrinsics_path.empty()) {
     const IntrinsicsFile file = read_intrinsics_json(params.intrinsics_path);
-    info.depth_camera = info.color_camera = file.camera;
+    info.rig.depth_camera = info.rig.color_camera = file.camera;
     info.intrinsics_source = fmt::format("{} (given)", params.intrinsics_path.string());
     if (file.depth_scale > 0) {
       decoding.scale = file.depth_scale;
@@ -245,7 +245,7 @@ std::unique_ptr<FileDataset> open_infinitam(const fs::path& dir, const DatasetPa
     }
   } else if (!params.preset.empty()) {
     const CameraPreset& preset = camera_preset(params.preset);
-    info.depth_camera = info.color_camera = preset.camera;
+    info.rig.depth_camera = info.rig.color_camera = preset.camera;
     info.intrinsics_source = fmt::format("preset {} (given)", preset.name);
     decoding.scale = preset.depth_scale;
     info.depth_scale_source = info.intrinsics_source;
@@ -254,7 +254,7 @@ std::unique_ptr<FileDataset> open_infinitam(const fs::path& dir, const DatasetPa
     decoding.scale = params.depth_scale;
     info.depth_scale_source = "given";
   }
-  info.depth_scale = decoding.scale;
+  info.rig.depth_scale = decoding.scale;
   return std::make_unique<FileDataset>(std::move(info), std::move(frames), decoding);
 }
 

@@ -73,7 +73,7 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["memory_bytes"] = map.memory_bytes();
   j["voxel_size_m"] = map.params().voxel_size_m;
   j["levels"] = map.params().levels;
-  j["truncation_m"] = rec.params().fusion.truncation_m;
+  j["truncation_m"] = rec.params().map.truncation_m;
   int64_t splits = 0, merges = 0;
   for (const FrameStats& f : frames) {
     splits += f.splits;

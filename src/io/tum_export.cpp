@@ -107,7 +107,7 @@ void export_tum(DatasetReader& reader, const fs::path& dir, double depth_scale, 
   if (!poses.empty()) write_tum_trajectory(dir / "groundtruth.txt", poses, origin);
 
   IntrinsicsFile intrinsics;
-  intrinsics.camera = info.depth_camera;
+  intrinsics.camera = info.rig.depth_camera;
   intrinsics.depth_scale = depth_scale;
   intrinsics.note = origin;
   write_intrinsics_json(dir / "intrinsics.json", intrinsics);

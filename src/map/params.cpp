@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "hivox/core/error.h"
+#include "hivox/core/log.h"
 
 namespace hivox {
 
@@ -17,6 +18,8 @@ bool is_power_of_two(int64_t v) {
 void MapParams::validate() const {
   if (!std::isfinite(voxel_size_m) || voxel_size_m <= 0.0f || voxel_size_m > 1.0f)
     fail(ErrorCode::InvalidArgument, "voxel_size_m must be in (0, 1] metres, got {}", voxel_size_m);
+  if (!std::isfinite(truncation_m) || truncation_m <= 0.0f || truncation_m > 1.0f)
+    fail(ErrorCode::InvalidArgument, "truncation_m must be in (0, 1] metres, got {}", truncation_m);
   if (levels < 1 || levels > kMaxLevels)
     fail(ErrorCode::InvalidArgument, "levels must be between 1 and {}, got {}", kMaxLevels, levels);
   if (max_blocks < 1 || max_blocks > (int64_t{1} << 30))
@@ -29,14 +32,28 @@ void MapParams::validate() const {
          excess_per_level);
 }
 
+void MapParams::warn_about_combinations() const {
+  const float finest = voxel_size_m;
+  const float coarsest = voxel_size_at(levels - 1);
+  if (truncation_m < finest)
+    log::warn("truncation_m {:.4f} m is below the voxel size {:.4f} m: surfaces will have holes",
+              truncation_m, finest);
+  else if (truncation_m < 2.0f * coarsest)
+    log::warn(
+        "truncation_m {:.4f} m is less than 2x the coarsest voxel size ({:.4f} m): the coarsest "
+        "level sees a band of about one voxel and meshes may have holes; use >= {:.4f} m",
+        truncation_m, coarsest, 2.0f * coarsest);
+}
+
 std::string MapParams::to_string() const {
   std::string sizes;
   for (int l = 0; l < levels; ++l)
     sizes += fmt::format("{}{:.1f}", l ? "/" : "", voxel_size_at(l) * 1000.0f);
   return fmt::format(
-      "voxel {} mm ({} level{}), max_blocks {}, buckets/level {}, excess/level {}, colour {}",
-      sizes, levels, levels > 1 ? "s" : "", max_blocks, buckets_per_level, excess_per_level,
-      store_color ? "on" : "off");
+      "voxel {} mm ({} level{}), truncation {:.1f} mm, max_blocks {}, buckets/level {}, "
+      "excess/level {}, colour {}",
+      sizes, levels, levels > 1 ? "s" : "", truncation_m * 1000.0f, max_blocks, buckets_per_level,
+      excess_per_level, store_color ? "on" : "off");
 }
 
 }  // namespace hivox

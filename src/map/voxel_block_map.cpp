@@ -82,6 +82,7 @@ VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
   }
   MapView& read = storage_.read;
   read.levels = params_.levels;
+  read.truncation_m = params_.truncation_m;
   storage_.tsdf = tsdf_.data;
   storage_.color = color_.data;
   read.tsdf = storage_.tsdf;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -10,57 +11,34 @@
 
 namespace hivox {
 
-namespace {
-
-RaycastParams raycast_params_for(const ReconstructionParams& p) {
-  RaycastParams r = p.raycast;
-  r.truncation_m = p.fusion.truncation_m;
-  r.min_depth_m = p.fusion.min_depth_m > 0.0f ? p.fusion.min_depth_m : r.min_depth_m;
-  r.max_depth_m = p.fusion.max_depth_m;
-  return r;
-}
-
-/// `p` with the refinement's noise model taken from the dataset where it asks for that.
-ReconstructionParams with_dataset_noise(ReconstructionParams p, const DatasetInfo& info) {
-  if (p.refine.noise_from_dataset) p.refine.noise = info.depth_noise;
-  return p;
-}
-
-TrackParams track_params_for(const ReconstructionParams& p) {
-  TrackParams t = p.track;
-  t.min_depth_m = p.fusion.min_depth_m > 0.0f ? p.fusion.min_depth_m : t.min_depth_m;
-  t.max_depth_m = p.fusion.max_depth_m;
-  return t;
-}
-
-}  // namespace
-
 void ReconstructionParams::validate() const {
   map.validate();
   fusion.validate();
   refine.validate();
-  raycast_params_for(*this).validate();
-  track_params_for(*this).validate();
+  raycast.validate();
+  track.validate();
 }
 
-std::string ReconstructionParams::to_string() const {
+std::string ReconstructionParams::to_string(const CameraRig* rig) const {
+  const std::optional<SensorNoise> sensor =
+      rig != nullptr ? std::optional<SensorNoise>(rig->depth_noise) : std::nullopt;
   return fmt::format("map: {}\nfusion: {}\n{}raycast: {}{}\ntrack: {}", map.to_string(),
                      fusion.to_string(),
-                     map.levels > 1 ? "refine: " + refine.to_string() + "\n" : std::string(),
-                     raycast_params_for(*this).to_string(),
+                     map.levels > 1 ? "refine: " + refine.to_string(sensor) + "\n" : std::string(),
+                     raycast.to_string(),
                      raycast_every_frame ? " (every frame)" : " (renders only)", track.to_string());
 }
 
-Reconstruction::Reconstruction(const ReconstructionParams& params, const DatasetInfo& info)
-    : params_(with_dataset_noise(params, info)),
-      info_(info),
+Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig)
+    : params_(params),
+      rig_(rig),
       integrator_(params_.fusion),
-      refiner_(params_.refine),
-      raycaster_(raycast_params_for(params_)),
-      tracker_(track_params_for(params_)) {
+      refiner_(params_.refine, rig.depth_noise),
+      raycaster_(params_.raycast),
+      tracker_(params_.track, params_.fusion.depth_range) {
   params_.validate();
-  params_.fusion.check_against(params_.map);
-  info_.depth_camera.validate("depth camera");
+  params_.map.warn_about_combinations();
+  rig_.validate();
   map_ = std::make_unique<VoxelBlockMap>(params_.map);
 }
 
@@ -90,10 +68,10 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
   const RaycastResult& model = raycaster_.result();
   if (model.depth_m.empty() || !model.T_wc.isApprox(T_prev) ||
       model.camera.width != model_camera().width) {
-    raycaster_.raycast(*map_, model_camera(), T_prev);
+    raycaster_.raycast(*map_, model_camera(), T_prev, params_.fusion.depth_range);
   }
   const Pose T_init = params_.track.constant_velocity ? Pose(T_prev * motion_) : T_prev;
-  last_track_ = tracker_.track(frame.depth_m, info_.depth_camera, raycaster_.result(), T_init);
+  last_track_ = tracker_.track(frame.depth_m, rig_.depth_camera, raycaster_.result(), T_init);
   s.track_ms = total.elapsed_ms();
   s.tracking = last_track_.quality;
   s.track_inlier_ratio = last_track_.inlier_ratio;
@@ -139,20 +117,19 @@ const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_w
 void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s) {
   Stopwatch stage;
 
-  const FusionInput in = fusion_input(info_, frame, T_wc);
-  const AllocationStats a = integrator_.allocate(*map_, in);
+  const FusionInput in = fusion_input(rig_, frame, T_wc);
+  const Allocation a = integrator_.allocate(*map_, in);
   s.allocate_ms = stage.lap_ms();
-  integrator_.integrate(*map_, in);
+  integrator_.integrate(*map_, in, a.visible_blocks);
   s.integrate_ms = stage.lap_ms();
-  s.valid_pixels = a.valid_pixels;
-  s.visible_blocks = a.visible_blocks;
-  s.new_blocks = a.new_blocks;
-  s.dropped_blocks = a.dropped_blocks;
+  s.valid_pixels = a.stats.valid_pixels;
+  s.visible_blocks = static_cast<int64_t>(a.visible_blocks.size());
+  s.new_blocks = a.stats.new_blocks;
+  s.dropped_blocks = a.stats.dropped_blocks;
 
   if (map_->levels() > 1) {
     stage.restart();
-    const RefineStats r =
-        refiner_.refine(*map_, integrator_.visible_blocks(), params_.fusion.truncation_m, T_wc);
+    const RefineStats r = refiner_.refine(*map_, a.visible_blocks, T_wc);
     s.refine_ms = stage.lap_ms();
     s.splits = r.splits;
     s.merges = r.merges;
@@ -162,29 +139,10 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
   if (params_.raycast_every_frame) {
     stage.restart();
     RaycastStats rs;
-    // The frame was just fused from this pose: its depth tells each ray where to start.
-    const PinholeCamera camera = model_camera();
-    const DepthImage* hint = &frame.depth_m;
-    if (camera.width != frame.depth_m.width()) {
-      const int n = params_.track.model_subsample;
-      hint_.resize(camera.width, camera.height);
-      for (int y = 0; y < camera.height; ++y)
-        for (int x = 0; x < camera.width; ++x)
-          hint_(x, y) = frame.depth_m(n * x + n / 2, n * y + n / 2);
-      hint = &hint_;
-    }
-    // Where the frame has no depth, or the search at its depth fails (a depth in front of the
-    // model's surface, or on voxels not observed yet), the surface the previous raycast saw, seen
-    // from here.
-    const RaycastResult& previous = raycaster_.result();
-    const DepthImage* fallback = nullptr;
-    if (params_.previous_raycast_hints && previous.camera.width == camera.width &&
-        previous.camera.height == camera.height && !previous.depth_m.empty()) {
-      warp_raycast_depth(previous, camera, T_wc, params_.fusion.truncation_m, &warped_,
-                         &warp_scratch_);
-      fallback = &warped_;
-    }
-    raycaster_.raycast(*map_, camera, T_wc, &rs, hint, fallback);
+    const RaycastHints hints = hints_.build(
+        frame.depth_m, rig_.depth_camera, params_.track.model_subsample, T_wc,
+        params_.previous_raycast_hints ? &raycaster_.result() : nullptr, params_.map.truncation_m);
+    raycaster_.raycast(*map_, model_camera(), T_wc, params_.fusion.depth_range, hints, &rs);
     s.raycast_ms = stage.lap_ms();
     s.raycast_hits = rs.hits;
     s.raycast_hits_at_hint = rs.found_at_hint;
@@ -192,7 +150,7 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
 }
 
 PinholeCamera Reconstruction::model_camera() const {
-  return info_.depth_camera.subsampled(params_.track.model_subsample);
+  return rig_.depth_camera.subsampled(params_.track.model_subsample);
 }
 
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {
@@ -233,10 +191,10 @@ Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth
 
 const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const Pose& T_wc,
                                             float max_depth_m) {
-  RaycastParams p = raycast_params_for(params_);
-  if (max_depth_m > 0.0f) p.max_depth_m = max_depth_m;
-  Raycaster raycaster(p);
-  raycaster.raycast(*map_, camera, T_wc);
+  DepthRange range = params_.fusion.depth_range;
+  if (max_depth_m > 0.0f) range.max_m = max_depth_m;
+  Raycaster raycaster(params_.raycast);
+  raycaster.raycast(*map_, camera, T_wc, range);
   // Keep the per-frame raycast intact: copy the render out of the temporary raycaster.
   render_result_ = raycaster.result();
   return render_result_;

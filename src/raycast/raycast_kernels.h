@@ -96,14 +96,14 @@ struct RayMarchConstants {
 inline RayMarchConstants march_constants(const RaycastParams& p, const MapView& map,
                                          const CoarseOccupancy& occupancy) {
   RayMarchConstants k;
-  k.mu_m = p.truncation_m;
+  k.mu_m = map.truncation_m;
   k.step_fraction = p.step_fraction;
   k.min_weight = p.min_weight;
   k.occupancy = occupancy;
   const float coarsest_voxel_m = map.level[map.levels - 1].voxel_size_m;
-  k.min_step_voxels = fminf(2.0f, 0.5f * p.truncation_m / coarsest_voxel_m + 0.5f);
-  k.hint_margin_m = p.hint_margin_mu * p.truncation_m;
-  k.hint_agreement_m = p.hint_agreement_mu * p.truncation_m;
+  k.min_step_voxels = fminf(2.0f, 0.5f * map.truncation_m / coarsest_voxel_m + 0.5f);
+  k.hint_margin_m = p.hint_margin_mu * map.truncation_m;
+  k.hint_agreement_m = p.hint_agreement_mu * map.truncation_m;
   return k;
 }
 

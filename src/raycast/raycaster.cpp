@@ -155,129 +155,6 @@ Vec3f RaycastResult::normal_c(int x, int y) const {
   return to_rigid3f(T_wc.inverse()).rotate(normals_w(x, y));
 }
 
-void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
-                        float max_gap_m, DepthImage* out, WarpScratch* scratch) {
-  camera.validate("warp camera");
-  if (!(max_gap_m > 0.0f))
-    fail(ErrorCode::InvalidArgument, "warp max_gap_m {} must be > 0", max_gap_m);
-  const int w = camera.width, h = camera.height;
-  WarpScratch local;
-  WarpScratch& s = scratch != nullptr ? *scratch : local;
-  // The nearest depth landing on each pixel (FLT_MAX: none yet). Each thread keeps its own
-  // (the first thread's is `nearest`), merged row by row afterwards: an atomic minimum per hit
-  // cost most of the warp.
-  DepthImage& nearest = s.nearest;
-  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
-  const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
-  const float plane_limit_m = 0.5f * max_gap_m;
-  int threads = 1;
-#pragma omp parallel
-  {
-#pragma omp single
-    {
-      threads = omp_get_num_threads();
-      if (static_cast<int>(s.partial.size()) < threads - 1) s.partial.resize(threads - 1);
-    }  // (a barrier)
-    const int thread = omp_get_thread_num();
-    DepthImage& mine = thread == 0 ? nearest : s.partial[thread - 1];
-    mine.resize(w, h, FLT_MAX);
-    // Row by row: where each hit lands and at which depth, in a loop without branches or
-    // conversions (it vectorizes), then the landings into `mine`.
-    std::vector<float> landing_u(static_cast<std::size_t>(from_w));
-    std::vector<float> landing_v(static_cast<std::size_t>(from_w));
-    std::vector<float> landing_z(static_cast<std::size_t>(from_w));  // 0: lands nowhere
-    // camera.project and camera.ray written out on these copies below: called on the camera
-    // object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
-    const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
-#pragma omp for schedule(static)
-    for (int y = 0; y < from_h; ++y) {
-      const float* depth = &from.depth_m(0, y);
-      const Vec3f* points = &from.points_w(0, y);
-      const Vec3f* normals = &from.normals_w(0, y);
-#pragma omp simd
-      for (int x = 0; x < from_w; ++x) {
-        const Vec3f p = T_cw * points[x];
-        // The nearest pixel, floor(coordinate + 1/2) (the hit lands nowhere where that is
-        // negative or beyond the image).
-        const float inv_z = 1.0f / p.z;
-        const float u_half = fx * p.x * inv_z + cx + 0.5f;
-        const float v_half = fy * p.y * inv_z + cy + 0.5f;
-        const float uf = floor_nonnegative(u_half), vf = floor_nonnegative(v_half);
-        const bool lands = (depth[x] > 0.0f) & (p.z > 0.0f) & (u_half >= 0.0f) & (v_half >= 0.0f) &
-                           (u_half < static_cast<float>(w)) & (v_half < static_cast<float>(h));
-        landing_u[x] = uf;
-        landing_v[x] = vf;
-        // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from
-        // the hit: at an oblique surface the hit's own depth is off by up to a voxel or more
-        // there), at most half the gap from the hit's depth (grazing planes).
-        const Vec3f n = T_cw.rotate(normals[x]);
-        const Vec3f ray{(uf - cx) / fx, (vf - cy) / fy, 1.0f};
-        const float n_ray = dot(n, ray);
-        const bool oblique = std::abs(n_ray) > 1e-6f;  // else the hit's own depth
-        const float z = oblique ? dot(n, p) / (oblique ? n_ray : 1.0f) : p.z;
-        const float z_lo = p.z - plane_limit_m, z_hi = p.z + plane_limit_m;
-        landing_z[x] = lands ? (z < z_lo ? z_lo : (z > z_hi ? z_hi : z)) : 0.0f;
-      }
-      float* m = mine.data();
-      for (int x = 0; x < from_w; ++x) {
-        if (!(landing_z[x] > 0.0f)) continue;
-        const int64_t i = static_cast<int64_t>(landing_v[x]) * w + static_cast<int>(landing_u[x]);
-        m[i] = std::min(m[i], landing_z[x]);
-      }
-    }
-  }
-  // The threads' landings merged, and the nearest depth landed within one pixel: a minimum over
-  // each row's 3 pixels, then over 3 rows (loops without branches, which vectorize).
-  DepthImage& row_min = s.row_min;  // every pixel written below
-  if (row_min.width() != w || row_min.height() != h) row_min.resize(w, h);
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y) {
-    float* n = &nearest(0, y);
-    for (int t = 0; t + 1 < threads; ++t) {
-      const float* other = &s.partial[t](0, y);
-      for (int x = 0; x < w; ++x) n[x] = std::min(n[x], other[x]);
-    }
-    float* r = &row_min(0, y);
-    for (int x = 1; x + 1 < w; ++x) r[x] = std::min(n[x - 1], std::min(n[x], n[x + 1]));
-    r[0] = std::min(n[0], w > 1 ? n[1] : FLT_MAX);
-    if (w > 1) r[w - 1] = std::min(n[w - 2], n[w - 1]);
-  }
-  if (out->width() != w || out->height() != h) out->resize(w, h);  // every pixel written below
-  auto landed = [&](int u, int v) {
-    return u >= 0 && v >= 0 && u < w && v < h ? nearest(u, v) : FLT_MAX;
-  };
-  const std::vector<float> no_row(static_cast<std::size_t>(w), FLT_MAX);
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y) {
-    const float* n = &nearest(0, y);
-    const float* above = y > 0 ? &row_min(0, y - 1) : no_row.data();
-    const float* row = &row_min(0, y);
-    const float* below = y + 1 < h ? &row_min(0, y + 1) : no_row.data();
-    float* o = &(*out)(0, y);
-    // A depth stays unless a pixel within one pixel holds a surface nearer by more than the gap
-    // (a surface that may show through a gap in the warped foreground).
-    auto kept = [&](int x, float z) {
-      const float front = std::min(above[x], std::min(row[x], below[x]));
-      return z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
-    };
-    for (int x = 0; x < w; ++x) o[x] = kept(x, n[x]);
-    for (int x = 0; x < w; ++x) {
-      if (n[x] < FLT_MAX) continue;
-      // No hit landed here, but on both sides of the pixel (the new view magnifies the surface,
-      // or its pixels sample it elsewhere): the nearer of the two, where they agree. A pixel
-      // beside a silhouette has hits on one side only and stays empty.
-      constexpr int kOpposite[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-      float z = FLT_MAX;
-      for (const auto& d : kOpposite) {
-        const float a = landed(x - d[0], y - d[1]), b = landed(x + d[0], y + d[1]);
-        if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
-          z = std::min(z, std::min(a, b));
-      }
-      o[x] = kept(x, z);
-    }
-  }
-}
-
 Raycaster::Raycaster(const RaycastParams& params) : params_(params) {
   params_.validate();
 }
@@ -287,10 +164,16 @@ Raycaster::Raycaster(Raycaster&&) noexcept = default;
 Raycaster& Raycaster::operator=(Raycaster&&) noexcept = default;
 
 const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
-                                        const Pose& T_wc, RaycastStats* stats,
-                                        const DepthImage* start_hint_m,
-                                        const DepthImage* fallback_hint_m) {
+                                        const Pose& T_wc, const DepthRange& range,
+                                        const RaycastHints& hints, RaycastStats* stats) {
   camera.validate("raycast camera");
+  range.validate("raycast depth range");
+  const DepthImage* start_hint_m = hints.start_m;
+  const DepthImage* fallback_hint_m = hints.fallback_m;
+  // Rays start no nearer than this: blocks at the camera's centre project without bound.
+  constexpr float kNearestStart_m = 1e-3f;
+  const float min_depth_m = std::max(range.min_m, kNearestStart_m);
+  const float max_depth_m = range.max_m;
   for (const auto& [image, name] :
        {std::pair{start_hint_m, "start hint"}, std::pair{fallback_hint_m, "fallback hint"}})
     if (image != nullptr && (image->width() != camera.width || image->height() != camera.height))
@@ -312,7 +195,8 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   r.has_color = view.color != nullptr;
 
   // Range image: every allocated block's bounding box, projected.
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params_.range_tile_px, camera);
+  const RaycastTuning& tuning = params_.tuning;
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(tuning.range_tile_px, camera);
   const int tile_count = tiles.count();
   tile_min_.assign(static_cast<std::size_t>(tile_count), FLT_MAX);
   tile_max_.assign(static_cast<std::size_t>(tile_count), 0.0f);
@@ -320,25 +204,25 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
   tiles.z_max = tile_max_.data();
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
   const int64_t projected =
-      kernels::fill_range_tiles(map, camera, T_cw, params_.min_depth_m, params_.max_depth_m, tiles);
+      kernels::fill_range_tiles(map, camera, T_cw, min_depth_m, max_depth_m, tiles);
   // Which super-blocks hold blocks: marches cross the others in one step.
   kernels::CoarseOccupancy occupancy;
-  if (params_.coarse_skipping) occupancy = kernels::build_coarse_occupancy(map, &occupancy_);
+  if (tuning.coarse_skipping) occupancy = kernels::build_coarse_occupancy(map, &occupancy_);
   // Which blocks hold a surface, per tile: marching rays march only where they cross them.
   const Rigid3f T = to_rigid3f(T_wc);
   kernels::SurfaceTiles surface;
-  const bool hinted = start_hint_m != nullptr || fallback_hint_m != nullptr;
-  if (params_.surface_tiles == SurfaceTileUse::Always ||
-      (params_.surface_tiles == SurfaceTileUse::WithoutHints && !hinted)) {
+  const bool hinted = !hints.empty();
+  if (tuning.surface_tiles == SurfaceTileUse::Always ||
+      (tuning.surface_tiles == SurfaceTileUse::WithoutHints && !hinted)) {
     if (!surface_tiles_) surface_tiles_ = std::make_unique<kernels::SurfaceTileStorage>();
-    surface = kernels::build_surface_tiles(map, camera, T_cw, T.t, tiles, params_.min_depth_m,
-                                           params_.max_depth_m, surface_tiles_.get());
+    surface = kernels::build_surface_tiles(map, camera, T_cw, T.t, tiles, min_depth_m, max_depth_m,
+                                           surface_tiles_.get());
   }
   const double range_ms = watch.lap_ms();
 
   // March one ray per pixel.
   const kernels::RayMarchConstants k = kernels::march_constants(params_, view, occupancy);
-  const bool packets = params_.ray_packets && hinted && kernels::packets_can_address(view);
+  const bool packets = tuning.ray_packets && hinted && kernels::packets_can_address(view);
   int64_t hits = 0, found_at_hint = 0, found_at_fallback = 0;
 #pragma omp parallel reduction(+ : hits, found_at_hint, found_at_fallback)
   {
@@ -363,7 +247,7 @@ const RaycastResult& Raycaster::raycast(const VoxelBlockMap& map, const PinholeC
       const int x1 = std::min(w, x0 + tiles.tile_px), y1 = std::min(h, y0 + tiles.tile_px);
       // The camera-frame rays' x and y components, per column and row of the tile (what
       // camera.ray gives, with a division per tile column and row rather than two per pixel).
-      float ray_x[RaycastParams::kMaxRangeTilePx], ray_y[RaycastParams::kMaxRangeTilePx];
+      float ray_x[RaycastTuning::kMaxRangeTilePx], ray_y[RaycastTuning::kMaxRangeTilePx];
       for (int x = x0; x < x1; ++x) ray_x[x - x0] = camera.ray(static_cast<float>(x), 0.0f).x;
       for (int y = y0; y < y1; ++y) ray_y[y - y0] = camera.ray(0.0f, static_cast<float>(y)).y;
       // The ray of pixel (x, y) and its hints, written in place (a packet's ray copied in from a

@@ -33,7 +33,6 @@ RefineParams RefineParams::paper() {
   p.min_weight = 1;
   p.min_updates = 1;
   p.noise = SensorNoise::none();
-  p.noise_from_dataset = false;
   return p;
 }
 
@@ -46,16 +45,16 @@ float young_factor(float settled_weight, float mean_weight) {
 }
 }  // namespace
 
-float RefineParams::split_level(float z_m, float mean_weight) const {
+float RefineParams::split_level(const SensorNoise& sensor, float z_m, float mean_weight) const {
   if (criterion != RefineCriterion::Detail) return split_threshold;
   const float n =
-      split_noise_factor * noise.sigma_m(z_m) * young_factor(settled_weight, mean_weight);
+      split_noise_factor * sensor.sigma_m(z_m) * young_factor(settled_weight, mean_weight);
   return n > split_threshold ? n : split_threshold;
 }
 
-float RefineParams::merge_level(float z_m) const {
+float RefineParams::merge_level(const SensorNoise& sensor, float z_m) const {
   if (criterion != RefineCriterion::Detail) return merge_threshold;
-  const float n = merge_noise_ratio * split_noise_factor * noise.sigma_m(z_m);
+  const float n = merge_noise_ratio * split_noise_factor * sensor.sigma_m(z_m);
   return n > merge_threshold ? n : merge_threshold;
 }
 
@@ -78,10 +77,11 @@ void RefineParams::validate() const {
   if (min_updates < 0 || min_updates > 65535)
     fail(ErrorCode::InvalidArgument, "refine min_updates must be in [0, 65535], got {}",
          min_updates);
-  if (!(noise.sigma_min_m >= 0.0f && noise.quadratic_per_m >= 0.0f && std::isfinite(noise.z0_m)))
+  if (noise &&
+      !(noise->sigma_min_m >= 0.0f && noise->quadratic_per_m >= 0.0f && std::isfinite(noise->z0_m)))
     fail(ErrorCode::InvalidArgument,
-         "refine sensor noise terms must be >= 0, got {} + {} (z - {})^2", noise.sigma_min_m,
-         noise.quadratic_per_m, noise.z0_m);
+         "refine sensor noise terms must be >= 0, got {} + {} (z - {})^2", noise->sigma_min_m,
+         noise->quadratic_per_m, noise->z0_m);
   if (!(split_noise_factor >= 0.0f) || !std::isfinite(split_noise_factor))
     fail(ErrorCode::InvalidArgument, "refine split_noise_factor must be >= 0, got {}",
          split_noise_factor);
@@ -93,9 +93,11 @@ void RefineParams::validate() const {
          split_weight_scale);
 }
 
-std::string RefineParams::to_string() const {
+std::string RefineParams::to_string(const std::optional<SensorNoise>& sensor) const {
   const bool metres = criterion == RefineCriterion::Detail;
-  const bool noisy = metres && (noise.sigma_min_m > 0.0f || noise.quadratic_per_m > 0.0f);
+  // The noise model in use: this one's own, else the sensor's (unknown here: assume noisy).
+  const std::optional<SensorNoise> n = noise ? noise : sensor;
+  const bool noisy = metres && (!n || n->sigma_min_m > 0.0f || n->quadratic_per_m > 0.0f);
   return fmt::format(
       "criterion {}, split > {:.3g}{}{}, merge < {:.3g}{}{}, every {} frame{}, min weight {}, min "
       "updates {}",

@@ -11,17 +11,17 @@
 
 namespace hivox {
 
-Refiner::Refiner(const RefineParams& params) : params_(params) {
+Refiner::Refiner(const RefineParams& params, const SensorNoise& sensor_noise)
+    : params_(params), noise_(params.noise.value_or(sensor_noise)) {
   params_.validate();
 }
 
-float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m,
-                          float* mean_weight) const {
+float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float* mean_weight) const {
   const TsdfVoxel* v = map.block_tsdf(ptr);
   switch (params_.criterion) {
     case RefineCriterion::Detail:
-      return kernels::block_detail_m(v, truncation_m, params_.min_weight, params_.min_samples,
-                                     mean_weight);
+      return kernels::block_detail_m(v, map.params().truncation_m, params_.min_weight,
+                                     params_.min_samples, mean_weight);
     case RefineCriterion::DetCov:
       return kernels::block_det_cov(v, params_.min_weight);
   }
@@ -29,7 +29,7 @@ float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float truncatio
 }
 
 RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candidates,
-                            float truncation_m, const Pose& T_wc) {
+                            const Pose& T_wc) {
   RefineStats stats;
   if (map.levels() < 2 || (calls_++ % params_.every_n_frames) != 0) return stats;
   const MapView view = map.view();
@@ -47,13 +47,12 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
   std::vector<float> c(candidates.size(), -1.0f), w(candidates.size(), 0.0f);
   parallel_for(static_cast<int64_t>(candidates.size()), [&](int64_t i) {
     const BlockRef& b = candidates[static_cast<std::size_t>(i)];
-    if (b.ptr >= 0 && b.level > 0 && settled(b.ptr))
-      c[i] = complexity(map, b.ptr, truncation_m, &w[i]);
+    if (b.ptr >= 0 && b.level > 0 && settled(b.ptr)) c[i] = complexity(map, b.ptr, &w[i]);
   });
   std::vector<BlockRef> splits;
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     const BlockRef& b = candidates[i];
-    if (b.level > 0 && c[i] > params_.split_level(depth_of(b.pos, b.level), w[i]))
+    if (b.level > 0 && c[i] > params_.split_level(noise_, depth_of(b.pos, b.level), w[i]))
       splits.push_back(b);
   }
   stats.evaluated = static_cast<int64_t>(candidates.size());
@@ -69,11 +68,11 @@ RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candid
   parallel_for(static_cast<int64_t>(parents.size()), [&](int64_t i) {
     const BlockKey& p = parents[static_cast<std::size_t>(i)];
     if (find_block_ptr(view.level[p.level], p.pos) != kPtrSplit) return;
-    const float level = params_.merge_level(depth_of(p.pos, p.level));
+    const float level = params_.merge_level(noise_, depth_of(p.pos, p.level));
     for (int k = 0; k < kBlockChildren; ++k) {
       const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_block_pos(p.pos, k));
       if (ptr < 0) return;
-      const float c = complexity(map, ptr, truncation_m);
+      const float c = complexity(map, ptr);
       // A child with too little surface to judge holds nothing a merge could lose, however
       // young: the children of a table top's block that lie below the band seen from above are
       // never integrated, and waiting for them to settle kept the flat top split for good.

@@ -132,20 +132,21 @@ SyntheticDataset::SyntheticDataset(SyntheticParams params) : params_(std::move(p
   info_.source = std::string(kPrefix) + params_.scene;
   info_.layout = DatasetLayout::Synthetic;
   info_.frame_count = params_.frames;
-  info_.depth_camera = camera_;
-  info_.color_camera = camera_;
+  info_.rig.depth_camera = camera_;
+  info_.rig.color_camera = camera_;
   info_.intrinsics_source =
       params_.camera ? "synthetic (given)" : "synthetic (Kinect-like: 525 px at 640 wide)";
-  info_.depth_scale = 0;
+  info_.rig.depth_scale = 0;
   info_.depth_scale_source = "metric (synthetic)";
   info_.has_color = true;
   info_.has_ground_truth = true;
   info_.first_timestamp_s = trajectory_.empty() ? 0.0 : trajectory_.front().timestamp_s;
   const NoiseParams& n = params_.noise;
-  info_.depth_noise = n.enabled() ? SensorNoise{static_cast<float>(n.axial_sigma_base_m),
-                                                static_cast<float>(n.axial_sigma_quadratic_per_m),
-                                                static_cast<float>(n.axial_sigma_offset_m)}
-                                  : SensorNoise::none();
+  info_.rig.depth_noise = n.enabled()
+                              ? SensorNoise{static_cast<float>(n.axial_sigma_base_m),
+                                            static_cast<float>(n.axial_sigma_quadratic_per_m),
+                                            static_cast<float>(n.axial_sigma_offset_m)}
+                              : SensorNoise::none();
 }
 
 RenderedFrame SyntheticDataset::render_clean(std::size_t index) const {

@@ -54,10 +54,6 @@ void TrackParams::validate() const {
          bilateral_radius_px);
   positive(bilateral_sigma_px, "bilateral_sigma_px");
   positive(bilateral_sigma_depth_m, "bilateral_sigma_depth_m");
-  positive(min_depth_m, "min_depth_m");
-  if (!std::isfinite(max_depth_m) || max_depth_m <= min_depth_m)
-    fail(ErrorCode::InvalidArgument, "track max_depth_m must be > min_depth_m ({}), got {}",
-         min_depth_m, max_depth_m);
   positive(max_depth_jump_ratio, "max_depth_jump_ratio");
   if (iterations.empty() || iterations.size() > 5)
     fail(ErrorCode::InvalidArgument, "track iterations: 1 to 5 pyramid levels, got {}",

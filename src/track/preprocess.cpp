@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -11,7 +12,15 @@
 
 namespace hivox {
 
-void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& params) {
+namespace {
+/// The nearest depth `range` lets through: zero means invalid whatever the range says.
+float nearest_valid_m(const DepthRange& range) {
+  return std::max(range.min_m, std::numeric_limits<float>::min());
+}
+}  // namespace
+
+void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& params,
+                      const DepthRange& range) {
   out.resize(in.width(), in.height());
   const ImageView<const float> src = in.view();
   const int r = params.bilateral_radius_px;
@@ -27,7 +36,7 @@ void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& 
       std::fill(sum.begin(), sum.end(), 0.0f);
       std::fill(wsum.begin(), wsum.end(), 0.0f);
       const float* centre = &src(0, y);
-      const float lo = params.min_depth_m, hi = params.max_depth_m;
+      const float lo = nearest_valid_m(range), hi = range.max_m;
       for (int dy = std::max(-r, -y); dy <= std::min(r, h - 1 - y); ++dy) {
         const float* row = &src(0, y + dy);
         for (int dx = -r; dx <= r; ++dx) {
@@ -94,17 +103,19 @@ void points_and_normals(const DepthImage& depth_m, const PinholeCamera& camera,
 }
 
 void build_pyramid(const DepthImage& depth_m, const PinholeCamera& camera,
-                   const TrackParams& params, std::vector<PyramidLevel>& levels) {
+                   const TrackParams& params, const DepthRange& range,
+                   std::vector<PyramidLevel>& levels) {
   levels.resize(static_cast<std::size_t>(params.levels()));
   PyramidLevel& finest = levels[0];
   finest.camera = camera;
   if (params.bilateral_radius_px > 0) {
-    bilateral_filter(depth_m, finest.depth_m, params);
+    bilateral_filter(depth_m, finest.depth_m, params, range);
   } else {
     finest.depth_m = depth_m;
+    const float lo = nearest_valid_m(range), hi = range.max_m;
     for (std::size_t i = 0; i < finest.depth_m.size(); ++i) {
       float& d = finest.depth_m.data()[i];
-      if (!(d >= params.min_depth_m && d <= params.max_depth_m)) d = 0.0f;
+      if (!(d >= lo && d <= hi)) d = 0.0f;
     }
   }
   for (std::size_t l = 0; l < levels.size(); ++l) {

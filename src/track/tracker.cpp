@@ -56,8 +56,10 @@ double rotation_deg(const Pose& T) {
 
 }  // namespace
 
-Tracker::Tracker(const TrackParams& params) : params_(params) {
+Tracker::Tracker(const TrackParams& params, const DepthRange& depth_range)
+    : params_(params), depth_range_(depth_range) {
   params_.validate();
+  depth_range_.validate("tracking depth range");
 }
 
 void Tracker::build_model_pyramid(const RaycastResult& model) {
@@ -107,7 +109,7 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
                            const RaycastResult& model, const Pose& T_wc_init) {
   TrackResult result;
   Stopwatch watch;
-  build_pyramid(depth_m, camera, params_, frame_);
+  build_pyramid(depth_m, camera, params_, depth_range_, frame_);
   build_model_pyramid(model);
   result.preprocess_ms = watch.lap_ms();
 

@@ -218,13 +218,14 @@ void block_criteria_on_device(const DeviceMap& map, const std::vector<int32_t>& 
 }
 
 DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccupancy& occupancy,
-                                const RaycastParams& params, const PinholeCamera& camera,
-                                const Rigid3f& T_wc, const DepthImage* start_hint_m,
-                                const DepthImage* fallback_hint_m, int repeats) {
+                                const RaycastParams& params, const DepthRange& range,
+                                const PinholeCamera& camera, const Rigid3f& T_wc,
+                                const DepthImage* start_hint_m, const DepthImage* fallback_hint_m,
+                                int repeats) {
   params.validate();
   const int w = camera.width, h = camera.height;
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params.range_tile_px, camera);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(params.tuning.range_tile_px, camera);
   const int tile_count = tiles.count();
   DeviceBuffer<float> z_min(static_cast<std::size_t>(tile_count));
   DeviceBuffer<float> z_max(static_cast<std::size_t>(tile_count));
@@ -263,8 +264,7 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
                                                                      FLT_MAX);
           fill<<<(tile_count + kThreads - 1) / kThreads, kThreads>>>(z_max.ptr, tile_count, 0.0f);
           project_blocks<<<(map.high_water() + kThreads - 1) / kThreads, kThreads>>>(
-              map.view(), map.high_water(), T_cw, camera, params.min_depth_m, params.max_depth_m,
-              tiles);
+              map.view(), map.high_water(), T_cw, camera, range.min_m, range.max_m, tiles);
         }));
     result.rays_ms = std::min(result.rays_ms, timed([&] {
                                 const dim3 threads(16, 8);

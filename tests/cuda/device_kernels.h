@@ -11,6 +11,7 @@
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/image.h"
 #include "hivox/core/math.h"
 #include "hivox/map/voxel_block_map.h"
@@ -74,8 +75,9 @@ struct DeviceRaycast {
 /// (kernels::build_coarse_occupancy; its cells are copied), hints are host images of the
 /// camera's size. `repeats` casts (>= 1) are timed; the times are the fastest.
 DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccupancy& occupancy,
-                                const RaycastParams& params, const PinholeCamera& camera,
-                                const Rigid3f& T_wc, const DepthImage* start_hint_m,
-                                const DepthImage* fallback_hint_m, int repeats = 1);
+                                const RaycastParams& params, const DepthRange& range,
+                                const PinholeCamera& camera, const Rigid3f& T_wc,
+                                const DepthImage* start_hint_m, const DepthImage* fallback_hint_m,
+                                int repeats = 1);
 
 }  // namespace hivox::test

@@ -51,28 +51,27 @@ void compare_on_device(const Workload& w) {
   MapParams mp;
   mp.voxel_size_m = w.voxel_m;
   mp.levels = w.levels;
+  mp.truncation_m = w.truncation_m;
   VoxelBlockMap map(mp);
-  FusionParams fp;
-  fp.truncation_m = w.truncation_m;
+  const FusionParams fp;
   TsdfIntegrator integrator(fp);
   Refiner refiner;
+  const CameraRig& rig = w.reader->info().rig;
   for (int i = 0; i < w.frames; ++i) {
     const RgbdFrame f = w.reader->read(static_cast<std::size_t>(i));
-    const FusionInput in = fusion_input(w.reader->info(), f, f.T_wc_gt.value_or(Pose::Identity()));
-    integrator.fuse(map, in);
-    if (w.levels > 1) refiner.refine(map, integrator.visible_blocks(), fp.truncation_m, in.T_wc);
+    const FusionInput in = fusion_input(rig, f, f.T_wc_gt.value_or(Pose::Identity()));
+    const Allocation a = integrator.fuse(map, in);
+    if (w.levels > 1) refiner.refine(map, a.visible_blocks, in.T_wc);
   }
   const RgbdFrame frame = w.reader->read(static_cast<std::size_t>(w.frames));
-  const FusionInput in =
-      fusion_input(w.reader->info(), frame, frame.T_wc_gt.value_or(Pose::Identity()));
+  const FusionInput in = fusion_input(rig, frame, frame.T_wc_gt.value_or(Pose::Identity()));
 
   // Integration: the device works on a copy of the map taken after allocation.
-  integrator.allocate(map, in);
-  const std::vector<BlockRef> blocks = integrator.visible_blocks();
+  const std::vector<BlockRef> blocks = integrator.allocate(map, in).visible_blocks;
   DeviceMap device_map(map);
-  integrator.integrate(map, in);
+  integrator.integrate(map, in, blocks);
   std::vector<uint32_t> packed;
-  const IntegrationFrame f = integration_frame(in, fp, map.view().color != nullptr, &packed);
+  const IntegrationFrame f = integration_frame(in, fp, map.params(), &packed);
   const double integrate_ms =
       integrate_on_device(device_map, blocks, f.depth, f.color, f.constants);
   std::vector<TsdfVoxel> tsdf;
@@ -129,19 +128,19 @@ void compare_on_device(const Workload& w) {
     det_cov_params.criterion = RefineCriterion::DetCov;
     const Refiner detail(detail_params), det_cov(det_cov_params);
     std::vector<float> gpu_detail, gpu_det_cov;
-    block_criteria_on_device(fused, ptrs, fp.truncation_m, detail_params.min_weight,
+    block_criteria_on_device(fused, ptrs, mp.truncation_m, detail_params.min_weight,
                              detail_params.min_samples, &gpu_detail, &gpu_det_cov);
     int64_t judged = 0, detail_far = 0, det_cov_far = 0;
     double det_cov_max_diff = 0;
     for (std::size_t i = 0; i < ptrs.size(); ++i) {
-      const float d = detail.complexity(map, ptrs[i], fp.truncation_m);
+      const float d = detail.complexity(map, ptrs[i]);
       judged += d >= 0.0f;
       // Same sums in the same order; fused multiply-adds move the last bits.
       detail_far += std::abs(d - gpu_detail[i]) > 1e-4f * std::abs(d);
       // A determinant of entries ~0.1 that often cancels to ~0: its rounding is absolute, ~1e-7
       // per entry. 1e-6 is 1 % of the paper's threshold (1e-4). (Plateau voxels that rounding
       // gave a direction made the two disagree by up to 2.8e-3, see DetCovCriterion.)
-      const float c = det_cov.complexity(map, ptrs[i], fp.truncation_m);
+      const float c = det_cov.complexity(map, ptrs[i]);
       det_cov_far += std::abs(c - gpu_det_cov[i]) > 1e-6f;
       det_cov_max_diff =
           std::max(det_cov_max_diff, static_cast<double>(std::abs(c - gpu_det_cov[i])));
@@ -159,16 +158,17 @@ void compare_on_device(const Workload& w) {
   // Raycast: the CPU's per-ray path (no packets), with the depth just fused as the start hint
   // and without hints.
   RaycastParams rp;
-  rp.truncation_m = w.truncation_m;
-  rp.ray_packets = false;
+  rp.tuning.ray_packets = false;
   std::vector<int32_t> cells;
   const kernels::CoarseOccupancy occupancy = kernels::build_coarse_occupancy(map, &cells);
   for (const DepthImage* hint : {&frame.depth_m, static_cast<const DepthImage*>(nullptr)}) {
     Raycaster raycaster(rp);
-    const RaycastResult& cpu = raycaster.raycast(map, in.depth_camera, in.T_wc, nullptr, hint);
-    const DeviceRaycast gpu = raycast_on_device(fused, occupancy, rp, in.depth_camera,
+    const PinholeCamera& camera = rig.depth_camera;
+    const RaycastResult& cpu =
+        raycaster.raycast(map, camera, in.T_wc, fp.depth_range, RaycastHints{hint});
+    const DeviceRaycast gpu = raycast_on_device(fused, occupancy, rp, fp.depth_range, camera,
                                                 to_rigid3f(in.T_wc), hint, nullptr, 5);
-    const int width = in.depth_camera.width;
+    const int width = camera.width;
     int64_t both = 0, only_one = 0, depth_far = 0, normal_far = 0, level_differ = 0;
     for (std::size_t i = 0; i < gpu.depth_m.size(); ++i) {
       const int x = static_cast<int>(i % static_cast<std::size_t>(width));

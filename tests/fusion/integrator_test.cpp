@@ -17,9 +17,10 @@ PinholeCamera small_camera() {
   return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
 }
 
-MapParams fixed_grid(float voxel_m) {
+MapParams fixed_grid(float voxel_m, float mu_m = MapParams{}.truncation_m) {
   MapParams p;
   p.voxel_size_m = voxel_m;
+  p.truncation_m = mu_m;
   p.levels = 1;
   p.max_blocks = 1 << 16;
   p.buckets_per_level = 1 << 16;
@@ -29,31 +30,30 @@ MapParams fixed_grid(float voxel_m) {
 
 struct Fused {
   std::unique_ptr<VoxelBlockMap> map;
-  std::vector<AllocationStats> stats;
+  std::vector<Allocation> allocations;
 };
 
-/// Fuses the scene's depth from each pose into a fixed grid of `voxel_m`.
-Fused fuse_views(const test::SphereOnPlane& scene, float voxel_m, const FusionParams& fp,
-                 const std::vector<Pose>& poses) {
-  Fused out{std::make_unique<VoxelBlockMap>(fixed_grid(voxel_m)), {}};
+/// Fuses the scene's depth from each pose into a fixed grid of `voxel_m` with band `mu_m`.
+Fused fuse_views(const test::SphereOnPlane& scene, float voxel_m, float mu_m,
+                 const FusionParams& fp, const std::vector<Pose>& poses) {
+  Fused out{std::make_unique<VoxelBlockMap>(fixed_grid(voxel_m, mu_m)), {}};
   TsdfIntegrator integrator(fp);
   const PinholeCamera cam = small_camera();
   for (const Pose& T_wc : poses) {
     const DepthImage depth = scene.render(cam, T_wc);
     FusionInput in;
     in.depth_m = &depth;
-    in.depth_camera = cam;
+    in.rig = CameraRig::registered(cam);
     in.T_wc = T_wc;
-    out.stats.push_back(integrator.fuse(*out.map, in));
+    out.allocations.push_back(integrator.fuse(*out.map, in));
   }
   return out;
 }
 
 Fused fuse_orbit(const test::SphereOnPlane& scene, float voxel_m, float mu_m, int views,
                  double sweep = 2 * M_PI) {
-  FusionParams fp;
-  fp.truncation_m = mu_m;
-  return fuse_views(scene, voxel_m, fp, test::orbit(scene.centre, 0.9, 0.5, views, 0.3, sweep));
+  return fuse_views(scene, voxel_m, mu_m, FusionParams{},
+                    test::orbit(scene.centre, 0.9, 0.5, views, 0.3, sweep));
 }
 
 Eigen::Vector3d voxel_position(const BlockRef& b, int i, float voxel_m) {
@@ -77,15 +77,14 @@ TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
   const test::SphereOnPlane scene = floor_only();
   const float voxel = 0.01f, mu = 0.04f;
   FusionParams fp;
-  fp.truncation_m = mu;
-  fp.max_depth_m = 1.6f;
+  fp.depth_range.max_m = 1.6f;
   std::vector<Pose> poses;
   for (int i = 0; i < 10; ++i) {
     const double a = i * 0.6;
     poses.push_back(look_at({0.3 * std::cos(a), 0.3 * std::sin(a), 1.0}, {0.05 * i - 0.2, 0, 0},
                             Eigen::Vector3d::UnitY()));
   }
-  const Fused f = fuse_views(scene, voxel, fp, poses);
+  const Fused f = fuse_views(scene, voxel, mu, fp, poses);
   const VoxelBlockMap& map = *f.map;
   double sum_err = 0, max_err = 0;
   int n = 0;
@@ -113,15 +112,14 @@ TEST(Integrator, TsdfMatchesExactSdfOnASurfaceSeenAtModerateAngles) {
 /// exceed mu and both samplings take the nearest pixel.
 double slanted_floor_offset_m(DepthSampling sampling) {
   FusionParams fp;
-  fp.truncation_m = 0.04f;
-  fp.max_depth_m = 3.0f;
+  fp.depth_range.max_m = 3.0f;
   fp.depth_sampling = sampling;
   std::vector<Pose> poses;
   for (int i = 0; i < 8; ++i)
     poses.push_back(
         look_at({0.02 * i, -1.3, 0.5}, {0.03 * i - 0.1, 0.0, 0.0}, Eigen::Vector3d::UnitZ()));
   const float voxel = 0.01f;
-  const Fused f = fuse_views(floor_only(), voxel, fp, poses);
+  const Fused f = fuse_views(floor_only(), voxel, 0.04f, fp, poses);
   const VoxelBlockMap& map = *f.map;
   double sum = 0;
   int n = 0;
@@ -254,7 +252,7 @@ TEST(Integrator, ParallelAllocationEqualsSerial) {
     std::vector<BlockKey> keys;
     for (const BlockRef& b : f.map->allocated_blocks()) keys.push_back({b.pos, b.level});
     std::sort(keys.begin(), keys.end());
-    return std::make_pair(keys, f.stats);
+    return std::make_pair(keys, f.allocations);
   };
   const auto [serial, s1] = blocks_with(1);
   const auto [parallel, s2] = blocks_with(3);
@@ -262,8 +260,8 @@ TEST(Integrator, ParallelAllocationEqualsSerial) {
   EXPECT_EQ(serial, parallel);
   ASSERT_EQ(s1.size(), s2.size());
   for (std::size_t i = 0; i < s1.size(); ++i) {
-    EXPECT_EQ(s1[i].visible_blocks, s2[i].visible_blocks);
-    EXPECT_EQ(s1[i].new_blocks, s2[i].new_blocks);
+    EXPECT_EQ(s1[i].visible_blocks.size(), s2[i].visible_blocks.size());
+    EXPECT_EQ(s1[i].stats.new_blocks, s2[i].stats.new_blocks);
   }
 }
 
@@ -271,15 +269,20 @@ TEST(Integrator, VisibleBlocksAreUniqueAndNewBlocksCounted) {
   const test::SphereOnPlane scene;
   const Fused f = fuse_orbit(scene, 0.01f, 0.04f, 4, M_PI / 4);
   int64_t total_new = 0;
-  for (const AllocationStats& s : f.stats) {
+  for (const Allocation& a : f.allocations) {
+    const AllocationStats& s = a.stats;
     EXPECT_GT(s.valid_pixels, 1000);
-    EXPECT_LE(s.new_blocks, s.visible_blocks);
+    EXPECT_LE(s.new_blocks, static_cast<int64_t>(a.visible_blocks.size()));
     EXPECT_EQ(s.dropped_blocks, 0);
     total_new += s.new_blocks;
+    std::vector<int32_t> ptrs;
+    for (const BlockRef& b : a.visible_blocks) ptrs.push_back(b.ptr);
+    std::sort(ptrs.begin(), ptrs.end());
+    EXPECT_EQ(std::adjacent_find(ptrs.begin(), ptrs.end()), ptrs.end()) << "a block twice";
   }
   EXPECT_EQ(total_new, f.map->blocks_in_use());
   // The second view of a nearly identical pose allocates few new blocks.
-  EXPECT_LT(f.stats[1].new_blocks, f.stats[0].new_blocks);
+  EXPECT_LT(f.allocations[1].stats.new_blocks, f.allocations[0].stats.new_blocks);
 }
 
 TEST(Integrator, FullPoolDropsAreCountedAndFusionContinues) {
@@ -291,29 +294,29 @@ TEST(Integrator, FullPoolDropsAreCountedAndFusionContinues) {
   const PinholeCamera cam = small_camera();
   const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
   const DepthImage depth = scene.render(cam, T_wc);
-  FusionInput in{.depth_m = &depth, .depth_camera = cam};
+  FusionInput in{.depth_m = &depth, .rig = CameraRig::registered(cam)};
   in.T_wc = T_wc;
-  const AllocationStats s = integrator.fuse(map, in);
+  const Allocation a = integrator.fuse(map, in);
   EXPECT_EQ(map.blocks_in_use(), 100);
-  EXPECT_GT(s.dropped_blocks, 0);
-  EXPECT_EQ(map.dropped_blocks(), s.dropped_blocks);
-  EXPECT_EQ(s.visible_blocks, 100);
+  EXPECT_GT(a.stats.dropped_blocks, 0);
+  EXPECT_EQ(map.dropped_blocks(), a.stats.dropped_blocks);
+  EXPECT_EQ(a.visible_blocks.size(), 100u);
   test::expect_map_consistent(map);
 }
 
 TEST(Integrator, DepthRangeIsRespected) {
   const test::SphereOnPlane scene;
   FusionParams fp;
-  fp.max_depth_m = 0.5f;  // everything is farther: nothing to do
+  fp.depth_range.max_m = 0.5f;  // everything is farther: nothing to do
   TsdfIntegrator integrator(fp);
   VoxelBlockMap map(fixed_grid(0.01f));
   const PinholeCamera cam = small_camera();
   const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
   const DepthImage depth = scene.render(cam, T_wc);
-  FusionInput in{.depth_m = &depth, .depth_camera = cam};
+  FusionInput in{.depth_m = &depth, .rig = CameraRig::registered(cam)};
   in.T_wc = T_wc;
-  const AllocationStats s = integrator.fuse(map, in);
-  EXPECT_EQ(s.valid_pixels, 0);
+  const Allocation a = integrator.fuse(map, in);
+  EXPECT_EQ(a.stats.valid_pixels, 0);
   EXPECT_EQ(map.blocks_in_use(), 0);
 }
 
@@ -325,7 +328,7 @@ TEST(Integrator, ColourIsFusedNearTheSurface) {
   const Pose T_wc = test::orbit(scene.centre, 0.9, 0.5, 1)[0];
   const DepthImage depth = scene.render(cam, T_wc);
   const ColorImage color(cam.width, cam.height, Rgb8{200, 100, 50});
-  FusionInput in{.depth_m = &depth, .depth_camera = cam, .color = &color, .color_camera = cam};
+  FusionInput in{.depth_m = &depth, .color = &color, .rig = CameraRig::registered(cam)};
   in.T_wc = T_wc;
   integrator.fuse(map, in);
   int coloured = 0;
@@ -345,7 +348,7 @@ TEST(Integrator, BadInputIsAClearError) {
   TsdfIntegrator integrator;
   VoxelBlockMap map(fixed_grid(0.01f));
   const DepthImage depth(100, 80);
-  FusionInput in{.depth_m = &depth, .depth_camera = small_camera()};
+  FusionInput in{.depth_m = &depth, .rig = CameraRig::registered(small_camera())};
   try {
     integrator.fuse(map, in);
     FAIL();
@@ -353,11 +356,14 @@ TEST(Integrator, BadInputIsAClearError) {
     EXPECT_NE(std::string(e.what()).find("100x80"), std::string::npos) << e.what();
   }
   FusionParams bad;
-  bad.truncation_m = -1;
+  bad.max_weight = 0;
   EXPECT_THROW(TsdfIntegrator{bad}, Error);
   bad = FusionParams{};
-  bad.max_depth_m = 0.1f;
+  bad.depth_range.max_m = 0.1f;
   EXPECT_THROW(bad.validate(), Error);
+  MapParams no_band;
+  no_band.truncation_m = -1;
+  EXPECT_THROW(VoxelBlockMap{no_band}, Error);
 }
 
 }  // namespace

@@ -46,10 +46,10 @@ TEST(RealData, TumFr1Rpy) {
   const DatasetInfo& info = reader->info();
   EXPECT_EQ(info.layout, DatasetLayout::Tum);
   ASSERT_EQ(reader->size(), 694u);
-  EXPECT_EQ(info.depth_camera.width, 640);
-  EXPECT_EQ(info.depth_camera.height, 480);
-  EXPECT_EQ(info.depth_camera.fx, 517.3f);
-  EXPECT_EQ(info.depth_scale, 5000.0);
+  EXPECT_EQ(info.rig.depth_camera.width, 640);
+  EXPECT_EQ(info.rig.depth_camera.height, 480);
+  EXPECT_EQ(info.rig.depth_camera.fx, 517.3f);
+  EXPECT_EQ(info.rig.depth_scale, 5000.0);
   // First association: rgb 1305031229.528748, depth 1305031229.528784; frames go by depth.
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 1305031229.528784);
   EXPECT_TRUE(info.has_color);
@@ -74,7 +74,7 @@ TEST(RealData, TumFr1Rpy) {
   for (const auto& [x, y] : {std::pair{320, 240}, std::pair{100, 400}, std::pair{600, 50}})
     EXPECT_FLOAT_EQ(kept.depth_m(x, y), raw(x, y) / 5000.0f) << x << "," << y;
   const DepthImage undistorted =
-      Undistorter(info.depth_camera, info.distortion).depth(kept.depth_m);
+      Undistorter(info.rig.depth_camera, info.distortion).depth(kept.depth_m);
   for (std::size_t i = 0; i < undistorted.size(); ++i)
     ASSERT_EQ(f.depth_m.data()[i], undistorted.data()[i]) << i;
   for (std::size_t i : {441u, 442u, 443u}) EXPECT_FALSE(reader->read(i).T_wc_gt.has_value()) << i;
@@ -119,8 +119,8 @@ TEST(RealData, TumFr3CabinetKeyframes) {
   auto reader = open_dataset(dir.string());
   const DatasetInfo& info = reader->info();
   ASSERT_EQ(reader->size(), 58u);
-  EXPECT_EQ(info.depth_camera.width, 640);
-  EXPECT_EQ(info.depth_camera.fx, 535.4f);
+  EXPECT_EQ(info.rig.depth_camera.width, 640);
+  EXPECT_EQ(info.rig.depth_camera.fx, 535.4f);
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 1341841278.8427);
   EXPECT_EQ(info.ground_truth_count, 58u);
   EXPECT_TRUE(info.warnings.empty());
@@ -136,9 +136,9 @@ TEST(RealData, ReplicaOffice0) {
   auto reader = open_dataset(dir.string());
   const DatasetInfo& info = reader->info();
   ASSERT_EQ(reader->size(), 4u);
-  EXPECT_EQ(info.depth_camera.width, 1200);
-  EXPECT_EQ(info.depth_camera.height, 680);
-  EXPECT_EQ(info.depth_scale, 6553.5);
+  EXPECT_EQ(info.rig.depth_camera.width, 1200);
+  EXPECT_EQ(info.rig.depth_camera.height, 680);
+  EXPECT_EQ(info.rig.depth_scale, 6553.5);
   EXPECT_EQ(info.ground_truth_count, 4u);
   EXPECT_TRUE(info.warnings.empty());
   const RgbdFrame f = reader->read(3);
@@ -155,8 +155,8 @@ TEST(RealData, ThreeDMatchSun3dSample) {
   auto reader = open_dataset(dir.string());
   const DatasetInfo& info = reader->info();
   ASSERT_EQ(reader->size(), 5u);
-  EXPECT_EQ(info.depth_camera.width, 640);
-  EXPECT_EQ(info.depth_scale, 1000.0);
+  EXPECT_EQ(info.rig.depth_camera.width, 640);
+  EXPECT_EQ(info.rig.depth_scale, 1000.0);
   EXPECT_EQ(info.ground_truth_count, 5u);
   EXPECT_TRUE(info.warnings.empty());
   const RgbdFrame f = reader->read(4);
@@ -187,7 +187,7 @@ TEST(RealData, ThreeDMatchAsSevenScenesLayout) {
   auto tum = open_dataset(dir.string());
   EXPECT_EQ(seven->info().layout, DatasetLayout::SevenScenes);
   ASSERT_EQ(seven->size(), 5u);
-  EXPECT_EQ(seven->info().depth_scale, 1000.0);  // the 7-Scenes default: millimetres
+  EXPECT_EQ(seven->info().rig.depth_scale, 1000.0);  // the 7-Scenes default: millimetres
   for (std::size_t i = 0; i < 5; ++i) {
     const RgbdFrame a = seven->read(i), b = tum->read(i);
     ASSERT_TRUE(a.T_wc_gt && b.T_wc_gt);

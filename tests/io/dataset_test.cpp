@@ -33,16 +33,16 @@ TEST(TumDataset, AssociationsDepthColourAndGroundTruth) {
   const DatasetInfo& info = reader->info();
   EXPECT_EQ(info.layout, DatasetLayout::Tum);
   EXPECT_EQ(reader->size(), 3u);
-  EXPECT_EQ(info.depth_camera.width, kWidth);
-  EXPECT_EQ(info.depth_camera.height, kHeight);
-  EXPECT_EQ(info.depth_camera.fx, 10.0f);
-  EXPECT_EQ(info.color_camera.fx, 10.0f);
-  EXPECT_TRUE(info.T_color_depth.isApprox(Pose::Identity()));
+  EXPECT_EQ(info.rig.depth_camera.width, kWidth);
+  EXPECT_EQ(info.rig.depth_camera.height, kHeight);
+  EXPECT_EQ(info.rig.depth_camera.fx, 10.0f);
+  EXPECT_EQ(info.rig.color_camera.fx, 10.0f);
+  EXPECT_TRUE(info.rig.T_color_depth.isApprox(Pose::Identity()));
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 1.00);  // the depth timestamp, not the colour one
   EXPECT_TRUE(info.has_color);
   EXPECT_TRUE(info.has_ground_truth);
   EXPECT_EQ(info.ground_truth_count, 2u);
-  EXPECT_EQ(info.depth_scale, 5000.0);
+  EXPECT_EQ(info.rig.depth_scale, 5000.0);
   EXPECT_NE(info.depth_scale_source.find("intrinsics.json"), std::string::npos);
   EXPECT_NE(info.intrinsics_source.find("intrinsics.json"), std::string::npos);
   EXPECT_TRUE(info.warnings.empty()) << info.warnings.front();
@@ -194,16 +194,16 @@ TEST(DatasetCalibration, GuessedFromFolderName) {
   const auto dir = write_vga_tum(root.path(), "rgbd_dataset_freiburg2_desk");
   auto reader = open_dataset(dir.string());
   const DatasetInfo& info = reader->info();
-  EXPECT_EQ(info.depth_camera.fx, 520.9f);
-  EXPECT_EQ(info.depth_camera.cy, 249.7f);
+  EXPECT_EQ(info.rig.depth_camera.fx, 520.9f);
+  EXPECT_EQ(info.rig.depth_camera.cy, 249.7f);
   EXPECT_NE(info.intrinsics_source.find("tum_fr2"), std::string::npos) << info.intrinsics_source;
   EXPECT_NE(info.intrinsics_source.find("guessed"), std::string::npos) << info.intrinsics_source;
-  EXPECT_EQ(info.depth_scale, 5000.0);
+  EXPECT_EQ(info.rig.depth_scale, 5000.0);
   // At the principal point the fr2 lens distortion (removed on reading) moves nothing.
   EXPECT_NEAR(reader->read(0).depth_m(325, 250), (9000.0f + 3250 + 250) / 5000.0f, kTol);
 
   const auto fr1 = write_vga_tum(root.path(), "fr1_xyz");
-  EXPECT_EQ(open_dataset(fr1.string())->info().depth_camera.fx, 517.3f);
+  EXPECT_EQ(open_dataset(fr1.string())->info().rig.depth_camera.fx, 517.3f);
 }
 
 TEST(DatasetCalibration, LensDistortionIsRemovedAsFramesAreRead) {
@@ -265,14 +265,14 @@ TEST(DatasetCalibration, ExplicitChoicesBeatTheFolder) {
   write_intrinsics(dir / "intrinsics.json", folder_camera, 1000.0);
 
   // Folder only.
-  EXPECT_EQ(open_dataset(dir.string())->info().depth_camera.fx, 500.0f);
+  EXPECT_EQ(open_dataset(dir.string())->info().rig.depth_camera.fx, 500.0f);
 
   // Preset: intrinsics and depth scale from the preset; ICL-NUIM's negative fy is legal.
   DatasetParams params;
   params.preset = "icl_nuim";
   auto icl = open_dataset(dir.string(), params);
-  EXPECT_EQ(icl->info().depth_camera.fy, -480.0f);
-  EXPECT_EQ(icl->info().depth_scale, 5000.0);
+  EXPECT_EQ(icl->info().rig.depth_camera.fy, -480.0f);
+  EXPECT_EQ(icl->info().rig.depth_scale, 5000.0);
   EXPECT_NE(icl->info().depth_scale_source.find("icl_nuim"), std::string::npos);
   EXPECT_NEAR(icl->read(0).depth_m(0, 0), 9000.0f / 5000.0f, kTol);
 
@@ -282,16 +282,16 @@ TEST(DatasetCalibration, ExplicitChoicesBeatTheFolder) {
   params = {};
   params.intrinsics_path = root / "other.json";
   auto given = open_dataset(dir.string(), params);
-  EXPECT_EQ(given->info().depth_camera.fy, 601.0f);
+  EXPECT_EQ(given->info().rig.depth_camera.fy, 601.0f);
   EXPECT_NE(given->info().intrinsics_source.find("other.json"), std::string::npos);
-  EXPECT_EQ(given->info().depth_scale, 1000.0);
+  EXPECT_EQ(given->info().rig.depth_scale, 1000.0);
   EXPECT_NE(given->info().depth_scale_source.find("set"), std::string::npos);
 
   // A depth scale override beats everything.
   params = {};
   params.depth_scale = 2500;
   auto scaled = open_dataset(dir.string(), params);
-  EXPECT_EQ(scaled->info().depth_scale, 2500.0);
+  EXPECT_EQ(scaled->info().rig.depth_scale, 2500.0);
   EXPECT_EQ(scaled->info().depth_scale_source, "given");
   EXPECT_NEAR(scaled->read(0).depth_m(0, 0), 9000.0f / 2500.0f, kTol);
 }
@@ -301,7 +301,7 @@ TEST(DatasetCalibration, TumDefaultDepthScaleWhenFileHasNone) {
   write_small_tum(dir.path());
   write_intrinsics(dir / "intrinsics.json", small_camera(), 0.0);
   auto reader = open_dataset(dir.path().string());
-  EXPECT_EQ(reader->info().depth_scale, 5000.0);
+  EXPECT_EQ(reader->info().rig.depth_scale, 5000.0);
   EXPECT_NE(reader->info().depth_scale_source.find("TUM default"), std::string::npos);
 }
 
@@ -414,7 +414,7 @@ TEST(SevenScenesDataset, SequencesFramesAndPoses) {
   const DatasetInfo& info = reader->info();
   EXPECT_EQ(info.layout, DatasetLayout::SevenScenes);
   ASSERT_EQ(reader->size(), 5u);
-  EXPECT_EQ(info.depth_scale, 1000.0);
+  EXPECT_EQ(info.rig.depth_scale, 1000.0);
   EXPECT_NE(info.depth_scale_source.find("seven_scenes"), std::string::npos);
   EXPECT_NE(info.intrinsics_source.find("intrinsics.json"), std::string::npos);
   EXPECT_EQ(info.ground_truth_count, 4u);
@@ -438,7 +438,7 @@ TEST(SevenScenesDataset, SequencesFramesAndPoses) {
   // One sequence folder on its own.
   auto seq = open_dataset((dir / "seq-02").string());
   EXPECT_EQ(seq->size(), 2u);
-  EXPECT_EQ(seq->info().depth_camera.fx, 585.0f);  // no json there: the 7-Scenes preset
+  EXPECT_EQ(seq->info().rig.depth_camera.fx, 585.0f);  // no json there: the 7-Scenes preset
 }
 
 TEST(SevenScenesDataset, MalformedPoseFilesNameTheFile) {
@@ -493,17 +493,17 @@ TEST(InfiniTamDataset, CalibAndPgmPpmFrames) {
   const DatasetInfo& info = reader->info();
   EXPECT_EQ(info.layout, DatasetLayout::InfiniTam);
   ASSERT_EQ(reader->size(), 3u);
-  EXPECT_EQ(info.depth_camera.fx, 10.0f);
-  EXPECT_EQ(info.color_camera.fx, 12.0f);
-  EXPECT_EQ(info.color_camera.cx, 4.0f);
-  EXPECT_DOUBLE_EQ(info.depth_scale, 5000.0);
+  EXPECT_EQ(info.rig.depth_camera.fx, 10.0f);
+  EXPECT_EQ(info.rig.color_camera.fx, 12.0f);
+  EXPECT_EQ(info.rig.color_camera.cx, 4.0f);
+  EXPECT_DOUBLE_EQ(info.rig.depth_scale, 5000.0);
   EXPECT_NE(info.depth_scale_source.find("affine"), std::string::npos);
   EXPECT_FALSE(info.has_ground_truth);
   EXPECT_TRUE(info.warnings.empty());
   // calib.txt maps colour-camera points into the depth camera: the colour camera's centre sits
   // at (0.1, 0, 0) in the depth frame, so T_color_depth maps that point to the origin.
-  EXPECT_TRUE((info.T_color_depth * Eigen::Vector3d(0.1, 0, 0)).isZero(1e-9));
-  EXPECT_TRUE((info.T_color_depth.linear() * Eigen::Vector3d::UnitY())
+  EXPECT_TRUE((info.rig.T_color_depth * Eigen::Vector3d(0.1, 0, 0)).isZero(1e-9));
+  EXPECT_TRUE((info.rig.T_color_depth.linear() * Eigen::Vector3d::UnitY())
                   .isApprox(Eigen::Vector3d::UnitX(), 1e-9));
   const RgbdFrame f = reader->read(2);
   EXPECT_DOUBLE_EQ(f.timestamp_s, 2.0 / 30.0);
@@ -524,7 +524,7 @@ TEST(InfiniTamDataset, PngFramesWithPrefixesPaddingAndOffset) {
   }
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->size(), 2u);
-  EXPECT_DOUBLE_EQ(reader->info().depth_scale, 1000.0);
+  EXPECT_DOUBLE_EQ(reader->info().rig.depth_scale, 1000.0);
   const RgbdFrame f = reader->read(1);
   EXPECT_NEAR(f.depth_m(2, 1), (1500 + 20 + 1) * 0.001f - 0.05f, kTol);
   EXPECT_EQ(f.depth_m(0, 0), 0.0f);
@@ -536,7 +536,7 @@ TEST(InfiniTamDataset, BareZeroDisparityLineMeansMillimetres) {
   write_text(dir / "calib.txt", calib_text("0 0"));
   write_pgm16(dir / "0.pgm", raw_depth(1500));
   auto reader = open_dataset(dir.path().string());
-  EXPECT_DOUBLE_EQ(reader->info().depth_scale, 1000.0);
+  EXPECT_DOUBLE_EQ(reader->info().rig.depth_scale, 1000.0);
   EXPECT_FALSE(reader->info().has_color);
   EXPECT_NEAR(reader->read(0).depth_m(0, 0), 1.5f, kTol);
 }
@@ -604,7 +604,7 @@ TEST(Dataset, SyntheticSpecsOpenBuiltInScenes) {
   const auto reader = open_dataset("synthetic:box?frames=20&width=80&height=60&noise=none", params);
   EXPECT_EQ(reader->info().layout, DatasetLayout::Synthetic);
   EXPECT_EQ(reader->size(), 7u);
-  EXPECT_EQ(reader->info().depth_camera.width, 80);
+  EXPECT_EQ(reader->info().rig.depth_camera.width, 80);
   const RgbdFrame f = reader->read(3);
   EXPECT_TRUE(f.T_wc_gt.has_value());
   EXPECT_EQ(f.depth_m.width(), 80);

@@ -308,11 +308,11 @@ TEST(ExtractMesh, FusedSceneAcrossLevelsHasNoCrackWhereTheyMeet) {
   // edge the fine side's data reaches further than the coarse side's, a border, not a crack.
   test::SphereOnPlane scene;
   const float voxel = 0.004f, mu = 0.048f;
-  VoxelBlockMap map(test::mesh_map_params(voxel, 3));
-  test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
+  VoxelBlockMap map(test::mesh_map_params(voxel, 3, true, mu));
+  test::fuse_views(map, scene, 16, {0.5, 0.2});
   test::split_down(
       map, 2, [](const BlockRef& b) { return b.pos.x >= 0; }, 0.0f);
-  test::fuse_views(map, scene, mu, 16, {0.5, 0.2});
+  test::fuse_views(map, scene, 16, {0.5, 0.2});
   const TriangleMesh m = extract_mesh(map);
   int64_t seam_edges[4] = {0, 0, 0, 0};
   const double gap = widest_seam_gap(

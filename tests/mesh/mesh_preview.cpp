@@ -111,10 +111,9 @@ void preview(const std::filesystem::path& dir, const std::string& name, const Tr
 
 /// Fuses the sphere-on-plane scene with a colour checkerboard painted on the world.
 std::unique_ptr<VoxelBlockMap> fuse_checkered(const test::SphereOnPlane& scene, float voxel_m) {
-  auto map = std::make_unique<VoxelBlockMap>(test::mesh_map_params(voxel_m));
+  auto map = std::make_unique<VoxelBlockMap>(test::mesh_map_params(voxel_m, 1, true, 4 * voxel_m));
   FusionParams fp;
-  fp.truncation_m = 4 * voxel_m;
-  fp.max_depth_m = 1.5f;
+  fp.depth_range.max_m = 1.5f;
   TsdfIntegrator integrator(fp);
   const PinholeCamera cam = test::small_camera();
   for (const Pose& T_wc : test::orbit(scene.centre, 0.9, 0.5, 16, 0.3)) {
@@ -129,7 +128,7 @@ std::unique_ptr<VoxelBlockMap> fuse_checkered(const test::SphereOnPlane& scene, 
                                        std::floor(p.z() / 0.05));
         color(x, y) = (k & 1) ? Rgb8{230, 120, 30} : Rgb8{40, 90, 200};
       }
-    FusionInput in{.depth_m = &depth, .depth_camera = cam, .color = &color, .color_camera = cam};
+    FusionInput in{.depth_m = &depth, .color = &color, .rig = CameraRig::registered(cam)};
     in.T_wc = T_wc;
     integrator.fuse(*map, in);
   }

@@ -14,9 +14,11 @@
 
 namespace hivox::test {
 
-inline MapParams mesh_map_params(float voxel_m, int levels = 1, bool color = true) {
+inline MapParams mesh_map_params(float voxel_m, int levels = 1, bool color = true,
+                                 float mu_m = MapParams{}.truncation_m) {
   MapParams p;
   p.voxel_size_m = voxel_m;
+  p.truncation_m = mu_m;
   p.levels = levels;
   p.max_blocks = 1 << 17;
   p.buckets_per_level = 1 << 16;
@@ -78,15 +80,14 @@ inline PinholeCamera small_camera() {
 }
 
 /// Fuses noise-free renders of `scene` from orbits around it (one per entry of `heights_m`,
-/// `views` poses each, 0.9 m from the centre) into `map`. With `color`, every frame carries a
-/// constant colour image. Depth beyond `max_depth_m` is ignored: the floor far away is seen at
-/// grazing angles with pixels larger than a voxel.
-inline void fuse_views(VoxelBlockMap& map, const SphereOnPlane& scene, float mu_m, int views,
+/// `views` poses each, 0.9 m from the centre) into `map` (with its truncation band). With
+/// `color`, every frame carries a constant colour image. Depth beyond `max_depth_m` is ignored:
+/// the floor far away is seen at grazing angles with pixels larger than a voxel.
+inline void fuse_views(VoxelBlockMap& map, const SphereOnPlane& scene, int views,
                        const std::vector<double>& heights_m, const Rgb8* color = nullptr,
                        float max_depth_m = 1.5f) {
   FusionParams fp;
-  fp.truncation_m = mu_m;
-  fp.max_depth_m = max_depth_m;
+  fp.depth_range.max_m = max_depth_m;
   TsdfIntegrator integrator(fp);
   const PinholeCamera cam = small_camera();
   const ColorImage image(cam.width, cam.height, color ? *color : Rgb8{});
@@ -95,24 +96,21 @@ inline void fuse_views(VoxelBlockMap& map, const SphereOnPlane& scene, float mu_
       const DepthImage depth = scene.render(cam, T_wc);
       FusionInput in;
       in.depth_m = &depth;
-      in.depth_camera = cam;
-      if (color) {
-        in.color = &image;
-        in.color_camera = cam;
-      }
+      in.rig = CameraRig::registered(cam);
+      if (color) in.color = &image;
       in.T_wc = T_wc;
       integrator.fuse(map, in);
     }
 }
 
-/// fuse_views into a fresh fixed-grid map.
+/// fuse_views into a fresh fixed-grid map with truncation band `mu_m`.
 inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, float voxel_m,
                                                  float mu_m, int views,
                                                  const std::vector<double>& heights_m,
                                                  const Rgb8* color = nullptr,
                                                  float max_depth_m = 1.5f) {
-  auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m));
-  fuse_views(*map, scene, mu_m, views, heights_m, color, max_depth_m);
+  auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m, 1, true, mu_m));
+  fuse_views(*map, scene, views, heights_m, color, max_depth_m);
   return map;
 }
 

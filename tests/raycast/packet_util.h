@@ -65,33 +65,35 @@ inline void expect_same_raycast(const RaycastResult& a, const RaycastResult& b, 
 /// packets, and checks the two results are identical.
 inline void expect_packets_match(const VoxelBlockMap& map, RaycastParams rp,
                                  const PinholeCamera& cam, const Pose& T_wc, const DepthImage& hint,
-                                 int min_hits, const DepthImage* fallback = nullptr) {
-  rp.ray_packets = true;
+                                 int min_hits, const DepthImage* fallback = nullptr,
+                                 const DepthRange& range = {}) {
+  rp.tuning.ray_packets = true;
   Raycaster packets(rp);
-  rp.ray_packets = false;
+  rp.tuning.ray_packets = false;
   Raycaster one_by_one(rp);
   RaycastStats a, b;
-  expect_same_raycast(packets.raycast(map, cam, T_wc, &a, &hint, fallback),
-                      one_by_one.raycast(map, cam, T_wc, &b, &hint, fallback), min_hits);
+  expect_same_raycast(packets.raycast(map, cam, T_wc, range, {&hint, fallback}, &a),
+                      one_by_one.raycast(map, cam, T_wc, range, {&hint, fallback}, &b), min_hits);
   EXPECT_NEAR(a.found_at_fallback, b.found_at_fallback, 1 + a.found_at_fallback / 1000);
 }
 
 /// Raycasts `map` from `T_wc` (with `hint` and `fallback`, both optional) with and without the
-/// surface tiles (RaycastParams::surface_tiles), in packets and ray by ray: they only spare
+/// surface tiles (RaycastTuning::surface_tiles), in packets and ray by ray: they only spare
 /// marches over space where no surface can be, so every pixel must come out bit for bit the same.
 inline void expect_surface_tiles_change_nothing(const VoxelBlockMap& map, RaycastParams rp,
                                                 const PinholeCamera& cam, const Pose& T_wc,
                                                 int min_hits, const DepthImage* hint = nullptr,
-                                                const DepthImage* fallback = nullptr) {
+                                                const DepthImage* fallback = nullptr,
+                                                const DepthRange& range = {}) {
   for (const bool packets : {true, false}) {
-    rp.ray_packets = packets;
-    rp.surface_tiles = SurfaceTileUse::Always;
+    rp.tuning.ray_packets = packets;
+    rp.tuning.surface_tiles = SurfaceTileUse::Always;
     Raycaster with(rp);
-    rp.surface_tiles = SurfaceTileUse::Never;
+    rp.tuning.surface_tiles = SurfaceTileUse::Never;
     Raycaster without(rp);
     RaycastStats sa, sb;
-    const RaycastResult& a = with.raycast(map, cam, T_wc, &sa, hint, fallback);
-    const RaycastResult& b = without.raycast(map, cam, T_wc, &sb, hint, fallback);
+    const RaycastResult& a = with.raycast(map, cam, T_wc, range, {hint, fallback}, &sa);
+    const RaycastResult& b = without.raycast(map, cam, T_wc, range, {hint, fallback}, &sb);
     int hits = 0, differ = 0;
     for (int y = 0; y < cam.height; ++y)
       for (int x = 0; x < cam.width; ++x) {

@@ -19,6 +19,9 @@
 namespace hivox {
 namespace {
 
+// The depth range of the raycasts below (the default one).
+constexpr DepthRange kRange{0.2f, 3.0f};
+
 // Beyond this, the test scene's floor is seen only at grazing angles (see the tests).
 constexpr float kWellObservedDepth = 2.0f;
 
@@ -62,14 +65,14 @@ Scene fused_scene(float voxel) {
   Scene s;
   s.voxel = voxel;
   s.mu = 4 * voxel;
-  s.map = std::make_unique<VoxelBlockMap>(fixed_grid(voxel));
-  FusionParams fp;
-  fp.truncation_m = s.mu;
-  TsdfIntegrator integrator(fp);
+  MapParams mp = fixed_grid(voxel);
+  mp.truncation_m = s.mu;
+  s.map = std::make_unique<VoxelBlockMap>(mp);
+  TsdfIntegrator integrator;
   const PinholeCamera cam = small_camera();
   for (const Pose& T_wc : test::orbit(s.shape.centre, 0.9, 0.5, 24)) {
     const DepthImage depth = s.shape.render(cam, T_wc);
-    FusionInput in{.depth_m = &depth, .depth_camera = cam, .T_wc = T_wc};
+    FusionInput in{.depth_m = &depth, .rig = CameraRig::registered(cam), .T_wc = T_wc};
     integrator.fuse(*s.map, in);
   }
   return s;
@@ -106,14 +109,13 @@ double floor_depth(const test::SphereOnPlane& shape, const PinholeCamera& cam, c
 TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   Raycaster raycaster(rp);
   const PinholeCamera cam = small_camera();
   // A viewpoint between two fused views.
   const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 48)[5];
   const DepthImage truth = s.shape.render(cam, T_wc);
   RaycastStats stats;
-  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, &stats);
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, kRange, {}, &stats);
   int surface_pixels = 0, missed = 0, hits = 0, normals = 0, spurious = 0, all_hits = 0;
   double sum_dist = 0, max_dist = 0, sum_angle = 0;
   for (int y = 0; y < cam.height; ++y)
@@ -122,7 +124,7 @@ TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
       // The infinite floor is seen from the orbit only at grazing angles beyond ~2 m, and near
       // the 3 m depth limit its band is cut off: judge the well-observed part.
       if (truth(x, y) > kWellObservedDepth) continue;
-      const bool expected = truth(x, y) > 0.0f && truth(x, y) <= rp.max_depth_m;
+      const bool expected = truth(x, y) > 0.0f && truth(x, y) <= kRange.max_m;
       surface_pixels += expected;
       if (!r.hit(x, y)) {
         missed += expected;
@@ -165,12 +167,11 @@ TEST(Raycaster, HitsLieOnTheExactSurfaceWithItsNormals) {
 TEST(Raycaster, NoSurfaceWhereNothingWasObserved) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   Raycaster raycaster(rp);
   // Looking away from everything that was fused.
   const Pose T_wc = look_at({0, 0, 3}, {0, 0, 10}, Eigen::Vector3d::UnitY());
   RaycastStats stats;
-  const RaycastResult& r = raycaster.raycast(*s.map, small_camera(), T_wc, &stats);
+  const RaycastResult& r = raycaster.raycast(*s.map, small_camera(), T_wc, kRange, {}, &stats);
   EXPECT_EQ(stats.hits, 0);
   EXPECT_EQ(r.levels(10, 10), -1);
 }
@@ -178,11 +179,10 @@ TEST(Raycaster, NoSurfaceWhereNothingWasObserved) {
 TEST(Raycaster, PointsAndNormalsInCameraFrame) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   Raycaster raycaster(rp);
   const PinholeCamera cam = small_camera();
   const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[3];
-  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc);
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, kRange);
   int checked = 0;
   for (int y = 0; y < cam.height; y += 7)
     for (int x = 0; x < cam.width; x += 7) {
@@ -234,27 +234,26 @@ struct HintView {
   PinholeCamera cam = small_camera();
   Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];
   DepthImage truth = s.shape.render(cam, T_wc);
-  HintView() { rp.truncation_m = s.mu; }
 };
 
 TEST(Raycaster, StartHintSpeedsUpButNeverHidesASurface) {
   const HintView v;
   const auto& [s, rp, cam, T_wc, truth] = v;
   Raycaster plain(rp), hinted(rp), misled(rp);
-  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc, kRange);
   // The true depth as hint: same surface everywhere.
-  const RaycastResult& b = hinted.raycast(*s.map, cam, T_wc, nullptr, &truth);
+  const RaycastResult& b = hinted.raycast(*s.map, cam, T_wc, kRange, {&truth});
   // A hint far behind every surface (and one on unobserved pixels): the fallback must search
   // in front of it and find the same surface.
   DepthImage wrong = truth;
   for (std::size_t i = 0; i < wrong.size(); ++i)
     wrong.data()[i] = wrong.data()[i] > 0 ? 2.9f : 0.0f;
-  const RaycastResult& c = misled.raycast(*s.map, cam, T_wc, nullptr, &wrong);
+  const RaycastResult& c = misled.raycast(*s.map, cam, T_wc, kRange, {&wrong});
   EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a, b), 12000);
   EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a, c), 12000);
   const DepthImage small(10, 10);
-  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &small), Error);
-  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, nullptr, &truth, &small), Error);
+  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, kRange, {&small}), Error);
+  EXPECT_THROW(plain.raycast(*s.map, cam, T_wc, kRange, {&truth, &small}), Error);
 }
 
 // A fallback hint is searched where the start hint has none or the search at it fails: with
@@ -269,17 +268,17 @@ TEST(Raycaster, FallbackHintIsSearchedWhereTheHintFails) {
   for (std::size_t i = 0; i < in_front.size(); ++i)
     in_front.data()[i] = in_front.data()[i] > 0 ? in_front.data()[i] - 0.4f : 0.0f;
   Raycaster plain(rp), rescued(rp), swapped(rp);
-  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc, kRange);
   RaycastStats rescued_stats, swapped_stats;
-  EXPECT_GT(
-      expect_same_surfaces(s, cam, T_wc, truth, a,
-                           rescued.raycast(*s.map, cam, T_wc, &rescued_stats, &in_front, &truth)),
-      12000);
+  EXPECT_GT(expect_same_surfaces(
+                s, cam, T_wc, truth, a,
+                rescued.raycast(*s.map, cam, T_wc, kRange, {&in_front, &truth}, &rescued_stats)),
+            12000);
   EXPECT_GT(rescued_stats.found_at_fallback, 0.95 * rescued_stats.hits);
-  EXPECT_GT(
-      expect_same_surfaces(s, cam, T_wc, truth, a,
-                           swapped.raycast(*s.map, cam, T_wc, &swapped_stats, &truth, &in_front)),
-      12000);
+  EXPECT_GT(expect_same_surfaces(
+                s, cam, T_wc, truth, a,
+                swapped.raycast(*s.map, cam, T_wc, kRange, {&truth, &in_front}, &swapped_stats)),
+            12000);
   EXPECT_LT(swapped_stats.found_at_fallback, swapped_stats.hits / 1000);
   EXPECT_GT(swapped_stats.found_at_hint, 0.98 * swapped_stats.hits);
 }
@@ -336,16 +335,18 @@ TEST(Raycaster, AgreeingHintsFindTheSurfaceAtTheFallback) {
       if (noisy(x, y) > 0.0f) noisy(x, y) += ((x + y) % 2 == 0 ? 0.5f : -0.5f) * s.mu;
   Raycaster plain(rp), hinted(rp);
   RaycastStats stats;
-  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc);
-  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a,
-                                 hinted.raycast(*s.map, cam, T_wc, &stats, &noisy, &truth)),
-            12000);
+  const RaycastResult& a = plain.raycast(*s.map, cam, T_wc, kRange);
+  EXPECT_GT(
+      expect_same_surfaces(s, cam, T_wc, truth, a,
+                           hinted.raycast(*s.map, cam, T_wc, kRange, {&noisy, &truth}, &stats)),
+      12000);
   EXPECT_GT(stats.found_at_fallback, 0.95 * stats.hits);
   RaycastParams start_first = rp;
   start_first.hint_agreement_mu = 0.0f;
   Raycaster noisy_first(start_first);
-  EXPECT_GT(expect_same_surfaces(s, cam, T_wc, truth, a,
-                                 noisy_first.raycast(*s.map, cam, T_wc, &stats, &noisy, &truth)),
+  EXPECT_GT(expect_same_surfaces(
+                s, cam, T_wc, truth, a,
+                noisy_first.raycast(*s.map, cam, T_wc, kRange, {&noisy, &truth}, &stats)),
             12000);
   EXPECT_LT(stats.found_at_fallback, 0.05 * stats.hits);
 }
@@ -353,7 +354,6 @@ TEST(Raycaster, AgreeingHintsFindTheSurfaceAtTheFallback) {
 TEST(Raycaster, RayPacketsGiveTheRayByRayResult) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   const PinholeCamera cam = small_camera();
   for (int view : {3, 7, 15}) {
     const Pose T_wc = test::orbit(s.shape.centre, 0.9, 0.5, 24)[view];
@@ -413,17 +413,16 @@ TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
   const int64_t empty = std::count(cells.begin(), cells.end(), 0);
   EXPECT_GT(empty, static_cast<int64_t>(cells.size()) / 4);  // there is space to skip
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   const PinholeCamera cam = small_camera();
   for (int view : {2, 9}) {
     // From farther out than the views fused, so that rays cross empty space first.
     const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[view];
-    rp.coarse_skipping = true;
+    rp.tuning.coarse_skipping = true;
     Raycaster skipping(rp);
-    rp.coarse_skipping = false;
+    rp.tuning.coarse_skipping = false;
     Raycaster block_by_block(rp);
-    test::expect_same_raycast(skipping.raycast(*s.map, cam, T_wc),
-                              block_by_block.raycast(*s.map, cam, T_wc), 8000,
+    test::expect_same_raycast(skipping.raycast(*s.map, cam, T_wc, kRange),
+                              block_by_block.raycast(*s.map, cam, T_wc, kRange), 8000,
                               "skipping vs block by block");
   }
 }
@@ -434,7 +433,6 @@ TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
 TEST(Raycaster, SurfaceTilesChangeNoPixel) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   const PinholeCamera cam = small_camera();
   for (int view : {2, 9}) {
     const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[view];
@@ -491,24 +489,23 @@ TEST(RangeTiles, BoxTileRectHoldsEveryPixelThatSeesTheBox) {
 TEST(SurfaceTiles, HoldEverySurfaceARayMeets) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
-  rp.surface_tiles = SurfaceTileUse::Never;
+  rp.tuning.surface_tiles = SurfaceTileUse::Never;
   const PinholeCamera cam = small_camera();
   const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[5];
   Raycaster raycaster(rp);
-  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc);
+  const RaycastResult& r = raycaster.raycast(*s.map, cam, T_wc, kRange);
 
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(rp.range_tile_px, cam);
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(rp.tuning.range_tile_px, cam);
   std::vector<float> z_min(static_cast<std::size_t>(tiles.count()), FLT_MAX);
   std::vector<float> z_max(static_cast<std::size_t>(tiles.count()), 0.0f);
   tiles.z_min = z_min.data();
   tiles.z_max = z_max.data();
   const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
-  kernels::fill_range_tiles(*s.map, cam, T_cw, rp.min_depth_m, rp.max_depth_m, tiles);
+  kernels::fill_range_tiles(*s.map, cam, T_cw, kRange.min_m, kRange.max_m, tiles);
   kernels::SurfaceTileStorage storage;
   const Rigid3f T = to_rigid3f(T_wc);
   const kernels::SurfaceTiles surface = kernels::build_surface_tiles(
-      *s.map, cam, T_cw, T.t, tiles, rp.min_depth_m, rp.max_depth_m, &storage);
+      *s.map, cam, T_cw, T.t, tiles, kRange.min_m, kRange.max_m, &storage);
   ASSERT_FALSE(surface.empty());
 
   int hits = 0, in_range_misses = 0, spared = 0;
@@ -607,11 +604,10 @@ TEST(Raycaster, HitNearHintFindsTheSurfaceFromAnywhereInTheBand) {
 TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
   const Scene s = fused_scene(0.01f);
   RaycastParams rp;
-  rp.truncation_m = s.mu;
   const PinholeCamera cam = small_camera();
   const Pose T_a = test::orbit(s.shape.centre, 0.9, 0.5, 24)[7];
   Raycaster ra(rp), rb(rp);
-  const RaycastResult& a = ra.raycast(*s.map, cam, T_a);
+  const RaycastResult& a = ra.raycast(*s.map, cam, T_a, kRange);
 
   // Seen from the same pose, every hit lands on its own pixel, except where a nearer surface
   // within a pixel may hide it; a pixel without a hit stays empty unless it is a hole between
@@ -668,7 +664,7 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
                        .toRotationMatrix();
   delta.translation() = Eigen::Vector3d(0.006, -0.005, 0.006);
   const Pose T_b = T_a * delta;
-  const RaycastResult& b = rb.raycast(*s.map, cam, T_b);
+  const RaycastResult& b = rb.raycast(*s.map, cam, T_b, kRange);
   DepthImage warped;
   warp_raycast_depth(a, cam, T_b, s.mu, &warped);
   int hits = 0, covered = 0, close = 0, tight = 0, in_band = 0, other_surface = 0;
@@ -702,8 +698,14 @@ TEST(Raycaster, WarpedDepthIsTheDepthSeenFromTheNewPose) {
 
 TEST(Raycaster, ParamsAreValidated) {
   RaycastParams p;
-  p.max_depth_m = 0.1f;
+  p.tuning.range_tile_px = RaycastTuning::kMaxRangeTilePx + 1;
   EXPECT_THROW(Raycaster{p}, Error);
+  const Scene s = fused_scene(0.02f);
+  Raycaster raycaster;
+  for (const DepthRange bad : {DepthRange{0.5f, 0.4f}, DepthRange{-0.1f, 1.0f},
+                               DepthRange{0.2f, std::numeric_limits<float>::infinity()}})
+    EXPECT_THROW(raycaster.raycast(*s.map, small_camera(), Pose::Identity(), bad), Error)
+        << bad.min_m << " " << bad.max_m;
   p = RaycastParams{};
   p.step_fraction = 0;
   EXPECT_THROW(p.validate(), Error);

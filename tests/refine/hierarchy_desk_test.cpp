@@ -29,13 +29,13 @@ Outcome run(const std::string& noise) {
   ReconstructionParams adaptive;
   adaptive.map.levels = 3;
   adaptive.map.voxel_size_m = 0.002f;
-  adaptive.fusion.truncation_m = 0.024f;
+  adaptive.map.truncation_m = 0.024f;
   adaptive.raycast_every_frame = false;
   ReconstructionParams fine = adaptive, coarse = adaptive;
   fine.map.levels = 1;
   coarse.map.levels = 1;
   coarse.map.voxel_size_m = 0.008f;
-  Reconstruction a(adaptive, data.info()), f(fine, data.info()), c(coarse, data.info());
+  Reconstruction a(adaptive, data.info().rig), f(fine, data.info().rig), c(coarse, data.info().rig);
   for (std::size_t i = 0; i < data.size(); ++i) {
     const RgbdFrame frame = data.read(i);
     for (Reconstruction* r : {&a, &f, &c}) r->integrate(frame, *frame.T_wc_gt);
@@ -81,10 +81,10 @@ Outcome run(const std::string& noise) {
     }
   }
   Outcome o;
-  const SurfaceEval ea = evaluate_at_points(a.map(), points, 0.024f);
+  const SurfaceEval ea = evaluate_at_points(a.map(), points);
   o.adaptive_err = ea.mean_distance_m;
-  o.fine_err = evaluate_at_points(f.map(), points, 0.024f).mean_distance_m;
-  o.coarse_err = evaluate_at_points(c.map(), points, 0.024f).mean_distance_m;
+  o.fine_err = evaluate_at_points(f.map(), points).mean_distance_m;
+  o.coarse_err = evaluate_at_points(c.map(), points).mean_distance_m;
   std::map<std::string, std::array<int64_t, 3>> counts;
   for (std::size_t i = 0; i < points.size(); ++i)
     if (ea.per_point[i].level >= 0) {
@@ -123,12 +123,18 @@ void expect_sensible_hierarchy(const Outcome& o, double walls_coarse, double max
 
 TEST(Reconstruction, RefinementTakesTheDatasetsNoiseModel) {
   const SyntheticDataset clean(parse_synthetic_spec("synthetic:desk?frames=2&noise=none"));
+  EXPECT_EQ(clean.info().rig.depth_noise.sigma_m(2.0f), 0.0f);
+  const Refiner from_rig(RefineParams{}, clean.info().rig.depth_noise);
+  EXPECT_EQ(from_rig.noise().sigma_m(2.0f), 0.0f);
+  RefineParams own;
+  own.noise = SensorNoise::kinect();  // the caller's own model stays
+  const Refiner given(own, clean.info().rig.depth_noise);
+  EXPECT_FLOAT_EQ(given.noise().sigma_m(2.0f), SensorNoise::kinect().sigma_m(2.0f));
+  // The parameters in words name the model in use.
   ReconstructionParams p;
-  const Reconstruction from_dataset(p, clean.info());
-  EXPECT_EQ(from_dataset.params().refine.noise.sigma_m(2.0f), 0.0f);
-  p.refine.noise_from_dataset = false;  // the caller's own model stays
-  const Reconstruction own(p, clean.info());
-  EXPECT_FLOAT_EQ(own.params().refine.noise.sigma_m(2.0f), SensorNoise::kinect().sigma_m(2.0f));
+  EXPECT_EQ(p.to_string(&clean.info().rig).find("sigma(z)"), std::string::npos);
+  const CameraRig kinect = CameraRig::registered(clean.info().rig.depth_camera);
+  EXPECT_NE(p.to_string(&kinect).find("sigma(z)"), std::string::npos);
 }
 
 TEST(HierarchyDesk, NoiseFree) {

@@ -45,7 +45,6 @@ TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
   mp.max_blocks = 64;
   RefineParams rp;
   rp.noise = SensorNoise::none();
-  rp.noise_from_dataset = false;
   rp.every_n_frames = 1;
   const Pose above = Pose(Eigen::Translation3d(0.08, 0.08, 1.0)) *
                      Pose(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
@@ -54,7 +53,7 @@ TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
     const auto children = split_plane_block(map, rp.min_updates);
     Refiner refiner(rp);
     // The plane's children are settled and flat; the never-observed ones have no surface to judge.
-    EXPECT_EQ(refiner.refine(map, children, 0.03f, above).merges, 1);
+    EXPECT_EQ(refiner.refine(map, children, above).merges, 1);
     EXPECT_EQ(map.blocks_per_level(), (std::vector<int64_t>{0, 1}));
     test::expect_map_consistent(map);
   }
@@ -63,7 +62,7 @@ TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
     // Children holding the surface must still settle first (fresh interpolations look flat).
     const auto children = split_plane_block(map, rp.min_updates - 1);
     Refiner refiner(rp);
-    EXPECT_EQ(refiner.refine(map, children, 0.03f, above).merges, 0);
+    EXPECT_EQ(refiner.refine(map, children, above).merges, 0);
     EXPECT_EQ(map.blocks_per_level(), (std::vector<int64_t>{8, 0}));
   }
 }
@@ -75,9 +74,10 @@ TEST(RefineParams, MergeLevelFollowsTheSplitLevelAndBadValuesAreRejected) {
   for (float factor : {0.25f, 0.1f, 0.5f}) {
     p.split_noise_factor = factor;
     const float z = 3.0f;
-    ASSERT_GT(p.merge_level(z), p.merge_threshold);
-    EXPECT_NEAR(p.merge_level(z), p.merge_noise_ratio * p.split_level(z), 1e-9f) << factor;
-    EXPECT_LT(p.merge_level(z), p.split_level(z, 1.0f)) << "hysteresis, young blocks too";
+    const SensorNoise n = SensorNoise::kinect();
+    ASSERT_GT(p.merge_level(n, z), p.merge_threshold);
+    EXPECT_NEAR(p.merge_level(n, z), p.merge_noise_ratio * p.split_level(n, z), 1e-9f) << factor;
+    EXPECT_LT(p.merge_level(n, z), p.split_level(n, z, 1.0f)) << "hysteresis, young blocks too";
   }
   p = RefineParams{};
   p.merge_noise_ratio = 1.5f;

@@ -92,10 +92,10 @@ TEST(SyntheticDataset, ReadsFramesWithGroundTruth) {
   EXPECT_EQ(info.layout, DatasetLayout::Synthetic);
   EXPECT_EQ(info.frame_count, 5u);
   EXPECT_EQ(data.size(), 5u);
-  EXPECT_EQ(info.depth_scale, 0.0);
+  EXPECT_EQ(info.rig.depth_scale, 0.0);
   EXPECT_TRUE(info.has_color);
   EXPECT_TRUE(info.has_ground_truth);
-  EXPECT_EQ(info.depth_camera.width, 160);
+  EXPECT_EQ(info.rig.depth_camera.width, 160);
   EXPECT_EQ(data.trajectory().size(), 5u);
 
   const RgbdFrame f = data.read(3);
@@ -148,12 +148,12 @@ TEST(SyntheticDataset, NoiseFreeDepthIsTheExactRender) {
 
 TEST(SyntheticDataset, DeclaresItsDepthNoise) {
   const SyntheticDataset clean(parse_synthetic_spec("synthetic:spheres?frames=2&noise=none"));
-  EXPECT_EQ(clean.info().depth_noise.sigma_m(0.5f), 0.0f);
-  EXPECT_EQ(clean.info().depth_noise.sigma_m(3.0f), 0.0f);
+  EXPECT_EQ(clean.info().rig.depth_noise.sigma_m(0.5f), 0.0f);
+  EXPECT_EQ(clean.info().rig.depth_noise.sigma_m(3.0f), 0.0f);
   const SyntheticDataset noisy(parse_synthetic_spec("synthetic:spheres?frames=2&noise=kinect"));
   const NoiseParams kinect = NoiseParams::kinect();
   for (const float z : {0.5f, 1.0f, 2.0f, 3.5f})
-    EXPECT_NEAR(noisy.info().depth_noise.sigma_m(z), kinect.axial_sigma_m(z), 1e-7) << z;
+    EXPECT_NEAR(noisy.info().rig.depth_noise.sigma_m(z), kinect.axial_sigma_m(z), 1e-7) << z;
 }
 
 }  // namespace

@@ -19,11 +19,11 @@ TEST(ModelRaycast, PreviousRaycastHintsFindTheSameSurfaces) {
   ReconstructionParams params;
   params.map.levels = 1;
   params.map.voxel_size_m = 0.005f;
-  params.fusion.truncation_m = 0.02f;
+  params.map.truncation_m = 0.02f;
   params.previous_raycast_hints = true;
-  Reconstruction with(params, data.info());
+  Reconstruction with(params, data.info().rig);
   params.previous_raycast_hints = false;
-  Reconstruction without(params, data.info());
+  Reconstruction without(params, data.info().rig);
   // From frame 4 on, a band of the depth image is missing (as where a sensor sees nothing): the
   // model still holds the surface there from the first frames.
   const int hole_x0 = 200, hole_x1 = 360;

@@ -90,7 +90,7 @@ TEST(Preprocess, BilateralSmoothsNoiseButKeepsEdges) {
   noisy(40, 40) = 0.0f;  // a hole stays a hole
   TrackParams params;
   DepthImage filtered;
-  bilateral_filter(noisy, filtered, params);
+  bilateral_filter(noisy, filtered, params, DepthRange{});
   double before = 0, after = 0;
   int n = 0;
   for (int y = 3; y + 3 < c.height; ++y)
@@ -124,16 +124,16 @@ TEST(Preprocess, RowWiseFilterEqualsThePerPixelKernel) {
   for (int radius : {1, 2, 4}) {
     params.bilateral_radius_px = radius;
     DepthImage filtered;
-    bilateral_filter(depth, filtered, params);
+    const DepthRange range;
+    bilateral_filter(depth, filtered, params, range);
     const float inv_px = 1.0f / (2.0f * params.bilateral_sigma_px * params.bilateral_sigma_px);
     const float inv_d =
         1.0f / (2.0f * params.bilateral_sigma_depth_m * params.bilateral_sigma_depth_m);
     int differ = 0;
     for (int y = 0; y < c.height; ++y)
       for (int x = 0; x < c.width; ++x) {
-        const float expect =
-            kernels::bilateral_depth(std::as_const(depth).view(), x, y, radius, inv_px, inv_d,
-                                     params.min_depth_m, params.max_depth_m);
+        const float expect = kernels::bilateral_depth(std::as_const(depth).view(), x, y, radius,
+                                                      inv_px, inv_d, range.min_m, range.max_m);
         differ += std::abs(filtered(x, y) - expect) > 1e-5f;
       }
     EXPECT_EQ(differ, 0) << "radius " << radius;
@@ -146,16 +146,15 @@ TEST(Preprocess, DepthRangeAndPyramid) {
   depth(10, 10) = 0.1f;  // nearer than min_depth_m
   depth(20, 20) = 5.0f;  // farther than max_depth_m
   TrackParams params;
-  params.min_depth_m = 0.2f;
-  params.max_depth_m = 3.0f;
+  const DepthRange range{0.2f, 3.0f};
   DepthImage filtered;
-  bilateral_filter(depth, filtered, params);
+  bilateral_filter(depth, filtered, params, range);
   EXPECT_EQ(filtered(10, 10), 0.0f);
   EXPECT_EQ(filtered(20, 20), 0.0f);
   EXPECT_FLOAT_EQ(filtered(30, 30), 2.0f);
 
   std::vector<PyramidLevel> levels;
-  build_pyramid(depth, c, params, levels);
+  build_pyramid(depth, c, params, range, levels);
   ASSERT_EQ(static_cast<int>(levels.size()), params.levels());
   for (std::size_t i = 1; i < levels.size(); ++i) {
     const PyramidLevel& l = levels[i];

@@ -37,7 +37,7 @@ TEST(Tracker, RecoversSmallKnownMotionsOnCleanDepth) {
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=120&noise=none"));
   ReconstructionParams params;
   params.raycast_every_frame = false;
-  Reconstruction recon(params, data.info());
+  Reconstruction recon(params, data.info().rig);
   for (std::size_t i = 0; i < 3; ++i) {
     const RgbdFrame frame = data.read(i);
     recon.integrate(frame, *frame.T_wc_gt);
@@ -52,10 +52,7 @@ TEST(Tracker, RecoversSmallKnownMotionsOnCleanDepth) {
       motion({0.0, 0.0, 0.0}, {0, 0, 1}, 2.0),        motion({0.006, 0.005, -0.01}, {1, 2, 3}, 1.2),
       motion({-0.015, 0.01, 0.0}, {-2, 1, 0.5}, 2.5),
   };
-  TrackParams tp;
-  tp.min_depth_m = params.fusion.min_depth_m;
-  tp.max_depth_m = params.fusion.max_depth_m;
-  Tracker tracker(tp);
+  Tracker tracker(TrackParams{}, params.fusion.depth_range);
   for (const Pose& delta : motions) {
     const Pose T_true = T0 * delta;
     const RenderedFrame frame = render(data.scene(), cam, T_true);
@@ -76,14 +73,14 @@ ReconstructionParams fixed_5mm() {
   ReconstructionParams params;
   params.map.levels = 1;
   params.map.voxel_size_m = 0.005f;
-  params.fusion.truncation_m = 0.02f;
+  params.map.truncation_m = 0.02f;
   return params;
 }
 
 // The whole online loop on the noisy synthetic desk: the only pose given is the first.
 TEST(Tracker, NoisyTrajectoryStaysWithinOneCentimetre) {
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=120&noise=kinect"));
-  Reconstruction recon(fixed_5mm(), data.info());
+  Reconstruction recon(fixed_5mm(), data.info().rig);
   std::vector<StampedPose> gt;
   for (std::size_t i = 0; i < data.size(); ++i) {
     const RgbdFrame frame = data.read(i);
@@ -101,7 +98,7 @@ TEST(Tracker, NoisyTrajectoryStaysWithinOneCentimetre) {
 
 TEST(Tracker, GarbageDepthIsLostAndNotFused) {
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=120&noise=kinect"));
-  Reconstruction recon(fixed_5mm(), data.info());
+  Reconstruction recon(fixed_5mm(), data.info().rig);
   for (std::size_t i = 0; i < 6; ++i)
     ASSERT_NE(recon.track_and_integrate(data.read(i), 0.0, data.trajectory().front().T_wc).tracking,
               TrackingQuality::Lost);
@@ -140,10 +137,7 @@ TEST(TrackParams, RejectsNonsense) {
   p = {};
   p.max_distance_m = -1.0f;
   EXPECT_THROW(p.validate(), Error);
-  p = {};
-  p.min_depth_m = 2.0f;
-  p.max_depth_m = 1.0f;
-  EXPECT_THROW(p.validate(), Error);
+  EXPECT_THROW(Tracker(TrackParams{}, DepthRange{2.0f, 1.0f}), Error);
   EXPECT_EQ(parse_robust_loss("tukey"), RobustLoss::Tukey);
   EXPECT_THROW(parse_robust_loss("cauchy"), Error);
 }

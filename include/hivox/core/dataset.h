@@ -9,56 +9,36 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/image.h"
 #include "hivox/core/pose.h"
-#include "hivox/core/sensor_noise.h"
 
 namespace hivox {
 
 enum class DatasetLayout { Tum, SevenScenes, InfiniTam, Synthetic };
 std::string_view to_string(DatasetLayout layout);
 
-/// Colour pixel (u, v) sees what depth pixel (u, v) sees: one camera, no offset between the two.
-inline bool color_registered(const PinholeCamera& color_camera, const PinholeCamera& depth_camera,
-                             const Pose& T_color_depth) {
-  return color_camera == depth_camera && T_color_depth.isApprox(Pose::Identity());
-}
-
 struct DatasetInfo {
   std::string source;  ///< directory, or `synthetic:NAME`
   DatasetLayout layout = DatasetLayout::Tum;
   std::size_t frame_count = 0;
-  PinholeCamera depth_camera;
-  /// Colour camera; equal to `depth_camera` when depth is registered to colour.
-  PinholeCamera color_camera;
-  /// Maps depth-camera points into the colour-camera frame (identity when registered).
-  Pose T_color_depth = Pose::Identity();
-  /// Colour pixel (u, v) sees what depth pixel (u, v) sees (the free `color_registered`).
-  bool color_registered() const;
+  /// The cameras, the raw depth units and the depth noise of the sensor that recorded the set.
+  CameraRig rig;
   std::string intrinsics_source;  ///< where the intrinsics came from (file, preset name)
   /// Lens distortion of the depth camera (= colour camera when registered) as calibrated.
   LensDistortion distortion;
   /// Frames come with `distortion` removed (depth, and colour when registered); false when the
   /// calibration has none or undistortion was turned off.
   bool undistorted = false;
-  /// Raw depth units per metre (value / depth_scale = metres); 0 when depth is metric already.
-  double depth_scale = 0;
-  std::string depth_scale_source;  ///< file, preset or override that set `depth_scale`
+  std::string depth_scale_source;  ///< file, preset or override that set `rig.depth_scale`
   bool has_color = false;
   bool has_ground_truth = false;
   /// Frames that have a ground-truth pose; 0 when there is none or the source cannot count them
   /// without reading every frame.
   std::size_t ground_truth_count = 0;
   double first_timestamp_s = 0;
-  /// Axial depth noise of the sensor that recorded the set: Kinect-class for recorded data,
-  /// none for noise-free synthetic depth. The refinement compares surface detail with it.
-  SensorNoise depth_noise = SensorNoise::kinect();
   std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
 };
-
-inline bool DatasetInfo::color_registered() const {
-  return hivox::color_registered(color_camera, depth_camera, T_color_depth);
-}
 
 struct RgbdFrame {
   std::size_t index = 0;

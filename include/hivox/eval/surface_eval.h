@@ -27,9 +27,9 @@ struct SurfaceEval {
   std::vector<PointEval> per_point;       ///< in input order
 };
 
-/// Evaluates the map at reference surface points `points_w`. `min_weight` voxels observed fewer
-/// times count as unknown.
+/// Evaluates the map at reference surface points `points_w` (distances in metres through the
+/// map's truncation band). Voxels observed fewer than `min_weight` (>= 1) times count as unknown.
 SurfaceEval evaluate_at_points(const VoxelBlockMap& map, std::span<const Vec3f> points_w,
-                               float truncation_m, int min_weight = 1);
+                               int min_weight = 1);
 
 }  // namespace hivox

@@ -5,9 +5,9 @@
 #include <string>
 #include <string_view>
 
-namespace hivox {
+#include "hivox/core/camera_rig.h"
 
-struct MapParams;
+namespace hivox {
 
 /// How a voxel reads the depth image where it projects.
 enum class DepthSampling {
@@ -25,19 +25,18 @@ std::string_view to_string(DepthSampling sampling);
 /// Parses "nearest" or "bilinear"; throws `Error(InvalidArgument)` otherwise.
 DepthSampling parse_depth_sampling(std::string_view name);
 
+/// How frames are fused. The truncation band is the map's (MapParams::truncation_m): its voxels
+/// store distances in units of it.
 struct FusionParams {
-  float truncation_m = 0.024f;  ///< truncation band mu (one metric value for all levels)
-  int max_weight = 100;         ///< cap of the per-voxel observation count
-  float min_depth_m = 0.2f;     ///< depth below this is ignored
-  float max_depth_m = 3.0f;     ///< depth beyond this is ignored
+  int max_weight = 100;  ///< cap of the per-voxel observation count
+  /// Depths outside this range are ignored. A reconstruction tracks and raycasts over the same
+  /// range (Reconstruction passes it on; it has no other copy).
+  DepthRange depth_range;
   bool integrate_color = true;  ///< fuse colour when the frame has it and the map stores it
   DepthSampling depth_sampling = DepthSampling::Bilinear;
 
   /// Throws `Error(InvalidArgument)` naming the bad field.
   void validate() const;
-  /// Warns (log) about combinations that work badly with `map`, e.g. a truncation band
-  /// narrower than two voxels of the coarsest level (holes in coarse surfaces).
-  void check_against(const MapParams& map) const;
   std::string to_string() const;
 };
 

@@ -122,6 +122,7 @@ struct LevelView {
 struct MapView {
   LevelView level[kMaxLevels];
   int32_t levels = 0;
+  float truncation_m = 0;             ///< MapParams::truncation_m: a TSDF of 1 is this far
   const TsdfVoxel* tsdf = nullptr;    ///< block_capacity * 512 voxels
   const ColorVoxel* color = nullptr;  ///< same layout, or null when colour is not stored
   int32_t block_capacity = 0;

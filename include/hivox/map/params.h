@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// Map parameters: resolution levels and capacities. Capacities are runtime settings.
+/// Map parameters: what shapes the voxels (resolution levels, truncation band, colour) and the
+/// capacities, which are runtime settings.
 
 #include <cstdint>
 #include <string>
@@ -11,8 +12,12 @@ namespace hivox {
 inline constexpr int kMaxLevels = 4;
 
 struct MapParams {
-  float voxel_size_m = 0.002f;   ///< finest voxel size s; level l has s * 2^l
-  int levels = 3;                ///< number of resolution levels, 1 (fixed grid) to kMaxLevels
+  float voxel_size_m = 0.002f;  ///< finest voxel size s; level l has s * 2^l
+  int levels = 3;               ///< number of resolution levels, 1 (fixed grid) to kMaxLevels
+  /// Truncation band mu, one metric value for all levels: voxels store the signed distance over
+  /// mu, so everything that reads distances from the map (raycasting, refinement, evaluation)
+  /// takes it from here, and fusion writes with it.
+  float truncation_m = 0.024f;
   int64_t max_blocks = 1 << 20;  ///< voxel-block pool size shared by all levels (--max-blocks)
   int64_t buckets_per_level = 1 << 20;  ///< hash buckets per level (power of two)
   int64_t excess_per_level = 1 << 20;   ///< overflow (chain) entries per level
@@ -24,6 +29,9 @@ struct MapParams {
 
   /// Throws `Error(InvalidArgument)` naming the bad field.
   void validate() const;
+  /// Warns (log) about combinations that work badly, e.g. a truncation band narrower than two
+  /// voxels of the coarsest level (holes in coarse surfaces).
+  void warn_about_combinations() const;
   std::string to_string() const;
 };
 

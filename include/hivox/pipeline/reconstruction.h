@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/dataset.h"
 #include "hivox/core/pose.h"
 #include "hivox/core/timer.h"
@@ -21,12 +22,15 @@
 
 namespace hivox {
 
+/// Every setting of a reconstruction, each in one place: the truncation band is the map's
+/// (`map.truncation_m`) and the depth range the fusion's (`fusion.depth_range`); refinement,
+/// raycasting and tracking read them from there.
 struct ReconstructionParams {
   MapParams map;
   FusionParams fusion;
   RefineParams refine;  ///< used when map.levels > 1
   RaycastParams raycast;
-  TrackParams track;  ///< used by track_and_integrate; its depth range follows the fusion's
+  TrackParams track;  ///< used by track_and_integrate
   /// Raycast the model from each frame's pose after integrating it (tracking needs it; with
   /// given poses it only feeds renders and can be switched off for speed).
   bool raycast_every_frame = true;
@@ -35,9 +39,11 @@ struct ReconstructionParams {
   /// otherwise search their whole depth range). false: those rays search the whole range.
   bool previous_raycast_hints = true;
 
-  /// Validates every part; the raycast's truncation and depth range follow the fusion's.
+  /// Validates every part.
   void validate() const;
-  std::string to_string() const;
+  /// The settings in words; `rig` (optional): the sensor, whose noise model the refinement uses
+  /// unless `refine.noise` is set.
+  std::string to_string(const CameraRig* rig = nullptr) const;
 };
 
 /// What happened to one frame. Times are wall-clock milliseconds.
@@ -78,11 +84,13 @@ struct TrackingCounts {
 
 class Reconstruction {
  public:
-  /// `info` gives the cameras (depth and colour) and their relative pose.
-  Reconstruction(const ReconstructionParams& params, const DatasetInfo& info);
+  /// `rig`: the sensor whose frames are fused (cameras, their relative pose, depth noise).
+  Reconstruction(const ReconstructionParams& params, const CameraRig& rig);
 
   const ReconstructionParams& params() const { return params_; }
-  const DatasetInfo& info() const { return info_; }
+  const CameraRig& rig() const { return rig_; }
+  /// The settings in words, with the sensor's noise model where the refinement uses it.
+  std::string describe() const { return params_.to_string(&rig_); }
 
   /// Fuses `frame` at camera-to-world pose `T_wc`. `read_ms` is recorded in the statistics.
   const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc, double read_ms = 0.0);
@@ -117,7 +125,7 @@ class Reconstruction {
 
  private:
   ReconstructionParams params_;
-  DatasetInfo info_;
+  CameraRig rig_;
   std::unique_ptr<VoxelBlockMap> map_;
   TsdfIntegrator integrator_;
   Refiner refiner_;
@@ -131,10 +139,7 @@ class Reconstruction {
                            FrameStats& s);
   /// The camera of the per-frame raycast (the depth camera, subsampled for tracking).
   PinholeCamera model_camera() const;
-  DepthImage hint_;    ///< the fused depth at the model camera's resolution, when it differs
-  DepthImage warped_;  ///< the previous raycast's depth seen from the current pose (the
-                       ///< raycast's fallback hints)
-  WarpScratch warp_scratch_;
+  FrameHints hints_;  ///< builds the per-frame raycast's hints
 
   Tracker tracker_;
   TrackResult last_track_;

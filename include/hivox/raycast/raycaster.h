@@ -9,10 +9,12 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/image.h"
 #include "hivox/core/math.h"
 #include "hivox/core/pose.h"
 #include "hivox/map/voxel_block_map.h"
+#include "hivox/raycast/hints.h"
 #include "hivox/raycast/params.h"
 
 namespace hivox {
@@ -47,27 +49,6 @@ struct RaycastStats {
   double march_ms = 0;            ///< marching the rays
 };
 
-/// Images warp_raycast_depth keeps between calls (allocating and first touching them anew costs
-/// about as much as the warp itself).
-struct WarpScratch {
-  DepthImage nearest, row_min;
-  std::vector<DepthImage> partial;  ///< the landings of threads other than the first
-};
-
-/// The depth at which the surface points of raycast `from` are seen by `camera` from pose
-/// `T_wc` (a forward warp): each hit lands on its nearest pixel, with the depth at which its
-/// tangent plane (the hit's normal) meets that pixel's centre ray (at most `max_gap_m` / 2 from
-/// the hit's own depth), and the nearest surface wins. A pixel no hit lands on takes the nearer of
-/// two opposite neighbours' depths (left and right, up and down, or diagonal) that agree within
-/// `max_gap_m` (holes where the new view magnifies the surface); other pixels no hit lands on get
-/// 0, and so do pixels that may show a surface through a gap in the warped foreground (a pixel
-/// within one pixel of them holds a surface nearer by more than `max_gap_m`). The previous frame's
-/// raycast warped this way gives the rays a second start hint, free of sensor noise (see
-/// Raycaster::raycast).
-/// `scratch` (optional): the images the warp keeps between calls.
-void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, const Pose& T_wc,
-                        float max_gap_m, DepthImage* out, WarpScratch* scratch = nullptr);
-
 class Raycaster {
  public:
   explicit Raycaster(const RaycastParams& params = {});
@@ -76,10 +57,11 @@ class Raycaster {
   Raycaster& operator=(Raycaster&&) noexcept;
   const RaycastParams& params() const { return params_; }
 
-  /// Casts every pixel of `camera` from pose `T_wc` into `map`. The result is kept (and its
+  /// Casts every pixel of `camera` from pose `T_wc` into `map`, over the depths of `range`
+  /// (along the optical axis; rays start no nearer than 1 mm). The result is kept (and its
   /// buffers reused) until the next call.
   ///
-  /// `start_hint_m` (optional, same size as the camera): a depth per pixel near which the
+  /// `hints.start_m` (optional, same size as the camera): a depth per pixel near which the
   /// surface is expected, e.g. the depth image just fused from this pose. A ray with a hint
   /// first looks for the surface at the hint itself (a sample there and a Newton step or two);
   /// failing that, it starts `hint_margin_mu` truncation bands before the hint instead of at the
@@ -87,8 +69,8 @@ class Raycaster {
   /// surfaces seen at grazing angles) but also any model surface the hint says is not there.
   /// Pixels without a hint (0) search the whole range.
   ///
-  /// `fallback_hint_m` (optional, same size): a second depth per pixel, searched the same way
-  /// where `start_hint_m` has none, or where the search at it fails, before the ray marches: e.g.
+  /// `hints.fallback_m` (optional, same size): a second depth per pixel, searched the same way
+  /// where `start_m` has none, or where the search at it fails, before the ray marches: e.g.
   /// the previous frame's raycast warped into this view (warp_raycast_depth) where the start
   /// hint is the depth just measured. Where that depth is missing or disagrees with the model (it
   /// lies in front of the model's surface, or on voxels not yet observed), the model's surface is
@@ -97,9 +79,8 @@ class Raycaster {
   /// second: the measured depth says which surface, the previous raycast where the model holds it
   /// (the measured depth is off by the sensor's noise, often more than a voxel).
   const RaycastResult& raycast(const VoxelBlockMap& map, const PinholeCamera& camera,
-                               const Pose& T_wc, RaycastStats* stats = nullptr,
-                               const DepthImage* start_hint_m = nullptr,
-                               const DepthImage* fallback_hint_m = nullptr);
+                               const Pose& T_wc, const DepthRange& range,
+                               const RaycastHints& hints = {}, RaycastStats* stats = nullptr);
   const RaycastResult& result() const { return result_; }
 
  private:

@@ -2,6 +2,7 @@
 /// @file
 /// Adaptive resolution (DESIGN §4): when blocks split into 8 finer blocks or merge back.
 
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -33,11 +34,10 @@ struct RefineParams {
   /// max(merge_threshold, merge_noise_ratio * split_noise_factor * sigma(z)) (< the split level:
   /// hysteresis).
   float merge_threshold = 0.0001f;
-  /// The sensor's axial noise sigma(z). With `noise_from_dataset`, `Reconstruction` replaces it
-  /// by the dataset's own model (`DatasetInfo::depth_noise`: none for noise-free synthetic
-  /// depth), so that detail below the absolute thresholds is all that a perfect sensor needs.
-  SensorNoise noise = SensorNoise::kinect();
-  bool noise_from_dataset = true;
+  /// The sensor's axial noise sigma(z) the thresholds compare detail with. Unset: the rig's own
+  /// model (CameraRig::depth_noise: none for noise-free synthetic depth, so that detail below
+  /// the absolute thresholds is all that a perfect sensor needs).
+  std::optional<SensorNoise> noise;
   float split_noise_factor = 0.25f;
   /// The merge level's noise term as a fraction of the split level's, in [0, 1]. 0.72 (0.18
   /// sigma(z) with the default split factor): walls seen at 2-3 m with Kinect noise settle at the
@@ -67,12 +67,14 @@ struct RefineParams {
 
   /// Complexity above which a block at depth z_m whose voxels were observed `mean_weight` times
   /// splits (young blocks need more), and below which a block at depth z_m may merge (no extra
-  /// caution for young blocks: noise makes them look complex, not simple).
-  float split_level(float z_m, float mean_weight = 1e9f) const;
-  float merge_level(float z_m) const;
+  /// caution for young blocks: noise makes them look complex, not simple). `sensor` is the noise
+  /// model in use (`noise`, or the rig's).
+  float split_level(const SensorNoise& sensor, float z_m, float mean_weight = 1e9f) const;
+  float merge_level(const SensorNoise& sensor, float z_m) const;
 
   void validate() const;
-  std::string to_string() const;
+  /// The settings in words; `sensor`: the rig's noise model, used where `noise` is unset.
+  std::string to_string(const std::optional<SensorNoise>& sensor = std::nullopt) const;
 };
 
 }  // namespace hivox

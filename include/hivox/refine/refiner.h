@@ -24,22 +24,28 @@ struct RefineStats {
 
 class Refiner {
  public:
-  explicit Refiner(const RefineParams& params = {});
+  /// `sensor_noise`: the depth noise of the sensor whose frames are fused (CameraRig::
+  /// depth_noise), used unless `params.noise` is set.
+  explicit Refiner(const RefineParams& params = {},
+                   const SensorNoise& sensor_noise = SensorNoise::kinect());
   const RefineParams& params() const { return params_; }
+  /// The noise model the thresholds use: `params().noise`, else the sensor's.
+  const SensorNoise& noise() const { return noise_; }
 
   /// One pass (every `every_n_frames`-th call): judges `candidates` (typically the blocks the
-  /// last frame touched) for splitting and their parents for merging, then merges and splits.
-  /// `T_wc` is the camera that just observed them: its depth sets the noise-aware thresholds.
-  RefineStats refine(VoxelBlockMap& map, std::span<const BlockRef> candidates, float truncation_m,
+  /// last frame touched) for splitting and their parents for merging, then asks the map to merge
+  /// and split them. `T_wc` is the camera that just observed them: its depth sets the
+  /// noise-aware thresholds.
+  RefineStats refine(VoxelBlockMap& map, std::span<const BlockRef> candidates,
                      const Pose& T_wc = Pose::Identity());
 
   /// Complexity of pool block `ptr` under the configured criterion (-1: too little observed
   /// surface to judge).
-  float complexity(const VoxelBlockMap& map, int32_t ptr, float truncation_m,
-                   float* mean_weight = nullptr) const;
+  float complexity(const VoxelBlockMap& map, int32_t ptr, float* mean_weight = nullptr) const;
 
  private:
   RefineParams params_;
+  SensorNoise noise_;
   int64_t calls_ = 0;
 };
 

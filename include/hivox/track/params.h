@@ -34,8 +34,6 @@ struct TrackParams {
   int bilateral_radius_px = 2;            ///< window half-size of the bilateral filter (0: off)
   float bilateral_sigma_px = 2.0f;        ///< spatial sigma
   float bilateral_sigma_depth_m = 0.03f;  ///< range sigma: depths farther apart do not mix
-  float min_depth_m = 0.2f;  ///< depths outside [min, max] are ignored (set from fusion)
-  float max_depth_m = 3.0f;
   /// Neighbours whose depth differs by more than this fraction of the depth are across a
   /// discontinuity: no normal there, and no averaging into coarser pyramid levels.
   float max_depth_jump_ratio = 0.05f;

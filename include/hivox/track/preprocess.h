@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/image.h"
 #include "hivox/core/math.h"
 #include "hivox/track/params.h"
@@ -14,8 +15,9 @@ namespace hivox {
 
 /// Edge-preserving smoothing: each valid pixel becomes the average of the valid depths in its
 /// (2r+1)^2 window, weighted by a Gaussian of the pixel distance and of the depth difference.
-/// Invalid pixels (0) stay invalid; depths outside [min, max] become invalid.
-void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& params);
+/// Invalid pixels (0) stay invalid; depths outside `range` become invalid.
+void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& params,
+                      const DepthRange& range);
 
 /// Halves the resolution: each output pixel averages the valid pixels of its 2x2 block whose
 /// depth is near (within the jump ratio) the block's first valid one.
@@ -34,8 +36,10 @@ struct PyramidLevel {
   Image<Vec3f> normals_c;  ///< zero where there is no normal
 };
 
-/// Filters `depth_m` and builds `params.levels()` levels (finest first) with points and normals.
+/// Filters `depth_m` (depths outside `range` ignored) and builds `params.levels()` levels
+/// (finest first) with points and normals.
 void build_pyramid(const DepthImage& depth_m, const PinholeCamera& camera,
-                   const TrackParams& params, std::vector<PyramidLevel>& levels);
+                   const TrackParams& params, const DepthRange& range,
+                   std::vector<PyramidLevel>& levels);
 
 }  // namespace hivox

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "hivox/core/camera.h"
+#include "hivox/core/camera_rig.h"
 #include "hivox/core/image.h"
 #include "hivox/core/pose.h"
 #include "hivox/raycast/raycaster.h"
@@ -30,8 +31,10 @@ struct TrackResult {
 
 class Tracker {
  public:
-  explicit Tracker(const TrackParams& params = {});
+  /// Depths outside `depth_range` are ignored (a reconstruction passes its fusion's range).
+  explicit Tracker(const TrackParams& params = {}, const DepthRange& depth_range = {});
   const TrackParams& params() const { return params_; }
+  const DepthRange& depth_range() const { return depth_range_; }
 
   /// Aligns the depth frame to `model` (a raycast of the map, points and normals in world
   /// coordinates, from the model's own pose and camera) starting at `T_wc_init`. The depth
@@ -51,6 +54,7 @@ class Tracker {
   void build_model_pyramid(const RaycastResult& model);
 
   TrackParams params_;
+  DepthRange depth_range_;
   std::vector<PyramidLevel> frame_;
   std::vector<ModelLevel> model_;
 };
