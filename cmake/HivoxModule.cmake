@@ -24,7 +24,9 @@ endfunction()
 
 # hivox_add_module(NAME SOURCES ... [DEPS module...] [PUBLIC_LIBS ...] [PRIVATE_LIBS ...])
 # Creates static library hivox_NAME (alias hivox::NAME). DEPS are other hivox modules; the
-# module order in src/CMakeLists.txt enforces the one-way dependency direction.
+# module order in src/CMakeLists.txt enforces the one-way dependency direction. Every module's
+# loops go through src/core/parallel.h, so each compiles with OpenMP privately: users of hivox
+# link its runtime but never see its flags or headers.
 function(hivox_add_module name)
   cmake_parse_arguments(M "" "" "SOURCES;DEPS;PUBLIC_LIBS;PRIVATE_LIBS" ${ARGN})
   set(target hivox_${name})
@@ -39,6 +41,7 @@ function(hivox_add_module name)
     endif()
     target_link_libraries(${target} PUBLIC hivox_${dep})
   endforeach()
-  target_link_libraries(${target} PUBLIC ${M_PUBLIC_LIBS} PRIVATE ${M_PRIVATE_LIBS})
+  target_link_libraries(${target} PUBLIC ${M_PUBLIC_LIBS} PRIVATE ${M_PRIVATE_LIBS}
+                                                                OpenMP::OpenMP_CXX)
   hivox_target_options(${target})
 endfunction()

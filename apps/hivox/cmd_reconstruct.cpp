@@ -18,7 +18,7 @@
 #include "dataset_options.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/io/image_io.h"
@@ -44,6 +44,7 @@ struct ReconstructOptions {
   std::string depth_sampling{to_string(FusionParams{}.depth_sampling)};
   std::string icp_loss = "huber";
   std::string poses = "icp";
+  std::string device = "cpu";
   std::string out;
   ReconstructionParams params;
   MeshParams mesh;
@@ -100,6 +101,7 @@ void run_reconstruct(ReconstructOptions options) {
   r.merge_threshold = options.merge_threshold.value_or(r.merge_threshold);
   if (options.sensor_noise != "dataset")  // else the refinement takes the dataset's model
     r.noise = options.sensor_noise == "none" ? SensorNoise::none() : SensorNoise::kinect();
+  options.params.device = Device::parse(options.device);
   options.params.fusion.depth_sampling = parse_depth_sampling(options.depth_sampling);
   options.params.track.loss = parse_robust_loss(options.icp_loss);
   if (options.no_color) {
@@ -357,6 +359,10 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "voxels observed fewer times do not make surface")
       ->capture_default_str();
   cmd->add_option("--threads", o.threads, "CPU threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--device", o.device,
+                  "where the map lives and the stages run: cpu, or cuda[:N] (needs a build with "
+                  "the CUDA backend)")
+      ->capture_default_str();
   cmd->add_flag("--quiet", o.quiet, "print nothing but warnings and errors");
 }
 

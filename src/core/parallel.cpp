@@ -1,4 +1,6 @@
-#include "hivox/core/parallel.h"
+#include "core/parallel.h"
+
+#include <omp.h>
 
 namespace hivox {
 
@@ -13,6 +15,19 @@ int thread_count() {
 void set_thread_count(int n) {
   if (g_default_threads == 0) g_default_threads = omp_get_max_threads();
   omp_set_num_threads(n > 0 ? n : g_default_threads);
+}
+
+namespace detail {
+int thread_index() {
+  return omp_get_thread_num();
+}
+int team_size() {
+  return omp_get_num_threads();
+}
+}  // namespace detail
+
+void ThreadTeam::barrier() const {
+#pragma omp barrier
 }
 
 }  // namespace hivox

@@ -2,8 +2,8 @@
 
 #include <cmath>
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 
 namespace hivox {
 

@@ -1,7 +1,7 @@
 #include "hivox/eval/surface_eval.h"
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 #include "map/sample_kernels.h"
 
 namespace hivox {
@@ -18,23 +18,24 @@ SurfaceEval evaluate_at_points(const VoxelBlockMap& map, std::span<const Vec3f> 
   out.per_point.resize(points_w.size());
   out.points_per_level.assign(static_cast<std::size_t>(map.levels()), 0);
   const MapView view = map.view();
-#pragma omp parallel
-  {
-    kernels::BlockLookupCache cache;
-#pragma omp for schedule(dynamic, 1024)
-    for (int64_t i = 0; i < static_cast<int64_t>(points_w.size()); ++i) {
-      PointEval& e = out.per_point[static_cast<std::size_t>(i)];
-      int level;
-      Vec3i pos;
-      if (kernels::locate_block(view, cache, points_w[i], &level, &pos) < 0) continue;
-      e.level = level;
-      kernels::TsdfSample s;
-      int l2;
-      if (!kernels::sample_tsdf(view, cache, points_w[i], min_weight, &s, &l2)) continue;
-      e.found = true;
-      e.distance_m = std::abs(s.f) * truncation_m;
-    }
-  }
+  parallel_team([&](const ThreadTeam& team) {
+    kernels::BlockLookupCache cache;  // per thread
+    team.for_each(
+        static_cast<int64_t>(points_w.size()),
+        [&](int64_t i) {
+          PointEval& e = out.per_point[static_cast<std::size_t>(i)];
+          int level;
+          Vec3i pos;
+          if (kernels::locate_block(view, cache, points_w[i], &level, &pos) < 0) return;
+          e.level = level;
+          kernels::TsdfSample s;
+          int l2;
+          if (!kernels::sample_tsdf(view, cache, points_w[i], min_weight, &s, &l2)) return;
+          e.found = true;
+          e.distance_m = std::abs(s.f) * truncation_m;
+        },
+        CpuSchedule::dynamic(1024));
+  });
   double sum = 0.0;
   for (const PointEval& e : out.per_point) {
     if (e.level >= 0) ++out.points_per_level[static_cast<std::size_t>(e.level)];

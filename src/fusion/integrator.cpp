@@ -2,12 +2,12 @@
 
 #include <algorithm>
 
+#include "core/parallel.h"
 #include "fusion/fusion_kernels.h"
 #include "fusion/integration_frame.h"
 #include "hivox/core/atomic.h"
 #include "hivox/core/dataset.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 #include "map/map_access.h"
 
 namespace hivox {
@@ -113,6 +113,10 @@ void validate_input(const FusionInput& in) {
 
 Allocation TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& in) {
   validate_input(in);
+  return dispatch(map.device(), "allocation", [&] { return allocate_cpu(map, in); });
+}
+
+Allocation TsdfIntegrator::allocate_cpu(VoxelBlockMap& map, const FusionInput& in) {
   Scratch& s = *scratch_;
   const MapView view = map.view();
   if (static_cast<int64_t>(s.stamps.size()) != map.block_capacity()) {
@@ -134,22 +138,25 @@ Allocation TsdfIntegrator::allocate(VoxelBlockMap& map, const FusionInput& in) {
 
   // Stage 1: every valid pixel walks its band; rows in chunks keep neighbouring pixels (which
   // cross the same blocks) on one thread and its cache.
-  parallel_threads([&](int t, int) {
-    ThreadState& ts = s.threads[static_cast<std::size_t>(t)];
+  parallel_team([&](const ThreadTeam& team) {
+    ThreadState& ts = s.threads[static_cast<std::size_t>(team.index())];
     ts.cache.reset();
     ts.missing.clear();
     ts.found.clear();
     ts.valid_pixels = 0;
     AllocationVisitor visitor{view, ts, s.stamps.data(), frame};
-#pragma omp for schedule(dynamic, 16) nowait
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        Vec3f a, b;
-        if (!kernels::band_segment(depth, T_wc, mu, x, y, &a, &b)) continue;
-        ++ts.valid_pixels;
-        kernels::walk_segment(view, a, b, visitor);
-      }
-    }
+    team.for_each(
+        height,
+        [&](int64_t row) {
+          const int y = static_cast<int>(row);
+          for (int x = 0; x < width; ++x) {
+            Vec3f a, b;
+            if (!kernels::band_segment(depth, T_wc, mu, x, y, &a, &b)) continue;
+            ++ts.valid_pixels;
+            kernels::walk_segment(view, a, b, visitor);
+          }
+        },
+        CpuSchedule::dynamic(16));
   });
 
   Allocation out;
@@ -218,10 +225,15 @@ void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in,
   validate_input(in);
   const MutableMapView view = MapAccess::storage(map);
   const IntegrationFrame f = integration_frame(in, params_, map.params(), &scratch_->packed_color);
-  parallel_for_dynamic(static_cast<int64_t>(blocks.size()), 16, [&](int64_t i) {
-    const BlockRef& b = blocks[static_cast<std::size_t>(i)];
-    kernels::integrate_block(view, b.level, b.pos, b.ptr, f.depth, f.color, f.constants);
-  });
+  // One block per item; on a GPU the frame's images and the block list must be device copies.
+  const BlockRef* block = blocks.data();
+  parallel_for(
+      map.device(), static_cast<int64_t>(blocks.size()),
+      [=] HIVOX_HD(int64_t i) {
+        const BlockRef& b = block[i];
+        kernels::integrate_block(view, b.level, b.pos, b.ptr, f.depth, f.color, f.constants);
+      },
+      CpuSchedule::dynamic(16));
 }
 
 Allocation TsdfIntegrator::fuse(VoxelBlockMap& map, const FusionInput& in) {

@@ -4,17 +4,19 @@
 #include <array>
 #include <vector>
 
+#include "core/parallel.h"
 #include "hivox/core/atomic.h"
 #include "hivox/core/log.h"
-#include "hivox/core/parallel.h"
 #include "map/hierarchy_kernels.h"
 #include "map/map_access.h"
 #include "map/map_kernels.h"
 
 namespace hivox {
 
-SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> blocks,
-                              float weight_scale) {
+namespace {
+
+SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> blocks,
+                                  float weight_scale) {
   const MutableMapView view = MapAccess::storage(map);
   SplitMergeResult result;
   // Still-allocated blocks above the finest level, in a fixed order (the same subset waits
@@ -103,7 +105,7 @@ SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> bloc
   return result;
 }
 
-SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> parents) {
+SplitMergeResult merge_blocks_cpu(VoxelBlockMap& map, std::span<const BlockKey> parents) {
   const MutableMapView view = MapAccess::storage(map);
   SplitMergeResult result;
   struct Merge {
@@ -177,6 +179,18 @@ SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> pare
   }
   result.done = n;
   return result;
+}
+
+}  // namespace
+
+SplitMergeResult split_blocks(VoxelBlockMap& map, std::span<const BlockRef> blocks,
+                              float weight_scale) {
+  return dispatch(map.device(), "splitting blocks",
+                  [&] { return split_blocks_cpu(map, blocks, weight_scale); });
+}
+
+SplitMergeResult merge_blocks(VoxelBlockMap& map, std::span<const BlockKey> parents) {
+  return dispatch(map.device(), "merging blocks", [&] { return merge_blocks_cpu(map, parents); });
 }
 
 }  // namespace hivox

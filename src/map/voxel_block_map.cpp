@@ -11,9 +11,9 @@
 #include <sys/mman.h>
 #endif
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
-#include "hivox/core/parallel.h"
 #include "map/map_kernels.h"
 
 namespace hivox {
@@ -70,8 +70,14 @@ constexpr int kHighWaterCounter = 2 * kMaxLevels + 1;
 
 }  // namespace
 
-VoxelBlockMap::VoxelBlockMap(const MapParams& params) : params_(params) {
+VoxelBlockMap::VoxelBlockMap(const MapParams& params, const Device& device)
+    : params_(params), device_(device) {
   params_.validate();
+  // The map's storage below is host memory: a map on another device needs that device's backend.
+  if (!device_.is_cpu()) {
+    device_.require_available();
+    no_implementation(device_, "a voxel block map");
+  }
   counters_.assign(2 * kMaxLevels + 2, 0);
   const auto voxels = static_cast<std::size_t>(params_.max_blocks * kBlockVoxels);
   const LazyBuffer tsdf = reserve_lazily(voxels * sizeof(TsdfVoxel), "TSDF voxels");
@@ -146,12 +152,15 @@ InsertStats VoxelBlockMap::insert_blocks(std::span<const BlockKey> keys,
   std::vector<BlockRef> refs(keys.size());
   std::vector<uint8_t> outcome(keys.size());
   const MutableMapView map = storage_;
-  parallel_for(n, [&](int64_t i) {
-    const BlockKey& k = keys[i];
+  const BlockKey* key = keys.data();
+  BlockRef* ref = refs.data();
+  uint8_t* result = outcome.data();
+  parallel_for(device_, n, [=] HIVOX_HD(int64_t i) {
+    const BlockKey& k = key[i];
     int32_t entry = kNoEntry, block = kPtrEmpty;
     const auto r = kernels::allocate_block(map, k.level, k.pos, &entry, &block);
-    outcome[i] = static_cast<uint8_t>(r);
-    refs[i] = {k.pos, k.level, entry, block};
+    result[i] = static_cast<uint8_t>(r);
+    ref[i] = {k.pos, k.level, entry, block};
   });
   InsertStats stats;
   if (inserted) inserted->reserve(inserted->size() + keys.size());

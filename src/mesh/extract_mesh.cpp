@@ -7,8 +7,8 @@
 #include <numeric>
 #include <tuple>
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 #include "mesh/mesh_kernels.h"
 
 namespace hivox {
@@ -150,8 +150,10 @@ void merge_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
 
 }  // namespace
 
-TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
-  params.validate();
+namespace {
+
+/// The CPU's extraction: blocks meshed in parallel, each thread with its own scratch.
+TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params) {
   const MapView view = map.view();
   const bool with_color = params.with_color && view.color != nullptr;
 
@@ -167,12 +169,15 @@ TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
 
   // Pass 1: per block, its vertices and its triangles with corners as edge references.
   std::vector<BlockMesh> parts(static_cast<std::size_t>(n));
-  parallel_threads([&](int, int) {
-    const auto scratch = std::make_unique<BlockScratch>();
-#pragma omp for schedule(dynamic, 16) nowait
-    for (int64_t i = 0; i < n; ++i)
-      mesh_block(view, blocks[i], static_cast<int32_t>(i), index_of_ptr, params, with_color,
-                 *scratch, parts[static_cast<std::size_t>(i)]);
+  parallel_team([&](const ThreadTeam& team) {
+    const auto scratch = std::make_unique<BlockScratch>();  // per thread
+    team.for_each(
+        n,
+        [&](int64_t i) {
+          mesh_block(view, blocks[i], static_cast<int32_t>(i), index_of_ptr, params, with_color,
+                     *scratch, parts[static_cast<std::size_t>(i)]);
+        },
+        CpuSchedule::dynamic(16));
   });
 
   // Pass 2: global numbering, block by block.
@@ -242,6 +247,13 @@ TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
   }
   if (!boundary.empty()) merge_copies(boundary, mesh);
   return mesh;
+}
+
+}  // namespace
+
+TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
+  params.validate();
+  return dispatch(map.device(), "mesh extraction", [&] { return extract_mesh_cpu(map, params); });
 }
 
 }  // namespace hivox

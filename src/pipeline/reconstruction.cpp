@@ -12,6 +12,7 @@
 namespace hivox {
 
 void ReconstructionParams::validate() const {
+  device.require_available();
   map.validate();
   fusion.validate();
   refine.validate();
@@ -22,8 +23,8 @@ void ReconstructionParams::validate() const {
 std::string ReconstructionParams::to_string(const CameraRig* rig) const {
   const std::optional<SensorNoise> sensor =
       rig != nullptr ? std::optional<SensorNoise>(rig->depth_noise) : std::nullopt;
-  return fmt::format("map: {}\nfusion: {}\n{}raycast: {}{}\ntrack: {}", map.to_string(),
-                     fusion.to_string(),
+  return fmt::format("device: {}\nmap: {}\nfusion: {}\n{}raycast: {}{}\ntrack: {}",
+                     device.to_string(), map.to_string(), fusion.to_string(),
                      map.levels > 1 ? "refine: " + refine.to_string(sensor) + "\n" : std::string(),
                      raycast.to_string(),
                      raycast_every_frame ? " (every frame)" : " (renders only)", track.to_string());
@@ -35,11 +36,11 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraR
       integrator_(params_.fusion),
       refiner_(params_.refine, rig.depth_noise),
       raycaster_(params_.raycast),
-      tracker_(params_.track, params_.fusion.depth_range) {
+      tracker_(params_.track, params_.fusion.depth_range, params_.device) {
   params_.validate();
   params_.map.warn_about_combinations();
   rig_.validate();
-  map_ = std::make_unique<VoxelBlockMap>(params_.map);
+  map_ = std::make_unique<VoxelBlockMap>(params_.map, params_.device);
 }
 
 const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc,

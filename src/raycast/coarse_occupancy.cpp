@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <climits>
+#include <vector>
+
+#include "core/parallel.h"
 
 #include "hivox/map/voxel_block_map.h"
 
@@ -12,23 +15,33 @@ CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<int
   const MapView view = map.view();
   const int levels = map.levels();
   const int32_t high_water = map.block_high_water();
-  int lo_x = INT_MAX, lo_y = INT_MAX, lo_z = INT_MAX, hi_x = INT_MIN, hi_y = INT_MIN,
-      hi_z = INT_MIN;
-#pragma omp parallel for schedule(static) reduction(min                 \
-                                                    : lo_x, lo_y, lo_z) \
-    reduction(max                                                       \
-              : hi_x, hi_y, hi_z)
-  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
-    const BlockMeta& m = view.meta[ptr];
-    if (m.level < 0) continue;
-    const Vec3i c = CoarseOccupancy::super_block_of(m.pos, m.level, levels);
-    lo_x = std::min(lo_x, c.x);
-    lo_y = std::min(lo_y, c.y);
-    lo_z = std::min(lo_z, c.z);
-    hi_x = std::max(hi_x, c.x);
-    hi_y = std::max(hi_y, c.y);
-    hi_z = std::max(hi_z, c.z);
-  }
+  // The super-blocks' bounds: per thread, then merged.
+  struct Bounds {
+    Vec3i lo{INT_MAX, INT_MAX, INT_MAX}, hi{INT_MIN, INT_MIN, INT_MIN};
+    void add(const Vec3i& c) {
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], c[a]);
+        hi[a] = std::max(hi[a], c[a]);
+      }
+    }
+  };
+  std::vector<Bounds> partial(static_cast<std::size_t>(thread_count()));
+  parallel_team([&](const ThreadTeam& team) {
+    Bounds b;
+    team.for_each(high_water, [&](int64_t ptr) {
+      const BlockMeta& m = view.meta[ptr];
+      if (m.level >= 0) b.add(CoarseOccupancy::super_block_of(m.pos, m.level, levels));
+    });
+    partial[static_cast<std::size_t>(team.index())] = b;
+  });
+  Bounds all;
+  for (const Bounds& b : partial)
+    for (int a = 0; a < 3; ++a) {
+      all.lo[a] = std::min(all.lo[a], b.lo[a]);
+      all.hi[a] = std::max(all.hi[a], b.hi[a]);
+    }
+  const int lo_x = all.lo.x, lo_y = all.lo.y, lo_z = all.lo.z;
+  const int hi_x = all.hi.x, hi_y = all.hi.y, hi_z = all.hi.z;
   CoarseOccupancy grid;
   if (lo_x > hi_x) return grid;  // no blocks
   grid.lo = {lo_x, lo_y, lo_z};
@@ -39,11 +52,10 @@ CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<int
   grid.cells = cells->data();
   grid.side_m = CoarseOccupancy::kSuperBlockSide * view.level[levels - 1].block_size_m;
   grid.inv_side_m = 1.0f / grid.side_m;
-#pragma omp parallel for schedule(static)
-  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
+  parallel_for(high_water, [&](int64_t ptr) {
     const BlockMeta& m = view.meta[ptr];
     if (m.level >= 0) grid.mark(CoarseOccupancy::super_block_of(m.pos, m.level, levels));
-  }
+  });
   return grid;
 }
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/parallel.h"
+
 namespace hivox {
 
 namespace {
@@ -24,14 +26,15 @@ ColorImage shade_hits(const RaycastResult& r, Shade&& shade) {
   const int w = r.depth_m.width(), h = r.depth_m.height();
   ColorImage out(w, h);
   const Rigid3f T_cw = to_rigid3f(r.T_wc.inverse());
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y)
+  parallel_for(h, [&](int64_t row) {
+    const int y = static_cast<int>(row);
     for (int x = 0; x < w; ++x) {
       if (!r.hit(x, y)) continue;
       const Vec3f n_c = T_cw.rotate(r.normals_w(x, y));
       const Vec3f view_c = normalized(r.camera.ray(static_cast<float>(x), static_cast<float>(y)));
       out(x, y) = shade(x, y, n_c, view_c);
     }
+  });
   return out;
 }
 

@@ -1,8 +1,9 @@
 #include "raycast/surface_tiles.h"
 
 #include <algorithm>
+#include <vector>
 
-#include "hivox/core/parallel.h"
+#include "core/parallel.h"
 #include "hivox/map/voxel_block_map.h"
 
 namespace hivox::kernels {
@@ -11,15 +12,23 @@ int64_t fill_range_tiles(const VoxelBlockMap& map, const PinholeCamera& camera, 
                          float min_depth_m, float max_depth_m, const RangeTiles& tiles) {
   const MapView view = map.view();
   const int32_t high_water = map.block_high_water();
-  int64_t projected = 0;
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : projected)
-  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
-    const BlockMeta& m = view.meta[ptr];
-    if (m.level < 0) continue;
-    projected += project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
-                                        min_depth_m, max_depth_m, tiles);
-  }
-  return projected;
+  std::vector<int64_t> projected(static_cast<std::size_t>(thread_count()), 0);
+  parallel_team([&](const ThreadTeam& team) {
+    int64_t mine = 0;
+    team.for_each(
+        high_water,
+        [&](int64_t ptr) {
+          const BlockMeta& m = view.meta[ptr];
+          if (m.level < 0) return;
+          mine += project_block_to_tiles(T_cw, camera, m.pos, view.level[m.level].block_size_m,
+                                         min_depth_m, max_depth_m, tiles);
+        },
+        CpuSchedule::dynamic(256));
+    projected[static_cast<std::size_t>(team.index())] = mine;
+  });
+  int64_t total = 0;
+  for (const int64_t n : projected) total += n;
+  return total;
 }
 
 SurfaceTiles build_surface_tiles(const VoxelBlockMap& map, const PinholeCamera& camera,
@@ -46,14 +55,14 @@ SurfaceTiles build_surface_tiles(const VoxelBlockMap& map, const PinholeCamera& 
   const int32_t chunks = (high_water + kChunk - 1) / kChunk;
   float* boxes = nullptr;
   std::size_t box_count = 0;
-  parallel_threads([&](int thread, int threads) {
+  parallel_team([&](const ThreadTeam& team) {
+    const int thread = team.index(), threads = team.size();
     auto for_my_blocks = [&](auto&& body) {
       for (int32_t chunk = thread; chunk < chunks; chunk += threads)
         for (int32_t ptr = chunk * kChunk; ptr < std::min(high_water, (chunk + 1) * kChunk); ++ptr)
           body(ptr, &s.rects[4 * static_cast<std::size_t>(ptr)]);
     };
-#pragma omp single
-    s.cursor.assign(static_cast<std::size_t>(threads) * tile_count, 0);  // (then a barrier)
+    team.single([&] { s.cursor.assign(static_cast<std::size_t>(threads) * tile_count, 0); });
     int32_t* cursor = &s.cursor[static_cast<std::size_t>(thread) * tile_count];
     for_my_blocks([&](int32_t ptr, int32_t* rect) {
       const BlockMeta& m = view.meta[ptr];
@@ -71,9 +80,8 @@ SurfaceTiles build_surface_tiles(const VoxelBlockMap& map, const PinholeCamera& 
       for (int ty = r.ty0; ty <= r.ty1; ++ty)
         for (int tx = r.tx0; tx <= r.tx1; ++tx) ++cursor[ty * tiles.tiles_x + tx];
     });
-#pragma omp barrier
-#pragma omp single
-    {
+    team.barrier();
+    team.single([&] {
       // Per tile, the threads' slots one after the other; the cursors become the first slots.
       int32_t total = 0;
       for (int t = 0; t < tile_count; ++t) {
@@ -89,7 +97,7 @@ SurfaceTiles build_surface_tiles(const VoxelBlockMap& map, const PinholeCamera& 
       box_count = static_cast<std::size_t>(total);
       s.boxes.resize(6 * box_count);
       boxes = s.boxes.data();
-    }  // (a barrier)
+    });
     // The boxes, relative to the camera centre, into this thread's slots of their tiles.
     for_my_blocks([&](int32_t ptr, const int32_t* rect) {
       if (rect[1] > rect[3]) return;

@@ -5,8 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include <omp.h>
-
+#include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/raycast/raycaster.h"
 
@@ -28,14 +27,12 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
   const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
   const float plane_limit_m = 0.5f * max_gap_m;
   int threads = 1;
-#pragma omp parallel
-  {
-#pragma omp single
-    {
-      threads = omp_get_num_threads();
+  parallel_team([&](const ThreadTeam& team) {
+    team.single([&] {
+      threads = team.size();
       if (static_cast<int>(s.partial.size()) < threads - 1) s.partial.resize(threads - 1);
-    }  // (a barrier)
-    const int thread = omp_get_thread_num();
+    });
+    const int thread = team.index();
     DepthImage& mine = thread == 0 ? nearest : s.partial[thread - 1];
     mine.resize(w, h, FLT_MAX);
     // Row by row: where each hit lands and at which depth, in a loop without branches or
@@ -46,8 +43,8 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     // camera.project and camera.ray written out on these copies below: called on the camera
     // object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
     const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
-#pragma omp for schedule(static)
-    for (int y = 0; y < from_h; ++y) {
+    const ThreadTeam::Share rows = team.static_share(from_h);
+    for (int y = static_cast<int>(rows.begin); y < static_cast<int>(rows.end); ++y) {
       const float* depth = &from.depth_m(0, y);
       const Vec3f* points = &from.points_w(0, y);
       const Vec3f* normals = &from.normals_w(0, y);
@@ -82,13 +79,13 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
         m[i] = std::min(m[i], landing_z[x]);
       }
     }
-  }
+  });
   // The threads' landings merged, and the nearest depth landed within one pixel: a minimum over
   // each row's 3 pixels, then over 3 rows (loops without branches, which vectorize).
   DepthImage& row_min = s.row_min;  // every pixel written below
   if (row_min.width() != w || row_min.height() != h) row_min.resize(w, h);
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y) {
+  parallel_for(h, [&](int64_t row) {
+    const int y = static_cast<int>(row);
     float* n = &nearest(0, y);
     for (int t = 0; t + 1 < threads; ++t) {
       const float* other = &s.partial[t](0, y);
@@ -98,14 +95,14 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     for (int x = 1; x + 1 < w; ++x) r[x] = std::min(n[x - 1], std::min(n[x], n[x + 1]));
     r[0] = std::min(n[0], w > 1 ? n[1] : FLT_MAX);
     if (w > 1) r[w - 1] = std::min(n[w - 2], n[w - 1]);
-  }
+  });
   if (out->width() != w || out->height() != h) out->resize(w, h);  // every pixel written below
   auto landed = [&](int u, int v) {
     return u >= 0 && v >= 0 && u < w && v < h ? nearest(u, v) : FLT_MAX;
   };
   const std::vector<float> no_row(static_cast<std::size_t>(w), FLT_MAX);
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < h; ++y) {
+  parallel_for(h, [&](int64_t image_row) {
+    const int y = static_cast<int>(image_row);
     const float* n = &nearest(0, y);
     const float* above = y > 0 ? &row_min(0, y - 1) : no_row.data();
     const float* row = &row_min(0, y);
@@ -132,7 +129,7 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
       }
       o[x] = kept(x, z);
     }
-  }
+  });
 }
 
 }  // namespace hivox

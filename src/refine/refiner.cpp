@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <array>
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
-#include "hivox/core/parallel.h"
 #include "hivox/map/hierarchy_edit.h"
 #include "refine/refine_kernels.h"
 
@@ -30,8 +30,13 @@ float Refiner::complexity(const VoxelBlockMap& map, int32_t ptr, float* mean_wei
 
 RefineStats Refiner::refine(VoxelBlockMap& map, std::span<const BlockRef> candidates,
                             const Pose& T_wc) {
+  if (map.levels() < 2 || (calls_++ % params_.every_n_frames) != 0) return {};
+  return dispatch(map.device(), "refinement", [&] { return refine_cpu(map, candidates, T_wc); });
+}
+
+RefineStats Refiner::refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> candidates,
+                                const Pose& T_wc) {
   RefineStats stats;
-  if (map.levels() < 2 || (calls_++ % params_.every_n_frames) != 0) return stats;
   const MapView view = map.view();
   const int top = view.levels - 1;
   auto settled = [&](int32_t ptr) { return view.meta[ptr].updates >= params_.min_updates; };

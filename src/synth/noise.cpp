@@ -6,8 +6,8 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 
 namespace hivox {
 

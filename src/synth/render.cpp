@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
 
 namespace hivox {
 

@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "hivox/core/parallel.h"
+#include "core/parallel.h"
 #include "track_kernels.h"
 
 namespace hivox {
@@ -30,7 +30,8 @@ void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& 
   const int w = in.width(), h = in.height();
   // Row by row, one neighbour offset at a time over the whole row: the same sums as
   // kernels::bilateral_depth per pixel, in loops over contiguous pixels that vectorize.
-  parallel_threads([&](int thread, int threads) {
+  parallel_team([&](const ThreadTeam& team) {
+    const int thread = team.index(), threads = team.size();
     std::vector<float> sum(static_cast<std::size_t>(w)), wsum(static_cast<std::size_t>(w));
     for (int y = thread; y < h; y += threads) {
       std::fill(sum.begin(), sum.end(), 0.0f);

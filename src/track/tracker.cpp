@@ -4,26 +4,28 @@
 #include <bit>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
-#include "hivox/core/parallel.h"
+#include "core/parallel.h"
 #include "hivox/core/timer.h"
 #include "track_kernels.h"
 
 namespace hivox {
 
-namespace {
+namespace {}  // namespace
 
-/// Sums of one Gauss-Newton pass: the normal equations and residual statistics.
-struct Normals {
+/// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
+/// and the residual statistics of its pairs.
+struct Tracker::IcpSystem {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
   double distance = 0;  ///< sum of the inliers' distances from the camera centre
   int64_t inliers = 0;
-  Normals& operator+=(const Normals& o) {
+  IcpSystem& operator+=(const IcpSystem& o) {
     A += o.A;
     b += o.b;
     r2 += o.r2;
@@ -32,6 +34,8 @@ struct Normals {
     return *this;
   }
 };
+
+namespace {
 
 /// Pose after the world-frame motion (t, w) of the camera about its centre c:
 /// p -> R(w) (p - c) + c + t.
@@ -56,11 +60,45 @@ double rotation_deg(const Pose& T) {
 
 }  // namespace
 
-Tracker::Tracker(const TrackParams& params, const DepthRange& depth_range)
-    : params_(params), depth_range_(depth_range) {
+/// Where Gauss-Newton ended: the pose, the finest level's last system and the pose it was built
+/// at, the iterations run, and whether a step diverged.
+struct Tracker::Alignment {
+  Pose T = Pose::Identity();
+  Pose T_fin = Pose::Identity();
+  IcpSystem fin;
+  int iterations = 0;
+  bool diverged = false;
+};
+
+/// One thread's buffers for the pass over a row: the weighted Jacobian rows and residuals, and
+/// each pixel's world point, model pixel and that pixel's point and normal. Kept across passes.
+struct Tracker::RowScratch {
+  std::vector<float> rows;  // 7 rows of w: sqrt(weight) * J (6), sqrt(weight) * r
+  std::vector<Vec3f> p_w, q_w, m_w;
+  std::vector<int32_t> model_pixel;
+  std::vector<int32_t> inside;  // (as wide as a float: the loops vectorize)
+  void reserve(int w) {
+    const auto n = static_cast<std::size_t>(w);
+    if (p_w.size() >= n) return;
+    rows.resize(7 * n);
+    p_w.resize(n);
+    q_w.resize(n);
+    m_w.resize(n);
+    model_pixel.resize(n);
+    inside.resize(n);
+  }
+};
+
+Tracker::Tracker(const TrackParams& params, const DepthRange& depth_range, const Device& device)
+    : params_(params), depth_range_(depth_range), device_(device) {
   params_.validate();
   depth_range_.validate("tracking depth range");
+  device_.require_available();
 }
+
+Tracker::~Tracker() = default;
+Tracker::Tracker(Tracker&&) noexcept = default;
+Tracker& Tracker::operator=(Tracker&&) noexcept = default;
 
 void Tracker::build_model_pyramid(const RaycastResult& model) {
   model_.resize(static_cast<std::size_t>(params_.levels()));
@@ -105,147 +143,165 @@ void Tracker::build_model_pyramid(const RaycastResult& model) {
   }
 }
 
+Tracker::IcpSystem Tracker::reduce(int level, const Pose& T) {
+  return dispatch(device_, "the ICP reduction", [&] { return reduce_cpu(level, T); });
+}
+
+Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
+  const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
+  const ModelLevel& M = model_[static_cast<std::size_t>(level)];
+  const kernels::IcpPass pass(to_rigid3f(T), T_model_cw_, M.camera,
+                              params_.max_distance_m * static_cast<float>(1 << level), params_);
+  const Vec3f* model_points = M.points_w.data();
+  const Vec3f* model_normals = M.normals_w.data();
+  const int w = F.depth_m.width(), h = F.depth_m.height();
+  const auto threads = static_cast<std::size_t>(thread_count());
+  std::vector<IcpSystem> partial(threads);
+  if (scratch_.size() < threads) scratch_.resize(threads);
+  for (RowScratch& s : scratch_) s.reserve(w);
+  parallel_team([&](const ThreadTeam& team) {
+    const int tid = team.index(), nthreads = team.size();
+    if (tid >= static_cast<int>(partial.size())) return;
+    IcpSystem& acc = partial[static_cast<std::size_t>(tid)];
+    // A copy of the pass's constants: read through the closure, they are loaded again in every
+    // iteration (the stores below might alias them), which keeps the loops from vectorizing.
+    const kernels::IcpPass c = pass;
+    // Per row: the pixels' weighted Jacobian rows and residuals are written first, then summed
+    // over the row in floats; rows are summed in doubles.
+    RowScratch& scratch = scratch_[static_cast<std::size_t>(tid)];
+    float* const Jw = scratch.rows.data();  // 6 columns: sqrt(weight) * J
+    float* const rw = Jw + 6 * w;           // sqrt(weight) * r
+    Vec3f* const p_w = scratch.p_w.data();
+    Vec3f* const q_w = scratch.q_w.data();
+    Vec3f* const m_w = scratch.m_w.data();
+    int32_t* const model_pixel = scratch.model_pixel.data();
+    int32_t* const inside = scratch.inside.data();
+    for (int y = tid; y < h; y += nthreads) {
+      float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
+      int n = 0;
+      const Vec3f* points_c = &F.points_c(0, y);
+      const Vec3f* normals_c = &F.normals_c(0, y);
+      // Three loops: the model pixels (without branches: it vectorizes), their reads (the
+      // reads scattered over the model's images do not vectorize here), and every pixel's
+      // terms, zero where it has no pair (vectorizes).
+#pragma omp simd
+      for (int x = 0; x < w; ++x) {
+        p_w[x] = c.T_wc * points_c[x];
+        inside[x] = kernels::icp_model_pixel(c, p_w[x], &model_pixel[x]);
+      }
+      for (int x = 0; x < w; ++x) {
+        q_w[x] = model_points[model_pixel[x]];
+        m_w[x] = model_normals[model_pixel[x]];
+      }
+#pragma omp simd reduction(+ : n, row_r2, row_distance)
+      for (int x = 0; x < w; ++x) {
+        const kernels::IcpTerm t = kernels::icp_pair_term(c, points_c[x], normals_c[x], p_w[x],
+                                                          inside[x] != 0, q_w[x], m_w[x]);
+        // Zero without a pair (chosen, not multiplied: a pixel without a pair may hold
+        // anything). Written out: a loop or a lambda here keeps the loop over x scalar.
+        const bool in = t.paired;
+        const float sw = t.sqrt_weight;
+        Jw[x] = in ? sw * t.J.t.x : 0.0f;
+        Jw[w + x] = in ? sw * t.J.t.y : 0.0f;
+        Jw[2 * w + x] = in ? sw * t.J.t.z : 0.0f;
+        Jw[3 * w + x] = in ? sw * t.J.w.x : 0.0f;
+        Jw[4 * w + x] = in ? sw * t.J.w.y : 0.0f;
+        Jw[5 * w + x] = in ? sw * t.J.w.z : 0.0f;
+        rw[x] = in ? sw * t.r : 0.0f;
+        row_r2 += in ? t.r * t.r : 0.0f;
+        row_distance += in ? t.distance_m : 0.0f;
+        n += in;
+      }
+      int k = 0;
+      for (int i = 0; i < 6; ++i) {
+        const float* Ji = Jw + i * w;
+        for (int j = i; j < 6; ++j) {
+          const float* Jj = Jw + j * w;
+          float a = 0.0f;
+#pragma omp simd reduction(+ : a)
+          for (int m = 0; m < w; ++m) a += Ji[m] * Jj[m];
+          row_A[k++] = a;
+        }
+        float b = 0.0f;
+#pragma omp simd reduction(+ : b)
+        for (int m = 0; m < w; ++m) b += Ji[m] * rw[m];
+        row_b[i] = b;
+      }
+      k = 0;
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
+        acc.b(i) += row_b[i];
+      }
+      acc.r2 += row_r2;
+      acc.distance += row_distance;
+      acc.inliers += n;
+    }
+  });
+  IcpSystem sum;
+  for (const IcpSystem& p : partial) sum += p;
+  sum.A.triangularView<Eigen::StrictlyLower>() = sum.A.transpose();
+  return sum;
+}
+
 TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camera,
                            const RaycastResult& model, const Pose& T_wc_init) {
   TrackResult result;
   Stopwatch watch;
   build_pyramid(depth_m, camera, params_, depth_range_, frame_);
   build_model_pyramid(model);
+  T_model_cw_ = to_rigid3f(model.T_wc.inverse());
   result.preprocess_ms = watch.lap_ms();
+  Alignment a = align(T_wc_init);
+  result.iterations = a.iterations;
+  // The verdict, from the correspondences on the finest level at the pose of its last pass
+  // (one increment before the end: the same correspondences once converged); a fresh pass only
+  // when the last increment was large.
+  const Pose last_step = a.T_fin.inverse() * a.T;
+  if (a.iterations == 0 || last_step.translation().norm() > 1e-3 || rotation_deg(last_step) > 0.1)
+    a.fin = reduce(0, a.T);
+  judge(a, T_wc_init, &result);
+  result.icp_ms = watch.lap_ms();
+  return result;
+}
 
-  const Rigid3f T_model_cw = to_rigid3f(model.T_wc.inverse());
-
-  // One pass over a pyramid level at pose T: projective association and the normal equations.
-  auto accumulate = [&](int level, const Pose& T) {
-    const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
-    const ModelLevel& M = model_[static_cast<std::size_t>(level)];
-    const kernels::IcpPass pass(to_rigid3f(T), T_model_cw, M.camera,
-                                params_.max_distance_m * static_cast<float>(1 << level), params_);
-    const Vec3f* model_points = M.points_w.data();
-    const Vec3f* model_normals = M.normals_w.data();
-    const int w = F.depth_m.width(), h = F.depth_m.height();
-    std::vector<Normals> partial(static_cast<std::size_t>(thread_count()));
-    parallel_threads([&](int tid, int nthreads) {
-      if (tid >= static_cast<int>(partial.size())) return;
-      Normals& acc = partial[static_cast<std::size_t>(tid)];
-      // A copy of the pass's constants: read through the closure, they are loaded again in every
-      // iteration (the stores below might alias them), which keeps the loops from vectorizing.
-      const kernels::IcpPass c = pass;
-      // Per row: the pixels' weighted Jacobian rows and residuals are written first, then summed
-      // over the row in floats; rows are summed in doubles.
-      std::vector<float> rows(static_cast<std::size_t>(7 * w));
-      float* const Jw = rows.data();  // 6 columns: sqrt(weight) * J
-      float* const rw = Jw + 6 * w;   // sqrt(weight) * r
-      // Each pixel's world point, its model pixel and that pixel's point and normal.
-      std::vector<Vec3f> p_w(static_cast<std::size_t>(w)), q_w(p_w.size()), m_w(p_w.size());
-      std::vector<int32_t> model_pixel(p_w.size());
-      std::vector<int32_t> inside(p_w.size());  // (as wide as a float: the loops vectorize)
-      for (int y = tid; y < h; y += nthreads) {
-        float row_A[21] = {}, row_b[6] = {}, row_r2 = 0.0f, row_distance = 0.0f;
-        int n = 0;
-        const Vec3f* points_c = &F.points_c(0, y);
-        const Vec3f* normals_c = &F.normals_c(0, y);
-        // Three loops: the model pixels (without branches: it vectorizes), their reads (the
-        // reads scattered over the model's images do not vectorize here), and every pixel's
-        // terms, zero where it has no pair (vectorizes).
-#pragma omp simd
-        for (int x = 0; x < w; ++x) {
-          p_w[x] = c.T_wc * points_c[x];
-          inside[x] = kernels::icp_model_pixel(c, p_w[x], &model_pixel[x]);
-        }
-        for (int x = 0; x < w; ++x) {
-          q_w[x] = model_points[model_pixel[x]];
-          m_w[x] = model_normals[model_pixel[x]];
-        }
-#pragma omp simd reduction(+ : n, row_r2, row_distance)
-        for (int x = 0; x < w; ++x) {
-          const kernels::IcpTerm t = kernels::icp_pair_term(c, points_c[x], normals_c[x], p_w[x],
-                                                            inside[x] != 0, q_w[x], m_w[x]);
-          // Zero without a pair (chosen, not multiplied: a pixel without a pair may hold
-          // anything). Written out: a loop or a lambda here keeps the loop over x scalar.
-          const bool in = t.paired;
-          const float sw = t.sqrt_weight;
-          Jw[x] = in ? sw * t.J.t.x : 0.0f;
-          Jw[w + x] = in ? sw * t.J.t.y : 0.0f;
-          Jw[2 * w + x] = in ? sw * t.J.t.z : 0.0f;
-          Jw[3 * w + x] = in ? sw * t.J.w.x : 0.0f;
-          Jw[4 * w + x] = in ? sw * t.J.w.y : 0.0f;
-          Jw[5 * w + x] = in ? sw * t.J.w.z : 0.0f;
-          rw[x] = in ? sw * t.r : 0.0f;
-          row_r2 += in ? t.r * t.r : 0.0f;
-          row_distance += in ? t.distance_m : 0.0f;
-          n += in;
-        }
-        int k = 0;
-        for (int i = 0; i < 6; ++i) {
-          const float* Ji = Jw + i * w;
-          for (int j = i; j < 6; ++j) {
-            const float* Jj = Jw + j * w;
-            float a = 0.0f;
-#pragma omp simd reduction(+ : a)
-            for (int m = 0; m < w; ++m) a += Ji[m] * Jj[m];
-            row_A[k++] = a;
-          }
-          float b = 0.0f;
-#pragma omp simd reduction(+ : b)
-          for (int m = 0; m < w; ++m) b += Ji[m] * rw[m];
-          row_b[i] = b;
-        }
-        k = 0;
-        for (int i = 0; i < 6; ++i) {
-          for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
-          acc.b(i) += row_b[i];
-        }
-        acc.r2 += row_r2;
-        acc.distance += row_distance;
-        acc.inliers += n;
-      }
-    });
-    Normals sum;
-    for (const Normals& p : partial) sum += p;
-    sum.A.triangularView<Eigen::StrictlyLower>() = sum.A.transpose();
-    return sum;
-  };
-
+Tracker::Alignment Tracker::align(const Pose& T_wc_init) {
+  Alignment a;
   Pose T = T_wc_init;
-  bool diverged = false;
-  Normals fin;  // the last pass at the finest level: its correspondences give the verdict
-  Pose T_fin = T;
-  for (int level = params_.levels() - 1; level >= 0 && !diverged; --level) {
+  a.T_fin = T;
+  for (int level = params_.levels() - 1; level >= 0 && !a.diverged; --level) {
     for (int it = 0; it < params_.iterations[static_cast<std::size_t>(level)]; ++it) {
-      const Normals ne = accumulate(level, T);
+      const IcpSystem ne = reduce(level, T);
       if (level == 0) {
-        fin = ne;
-        T_fin = T;
+        a.fin = ne;
+        a.T_fin = T;
       }
       if (ne.inliers < 6) break;
       const Eigen::Matrix<double, 6, 1> x = ne.A.ldlt().solve(-ne.b);
       if (!x.allFinite()) {
-        diverged = true;
+        a.diverged = true;
         break;
       }
       T = apply_increment(T, x);
-      ++result.iterations;
+      ++a.iterations;
       if (x.head<3>().norm() < params_.convergence_step &&
           x.tail<3>().norm() < params_.convergence_step)
         break;
     }
   }
+  a.T = T;
+  return a;
+}
 
-  // The verdict, from the correspondences on the finest level at the pose of its last pass
-  // (one increment before the end: the same correspondences once converged); a fresh pass only
-  // when the last increment was large.
-  const Pose last_step = T_fin.inverse() * T;
-  if (result.iterations == 0 || last_step.translation().norm() > 1e-3 ||
-      rotation_deg(last_step) > 0.1)
-    fin = accumulate(0, T);
+void Tracker::judge(const Alignment& a, const Pose& T_wc_init, TrackResult* result) const {
+  const IcpSystem& fin = a.fin;
+  const Pose& T = a.T;
   for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
-    if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result.valid_pixels;
+    if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result->valid_pixels;
   }
-  result.inliers = fin.inliers;
-  result.inlier_ratio =
-      result.valid_pixels > 0 ? static_cast<double>(fin.inliers) / result.valid_pixels : 0.0;
-  result.rms_m = fin.inliers > 0 ? std::sqrt(fin.r2 / static_cast<double>(fin.inliers)) : 0.0;
+  result->inliers = fin.inliers;
+  result->inlier_ratio =
+      result->valid_pixels > 0 ? static_cast<double>(fin.inliers) / result->valid_pixels : 0.0;
+  result->rms_m = fin.inliers > 0 ? std::sqrt(fin.r2 / static_cast<double>(fin.inliers)) : 0.0;
   if (fin.inliers >= 6) {
     // Rotations scaled by the mean lever arm so that both halves are in metres.
     const double arm = std::max(1e-3, fin.distance / static_cast<double>(fin.inliers));
@@ -255,26 +311,24 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(An,
                                                                          Eigen::EigenvaluesOnly);
     const double lmax = eig.eigenvalues().maxCoeff();
-    result.condition = lmax > 0.0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / lmax : 0.0;
+    result->condition = lmax > 0.0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / lmax : 0.0;
   }
-  result.icp_ms = watch.lap_ms();
 
   const Pose jump = T_wc_init.inverse() * T;
   const bool lost =
-      diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
-      result.inlier_ratio < params_.lost_inlier_ratio || result.rms_m > params_.lost_rms_m ||
+      a.diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
+      result->inlier_ratio < params_.lost_inlier_ratio || result->rms_m > params_.lost_rms_m ||
       jump.translation().norm() > params_.lost_jump_m || rotation_deg(jump) > params_.lost_jump_deg;
   if (lost) {
-    result.quality = TrackingQuality::Lost;
-    result.T_wc = T_wc_init;
+    result->quality = TrackingQuality::Lost;
+    result->T_wc = T_wc_init;
   } else {
-    result.quality =
-        result.inlier_ratio < params_.poor_inlier_ratio || result.condition < params_.poor_condition
-            ? TrackingQuality::Poor
-            : TrackingQuality::Good;
-    result.T_wc = T;
+    result->quality = result->inlier_ratio < params_.poor_inlier_ratio ||
+                              result->condition < params_.poor_condition
+                          ? TrackingQuality::Poor
+                          : TrackingQuality::Good;
+    result->T_wc = T;
   }
-  return result;
 }
 
 }  // namespace hivox

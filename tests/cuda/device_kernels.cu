@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/parallel.h"
 #include "fusion/fusion_kernels.h"
 #include "map/map_access.h"
 #include "raycast/coarse_occupancy.h"
@@ -56,24 +57,6 @@ double timed(Launch&& launch) {
   cudaEventDestroy(start);
   cudaEventDestroy(stop);
   return ms;
-}
-
-__global__ void integrate_blocks(MutableMapView map, const BlockRef* blocks, int n,
-                                 kernels::DepthFrameView depth, kernels::ColorFrameView color,
-                                 kernels::IntegrationConstants k) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
-  const BlockRef b = blocks[i];
-  kernels::integrate_block(map, b.level, b.pos, b.ptr, depth, color, k);
-}
-
-__global__ void block_criteria(MapView map, const int32_t* ptrs, int n, float mu_m, int min_weight,
-                               int min_samples, float* detail_m, float* det_cov) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
-  const TsdfVoxel* v = map.tsdf + static_cast<int64_t>(ptrs[i]) * kBlockVoxels;
-  detail_m[i] = kernels::block_detail_m(v, mu_m, min_weight, min_samples);
-  det_cov[i] = kernels::block_det_cov(v, min_weight);
 }
 
 __global__ void project_blocks(MapView map, int32_t high_water, Rigid3f T_cw, PinholeCamera cam,
@@ -192,24 +175,32 @@ double integrate_on_device(DeviceMap& map, const std::vector<BlockRef>& blocks,
   color_view.image.data = color.ptr;
   color_view.packed = packed.ptr;
   DeviceBuffer<BlockRef> refs(blocks.data(), blocks.size());
-  const int n = static_cast<int>(blocks.size());
-  constexpr int kThreads = 64;
+  // The library's launch point with the library's per-block kernel: the loop a CUDA backend runs.
+  const MutableMapView view = map.storage();
+  const BlockRef* block = refs.ptr;
   return timed([&] {
-    integrate_blocks<<<(n + kThreads - 1) / kThreads, kThreads>>>(map.storage(), refs.ptr, n,
-                                                                  depth_view, color_view, k);
+    parallel_for(Device::cuda(), static_cast<int64_t>(blocks.size()), [=] HIVOX_HD(int64_t i) {
+      const BlockRef b = block[i];
+      kernels::integrate_block(view, b.level, b.pos, b.ptr, depth_view, color_view, k);
+    });
   });
 }
 
 void block_criteria_on_device(const DeviceMap& map, const std::vector<int32_t>& ptrs, float mu_m,
                               int min_weight, int min_samples, std::vector<float>* detail_m,
                               std::vector<float>* det_cov) {
-  const int n = static_cast<int>(ptrs.size());
   DeviceBuffer<int32_t> device_ptrs(ptrs.data(), ptrs.size());
   DeviceBuffer<float> detail(ptrs.size()), cov(ptrs.size());
-  constexpr int kThreads = 64;
+  const MapView view = map.view();
+  const int32_t* ptr = device_ptrs.ptr;
+  float* detail_out = detail.ptr;
+  float* cov_out = cov.ptr;
   timed([&] {
-    block_criteria<<<(n + kThreads - 1) / kThreads, kThreads>>>(
-        map.view(), device_ptrs.ptr, n, mu_m, min_weight, min_samples, detail.ptr, cov.ptr);
+    parallel_for(Device::cuda(), static_cast<int64_t>(ptrs.size()), [=] HIVOX_HD(int64_t i) {
+      const TsdfVoxel* v = view.tsdf + static_cast<int64_t>(ptr[i]) * kBlockVoxels;
+      detail_out[i] = kernels::block_detail_m(v, mu_m, min_weight, min_samples);
+      cov_out[i] = kernels::block_det_cov(v, min_weight);
+    });
   });
   detail_m->resize(ptrs.size());
   det_cov->resize(ptrs.size());

@@ -7,7 +7,7 @@
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "map/map_invariants.h"
 
 namespace hivox {

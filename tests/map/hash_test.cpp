@@ -5,7 +5,7 @@
 #include <set>
 
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "hivox/map/voxel_block_map.h"
 #include "map/map_invariants.h"
 

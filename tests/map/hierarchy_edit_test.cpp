@@ -8,7 +8,7 @@
 #include <tuple>
 
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "hivox/map/hierarchy_edit.h"
 #include "map/map_access.h"
 #include "map/map_invariants.h"

@@ -11,7 +11,7 @@
 
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "map/map_access.h"
 #include "map/split_util.h"
 #include "mesh/mesh_test_util.h"

@@ -17,7 +17,7 @@
 #include <limits>
 
 #include "analytic_scene.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 #include "hivox/io/image_io.h"
 #include "hivox/io/ply.h"
 #include "hivox/mesh/extract_mesh.h"

@@ -6,7 +6,7 @@
 #include <set>
 
 #include "hivox/core/error.h"
-#include "hivox/core/parallel.h"
+#include "hivox/core/threads.h"
 
 namespace hivox {
 namespace {

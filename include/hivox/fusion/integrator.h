@@ -67,6 +67,8 @@ class TsdfIntegrator {
 
  private:
   struct Scratch;
+  /// The CPU's allocation: per-thread look-up caches and lists of missing blocks, merged.
+  Allocation allocate_cpu(VoxelBlockMap& map, const FusionInput& input);
   FusionParams params_;
   std::unique_ptr<Scratch> scratch_;
 };

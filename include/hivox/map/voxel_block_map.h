@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "hivox/core/device.h"
 #include "hivox/map/map_view.h"
 #include "hivox/map/params.h"
 
@@ -41,13 +42,15 @@ struct InsertStats {
 
 class VoxelBlockMap {
  public:
-  /// Validates `params` and reserves the tables. Voxel memory is committed as blocks are used.
-  explicit VoxelBlockMap(const MapParams& params);
+  /// Validates `params` and reserves the tables on `device` (where every stage then runs on this
+  /// map). Voxel memory is committed as blocks are used.
+  explicit VoxelBlockMap(const MapParams& params, const Device& device = Device::cpu());
   ~VoxelBlockMap();
   VoxelBlockMap(const VoxelBlockMap&) = delete;
   VoxelBlockMap& operator=(const VoxelBlockMap&) = delete;
 
   const MapParams& params() const { return params_; }
+  const Device& device() const { return device_; }
   int levels() const { return params_.levels; }
   /// Read-only plain-data view for kernels (pointers into this map's memory). Writing goes
   /// through the map's own operations (insert_blocks, split_blocks, merge_blocks) and fusion.
@@ -100,6 +103,7 @@ class VoxelBlockMap {
     std::size_t bytes = 0;
   };
   MapParams params_;
+  Device device_;
   std::array<std::vector<HashEntry>, kMaxLevels> entries_;
   std::array<std::vector<int32_t>, kMaxLevels> excess_free_;
   std::vector<int32_t> block_free_;

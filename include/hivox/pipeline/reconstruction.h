@@ -12,6 +12,7 @@
 #include "hivox/core/camera.h"
 #include "hivox/core/camera_rig.h"
 #include "hivox/core/dataset.h"
+#include "hivox/core/device.h"
 #include "hivox/core/pose.h"
 #include "hivox/core/timer.h"
 #include "hivox/fusion/integrator.h"
@@ -26,6 +27,8 @@ namespace hivox {
 /// (`map.truncation_m`) and the depth range the fusion's (`fusion.depth_range`); refinement,
 /// raycasting and tracking read them from there.
 struct ReconstructionParams {
+  /// Where the map lives and every stage runs (this build: the CPU; see Device).
+  Device device;
   MapParams map;
   FusionParams fusion;
   RefineParams refine;  ///< used when map.levels > 1

@@ -84,6 +84,11 @@ class Raycaster {
   const RaycastResult& result() const { return result_; }
 
  private:
+  /// The CPU's raycast into result_ (camera and pose set): range tiles, the coarse occupancy
+  /// and surface tiles, then the tile driver (src/raycast/cpu/tile_driver.h).
+  void raycast_cpu(const VoxelBlockMap& map, const DepthRange& range, const RaycastHints& hints,
+                   RaycastStats& stats);
+
   RaycastParams params_;
   RaycastResult result_;
   std::vector<float> tile_min_, tile_max_;

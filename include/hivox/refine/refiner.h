@@ -44,6 +44,9 @@ class Refiner {
   float complexity(const VoxelBlockMap& map, int32_t ptr, float* mean_weight = nullptr) const;
 
  private:
+  /// The CPU's pass: criteria in parallel over the candidates, then the map's edits.
+  RefineStats refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> candidates,
+                         const Pose& T_wc);
   RefineParams params_;
   SensorNoise noise_;
   int64_t calls_ = 0;

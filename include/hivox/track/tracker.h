@@ -8,6 +8,7 @@
 
 #include "hivox/core/camera.h"
 #include "hivox/core/camera_rig.h"
+#include "hivox/core/device.h"
 #include "hivox/core/image.h"
 #include "hivox/core/pose.h"
 #include "hivox/raycast/raycaster.h"
@@ -31,8 +32,13 @@ struct TrackResult {
 
 class Tracker {
  public:
-  /// Depths outside `depth_range` are ignored (a reconstruction passes its fusion's range).
-  explicit Tracker(const TrackParams& params = {}, const DepthRange& depth_range = {});
+  /// Depths outside `depth_range` are ignored (a reconstruction passes its fusion's range); the
+  /// ICP reduction runs on `device`.
+  explicit Tracker(const TrackParams& params = {}, const DepthRange& depth_range = {},
+                   const Device& device = Device::cpu());
+  ~Tracker();
+  Tracker(Tracker&&) noexcept;
+  Tracker& operator=(Tracker&&) noexcept;
   const TrackParams& params() const { return params_; }
   const DepthRange& depth_range() const { return depth_range_; }
 
@@ -51,12 +57,27 @@ class Tracker {
     Image<Vec3f> points_w, normals_w;  ///< zero normal where the model has no surface
     DepthImage depth_m;
   };
+  struct IcpSystem;
+  struct Alignment;
+  struct RowScratch;
   void build_model_pyramid(const RaycastResult& model);
+  /// One pass over pyramid level `level` at pose `T`: projective association against the model
+  /// and the normal equations (the ICP reduction; dispatches on the device).
+  IcpSystem reduce(int level, const Pose& T);
+  IcpSystem reduce_cpu(int level, const Pose& T);
+  /// Gauss-Newton on SE(3), coarsest level first, from `T_wc_init`.
+  Alignment align(const Pose& T_wc_init);
+  /// The verdict on an alignment that started at `T_wc_init`: the finest level's numbers and
+  /// the quality; a lost frame keeps the start pose.
+  void judge(const Alignment& alignment, const Pose& T_wc_init, TrackResult* result) const;
 
   TrackParams params_;
   DepthRange depth_range_;
+  Device device_;
   std::vector<PyramidLevel> frame_;
   std::vector<ModelLevel> model_;
+  Rigid3f T_model_cw_;               ///< world to the model's camera (this call's)
+  std::vector<RowScratch> scratch_;  ///< per thread, kept across passes and frames
 };
 
 }  // namespace hivox

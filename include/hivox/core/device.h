@@ -1,0 +1,36 @@
+#pragma once
+/// @file
+/// Where a map lives and its stages run. Every operation (allocation, integration, refinement,
+/// raycasting, the ICP reduction, meshing) dispatches on it in one place; this build runs them on
+/// the CPU, and a CUDA implementation plugs in behind the same operations.
+
+#include <string>
+#include <string_view>
+
+namespace hivox {
+
+enum class DeviceType { Cpu, Cuda };
+
+struct Device {
+  DeviceType type = DeviceType::Cpu;
+  int index = 0;  ///< which CUDA device (0 for the CPU)
+
+  static Device cpu() { return {}; }
+  static Device cuda(int index = 0) { return {DeviceType::Cuda, index}; }
+  /// Parses "cpu", "cuda" or "cuda:N"; throws `Error(InvalidArgument)` otherwise.
+  static Device parse(std::string_view name);
+
+  bool is_cpu() const { return type == DeviceType::Cpu; }
+  /// "cpu", "cuda:0", ...
+  std::string to_string() const;
+  /// Throws `Error(Unsupported)` when this build cannot run hivox on the device (CUDA: built
+  /// without it, or no such device), naming the device and what to do.
+  void require_available() const;
+  bool operator==(const Device&) const = default;
+};
+
+/// Throws `Error(Unsupported)`: `operation` has no implementation on `device` in this build.
+/// The fallback of every operation's dispatch.
+[[noreturn]] void no_implementation(const Device& device, std::string_view operation);
+
+}  // namespace hivox
