@@ -1,5 +1,6 @@
-// `hivox reconstruct DATASET`: the whole reconstruction of a sequence, writing a mesh, the
-// trajectory, statistics and renders. `hivox demo` runs it on a built-in synthetic scene.
+// `hivox reconstruct DATASET`: the whole reconstruction of a sequence (the library's
+// run_reconstruction), writing a mesh, the trajectory, statistics and renders; this file parses
+// the flags and prints. `hivox demo` runs it on a built-in synthetic scene.
 
 #include <unistd.h>
 
@@ -17,17 +18,9 @@
 #include "commands.h"
 #include "dataset_options.h"
 #include "hivox/core/error.h"
-#include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
-#include "hivox/eval/trajectory_eval.h"
-#include "hivox/io/image_io.h"
-#include "hivox/io/ply.h"
-#include "hivox/io/stats_json.h"
-#include "hivox/io/trajectory_io.h"
-#include "hivox/mesh/extract_mesh.h"
-#include "hivox/pipeline/reconstruction.h"
-#include "hivox/raycast/render.h"
+#include "hivox/run/runner.h"
 
 namespace hivox::cli {
 
@@ -55,33 +48,6 @@ struct ReconstructOptions {
   bool quiet = false;
 };
 
-/// Poses from a TUM trajectory file, matched to frames by nearest timestamp (20 ms).
-class PoseFile {
- public:
-  explicit PoseFile(const fs::path& path) : path_(path), poses_(read_tum_trajectory(path)) {
-    if (poses_.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", path.string());
-    std::stable_sort(poses_.begin(), poses_.end(), [](const StampedPose& a, const StampedPose& b) {
-      return a.timestamp_s < b.timestamp_s;
-    });
-  }
-  std::optional<Pose> at(double t_s) const {
-    const long i = find_nearest_pose(poses_, t_s, 0.02);
-    return i < 0 ? std::nullopt : std::optional<Pose>(poses_[static_cast<std::size_t>(i)].T_wc);
-  }
-
- private:
-  fs::path path_;
-  std::vector<StampedPose> poses_;
-};
-
-void write_renders(const RaycastResult& r, const fs::path& dir, const std::string& prefix) {
-  write_png(dir / (prefix + "depth.png"), render_depth(r.depth_m));
-  write_png(dir / (prefix + "normals.png"), render_normals(r));
-  write_png(dir / (prefix + "shaded.png"), render_shaded(r));
-  write_png(dir / (prefix + "color.png"), render_colors(r));
-  write_png(dir / (prefix + "levels.png"), render_levels(r));
-}
-
 std::string default_out_dir(const std::string& dataset) {
   std::string name = fs::path(dataset).filename().string();
   if (name.empty()) name = fs::path(dataset).parent_path().filename().string();
@@ -89,8 +55,8 @@ std::string default_out_dir(const std::string& dataset) {
   return (fs::path("out") / (name.empty() ? "run" : name)).string();
 }
 
-void run_reconstruct(ReconstructOptions options) {
-  if (options.threads > 0) set_thread_count(options.threads);
+/// The run's settings from the command line (what the flags do not set directly).
+RunParams run_params(ReconstructOptions options) {
   RefineParams& r = options.params.refine;
   r.criterion = parse_refine_criterion(options.refine_criterion);
   if (r.criterion == RefineCriterion::DetCov) {
@@ -108,166 +74,91 @@ void run_reconstruct(ReconstructOptions options) {
     options.params.map.store_color = false;
     options.params.fusion.integrate_color = false;
   }
-  options.params.validate();
-  options.mesh.validate();
+  RunParams run;
+  run.reconstruction = options.params;
+  run.poses = PoseSpec::parse(options.poses);
+  run.max_frames = options.frames;
   if (options.render_every < 0)
     fail(ErrorCode::InvalidArgument, "--render-every must be >= 0, got {}", options.render_every);
+  run.render_every = options.render_every;
+  run.mesh = options.mesh;
+  run.out_dir = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
+  run.validate();
+  return run;
+}
 
+/// Centimetres, or millimetres below one (a synthetic or short run's error would read 0.00 cm).
+std::string length(double m) {
+  return m < 0.01 ? fmt::format("{:.2f} mm", 1000.0 * m) : fmt::format("{:.2f} cm", 100.0 * m);
+}
+
+void print_summary(const RunResult& result, const RunParams& run) {
+  const Reconstruction& rec = *result.reconstruction;
+  const RunSummary& s = result.summary;
+  const auto frames = static_cast<double>(rec.frame_stats().size());
+  fmt::print(
+      "fused {} frames ({} lost, {} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
+      "with reading\n",
+      s.frames_fused, s.frames_lost, s.frames_skipped, frames / s.processing_s, frames / s.wall_s);
+  const VoxelBlockMap& map = rec.map();
+  fmt::print("blocks: {} (peak {}), per level {}, dropped {}, memory {:.1f} MiB\n",
+             map.blocks_in_use(), rec.peak_blocks(), fmt::join(map.blocks_per_level(), "/"),
+             map.dropped_blocks(), static_cast<double>(map.memory_bytes()) / (1 << 20));
+  if (run.poses.source == PoseSource::Icp) {
+    const TrackingCounts& tc = rec.tracking_counts();
+    fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", tc.good, tc.poor, tc.lost);
+  }
+  if (s.ate)
+    fmt::print(
+        "trajectory error (ATE, {} poses aligned to the ground truth): RMSE {}, mean {}, max "
+        "{}\n",
+        s.ate->matched, length(s.ate->rmse_m), length(s.ate->mean_m), length(s.ate->max_m));
+  fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", s.mesh_vertices,
+             s.mesh_triangles, s.mesh_s, (run.out_dir / "mesh.ply").string());
+  fmt::print(
+      "wrote {}/{{trajectory.txt, stats.json, "
+      "{{,overview_}}{{depth,normals,shaded,color,levels}}.png}}\n",
+      run.out_dir.string());
+}
+
+void run_reconstruct(const ReconstructOptions& options) {
+  if (options.threads > 0) set_thread_count(options.threads);
+  const RunParams run = run_params(options);
   const std::unique_ptr<DatasetReader> reader = open_dataset(options.data);
   const DatasetInfo& info = reader->info();
-  for (const std::string& w : info.warnings) log::warn("{}", w);
-  const bool tracking = options.poses == "icp";
-  std::unique_ptr<PoseFile> pose_file;
-  if (tracking) {
-    if (!options.params.raycast_every_frame)
-      fail(ErrorCode::InvalidArgument,
-           "--no-raycast: tracking (--poses icp) needs the per-frame raycast of the model");
-  } else if (options.poses != "gt")
-    pose_file = std::make_unique<PoseFile>(options.poses);
-  else if (!info.has_ground_truth)
-    fail(ErrorCode::InvalidArgument,
-         "{}: --poses gt, but the dataset has no ground-truth poses; pass --poses FILE (a TUM "
-         "trajectory)",
-         info.source);
-
-  const fs::path out = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec)
-    fail(ErrorCode::Io, "{}: cannot create output directory ({})", out.string(), ec.message());
-
-  const std::size_t total =
-      options.frames > 0 ? std::min(options.frames, reader->size()) : reader->size();
-  Reconstruction rec(options.params, info.rig);
-  const std::string params_text = rec.describe();  // with the dataset's noise model
-  if (!options.quiet) {
+  const bool tty = isatty(fileno(stdout)) != 0;
+  Stopwatch wall;
+  std::size_t total = 0;
+  RunCallbacks callbacks;
+  callbacks.on_start = [&](const Reconstruction& rec, std::size_t frames) {
+    total = frames;
+    if (options.quiet) return;
     fmt::print("hivox reconstruct {}\n", info.source);
-    fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", total, reader->size(),
-               info.rig.depth_camera.width, info.rig.depth_camera.height, options.poses,
+    fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", frames, reader->size(),
+               info.rig.depth_camera.width, info.rig.depth_camera.height, run.poses.to_string(),
                thread_count());
     fmt::print("camera: {} [{}]\n", info.rig.depth_camera.to_string(), info.intrinsics_source);
     if (!info.distortion.none())
       fmt::print("lens distortion: {} ({})\n", info.distortion.to_string(),
                  info.undistorted ? "removed from every frame" : "kept: --keep-distortion");
-    fmt::print("{}\noutput: {}\n", params_text, out.string());
-  }
-
-  const bool tty = isatty(fileno(stdout)) != 0;
-  Stopwatch wall;
-  // Per-frame renders and the progress line.
-  auto progress = [&](std::size_t i, const FrameStats& s, const Pose& T_wc) {
-    if (options.render_every > 0 && (i + 1) % static_cast<std::size_t>(options.render_every) == 0)
-      write_renders(rec.render(info.rig.depth_camera, T_wc), out, fmt::format("frame{:06d}_", i));
-    if (!options.quiet && (tty || (i + 1) % 50 == 0 || i + 1 == total)) {
-      const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
-      fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "",
-                 i + 1, total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"),
-                 rec.map().dropped_blocks(),
-                 tracking ? fmt::format("  lost {}", rec.tracking_counts().lost) : std::string(),
-                 tty ? "   " : "\n");
-      std::fflush(stdout);
-    }
+    fmt::print("{}\noutput: {}\n", rec.describe(), run.out_dir.string());
   };
-  std::size_t skipped = 0;
-  std::vector<StampedPose> ground_truth;
-  for (std::size_t i = 0; i < total; ++i) {
-    Stopwatch read_watch;
-    RgbdFrame frame = reader->read(i);
-    const double read_ms = read_watch.elapsed_ms();
-    if (frame.T_wc_gt) ground_truth.push_back({frame.timestamp_s, *frame.T_wc_gt});
-    if (tracking) {
-      // The first frame fixes the world frame: at its true pose when known (so that renders and
-      // meshes line up with the ground truth), else at the origin.
-      const FrameStats& s =
-          rec.track_and_integrate(frame, read_ms, frame.T_wc_gt.value_or(Pose::Identity()));
-      if (s.tracking == TrackingQuality::Lost)
-        log::warn(
-            "frame {} (t = {:.6f} s): tracking lost (inliers {:.0f} %, residual {:.1f} mm); "
-            "not fused, previous pose kept",
-            i, frame.timestamp_s, 100.0 * s.track_inlier_ratio, 1000.0 * s.track_rms_m);
-      progress(i, s, rec.trajectory().back().T_wc);
-      continue;
-    }
-    const std::optional<Pose> T_wc = pose_file ? pose_file->at(frame.timestamp_s) : frame.T_wc_gt;
-    if (!T_wc) {
-      ++skipped;
-      log::warn_once("reconstruct.no_pose",
-                     "frame {} (t = {:.6f} s) has no pose within 20 ms: skipped (counted in "
-                     "stats.json as skipped_frames)",
-                     i, frame.timestamp_s);
-      continue;
-    }
-    progress(i, rec.integrate(frame, *T_wc, read_ms), *T_wc);
-  }
-  const double wall_s = wall.elapsed_ms() / 1e3;
-  if (!options.quiet && tty) fmt::print("\n");
-  if (rec.frame_stats().empty())
-    fail(ErrorCode::InvalidData, "{}: no frame could be integrated", info.source);
-
-  // Results.
-  write_tum_trajectory(out / "trajectory.txt", rec.trajectory(),
-                       fmt::format("hivox reconstruct {} (poses: {})", info.source, options.poses));
-  const Pose last_pose = rec.trajectory().back().T_wc;
-  write_renders(rec.render(info.rig.depth_camera, last_pose), out, "");
-  // The whole model from above and behind the trajectory, with its refinement levels.
-  const PinholeCamera overview_camera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
-  float overview_depth = 0.0f;
-  const Pose overview = rec.overview_pose(overview_camera, &overview_depth);
-  write_renders(rec.render(overview_camera, overview, overview_depth), out, "overview_");
-  Stopwatch mesh_watch;
-  const TriangleMesh mesh = extract_mesh(rec.map(), options.mesh);
-  write_ply(out / "mesh.ply", mesh);
-  const double mesh_s = mesh_watch.elapsed_ms() / 1e3;
-  RunInfo run;
-  run.dataset = info.source;
-  run.pose_source = options.poses;
-  run.wall_s = wall_s;
-  run.threads = thread_count();
-  run.parameters = params_text;
-  run.skipped_frames = static_cast<int64_t>(skipped);
-  std::optional<AteResult> ate;
-  if (ground_truth.size() >= 3 && options.poses != "gt") {
-    ate = evaluate_ate(ground_truth, rec.trajectory());
-    run.ate_rmse_m = ate->rmse_m;
-  }
-  write_stats_json(out / "stats.json", rec, run);
-
-  if (!options.quiet) {
-    const auto& frames = rec.frame_stats();
-    double total_ms = 0;
-    for (const FrameStats& f : frames) total_ms += f.total_ms;
+  // The progress line.
+  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec) {
+    if (options.quiet || !(tty || (i + 1) % 50 == 0 || i + 1 == total)) return;
+    const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
     fmt::print(
-        "integrated {} frames ({} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
-        "with reading\n",
-        frames.size(), skipped, 1000.0 * static_cast<double>(frames.size()) / total_ms,
-        static_cast<double>(frames.size()) / wall_s);
-    fmt::print("blocks: {} (peak {}), per level {}, dropped {}, memory {:.1f} MiB\n",
-               rec.map().blocks_in_use(), rec.peak_blocks(),
-               fmt::join(rec.map().blocks_per_level(), "/"), rec.map().dropped_blocks(),
-               static_cast<double>(rec.map().memory_bytes()) / (1 << 20));
-    if (tracking) {
-      const TrackingCounts& tc = rec.tracking_counts();
-      fmt::print("tracking: {} good, {} poor, {} lost (not fused)\n", tc.good, tc.poor, tc.lost);
-    }
-    if (ate) {
-      // Centimetres, or millimetres below one (a synthetic or short run's error would read
-      // "0.00 cm").
-      auto length = [](double m) {
-        return m < 0.01 ? fmt::format("{:.2f} mm", 1000.0 * m)
-                        : fmt::format("{:.2f} cm", 100.0 * m);
-      };
-      fmt::print(
-          "trajectory error (ATE, {} poses aligned to the ground truth): RMSE {}, mean {}, max "
-          "{}\n",
-          ate->matched, length(ate->rmse_m), length(ate->mean_m), length(ate->max_m));
-    }
-    fmt::print("mesh: {} vertices, {} triangles in {:.2f} s -> {}\n", mesh.vertex_count(),
-               mesh.triangle_count(), mesh_s, (out / "mesh.ply").string());
-    fmt::print(
-        "wrote {}/{{trajectory.txt, stats.json, "
-        "{{,overview_}}{{depth,normals,shaded,color,levels}}.png}}\n",
-        out.string());
-  }
+        "{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "", i + 1, total,
+        fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"), rec.map().dropped_blocks(),
+        run.poses.source == PoseSource::Icp ? fmt::format("  lost {}", rec.tracking_counts().lost)
+                                            : std::string(),
+        tty ? "   " : "\n");
+    std::fflush(stdout);
+  };
+  const RunResult result = run_reconstruction(*reader, run, callbacks);
+  if (options.quiet) return;
+  if (tty) fmt::print("\n");
+  print_summary(result, run);
 }
 
 void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {

@@ -10,7 +10,7 @@
 
 #include "commands.h"
 #include "hivox/core/timer.h"
-#include "hivox/io/tum_export.h"
+#include "hivox/output/tum_export.h"
 #include "hivox/synth/synthetic_dataset.h"
 
 namespace hivox::cli {

@@ -1,4 +1,4 @@
-#include "hivox/io/tum_export.h"
+#include "hivox/output/tum_export.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "hivox/io/stats_json.h"
+#include "hivox/output/stats_json.h"
 
 #include <fstream>
 

@@ -1,0 +1,103 @@
+#pragma once
+/// @file
+/// A whole reconstruction run as the library does it: a dataset in, a reconstruction and its
+/// result files out. The `hivox reconstruct` command, the benchmarks that run sequences and the
+/// Python bindings all call `run_reconstruction`; they only parse settings and print.
+///
+/// The run: poses from ICP tracking, the dataset's ground truth or a trajectory file; the first
+/// frame of a tracked run sits at its ground-truth pose when the dataset has one (so that
+/// renders and meshes line up with the ground truth), else at the origin; a frame whose tracking
+/// is lost is not fused and keeps the previous pose (Reconstruction::track_and_integrate); a
+/// frame without a pose (given poses) is skipped and counted. At the end, in the output folder:
+/// `trajectory.txt`, the renders from the last pose and from an overview pose, `mesh.ply` and
+/// `stats.json`.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "hivox/core/dataset.h"
+#include "hivox/eval/trajectory_eval.h"
+#include "hivox/mesh/params.h"
+#include "hivox/pipeline/reconstruction.h"
+
+namespace hivox {
+
+/// Where a run's camera poses come from.
+enum class PoseSource {
+  Icp,          ///< tracked: ICP against the model (the first frame at its true pose if known)
+  GroundTruth,  ///< the dataset's ground-truth poses
+  File,         ///< a TUM trajectory file, matched to frames by timestamp (within 20 ms)
+};
+
+struct PoseSpec {
+  PoseSource source = PoseSource::Icp;
+  std::filesystem::path file;  ///< with PoseSource::File
+
+  /// "icp", "gt", or the path of a TUM trajectory file.
+  static PoseSpec parse(std::string_view text);
+  /// As parse takes it.
+  std::string to_string() const;
+};
+
+struct RunParams {
+  ReconstructionParams reconstruction;
+  PoseSpec poses;
+  std::size_t max_frames = 0;  ///< the first N frames; 0 = all
+  /// Also write the renders of every N-th frame (`frameNNNNNN_*.png`); 0 = only at the end.
+  int render_every = 0;
+  MeshParams mesh;
+  /// Where the result files go (created if missing); empty: no files, the run only returns.
+  std::filesystem::path out_dir;
+
+  /// Throws `Error(InvalidArgument)` naming the bad setting.
+  void validate() const;
+};
+
+/// What a run did, frame by frame and at the end.
+struct RunSummary {
+  std::size_t frames_total = 0;    ///< frames the run went through (max_frames applied)
+  std::size_t frames_fused = 0;    ///< integrated into the map
+  std::size_t frames_lost = 0;     ///< tracking lost: not fused, previous pose kept
+  std::size_t frames_skipped = 0;  ///< without a pose (given poses): not processed
+  bool stopped = false;            ///< RunCallbacks::stop_requested ended the run early
+  double wall_s = 0;               ///< the frame loop, reading included
+  double processing_s = 0;         ///< the frame loop's processing (reading excluded)
+  std::optional<AteResult> ate;    ///< estimated poses against the ground truth, when both exist
+  int64_t mesh_vertices = 0, mesh_triangles = 0;
+  double mesh_s = 0;
+  std::vector<std::filesystem::path> files;  ///< what the run wrote, in order
+};
+
+/// A run's outcome: the reconstruction (map, trajectory, per-frame statistics) and the summary.
+struct RunResult {
+  std::unique_ptr<Reconstruction> reconstruction;
+  RunSummary summary;
+};
+
+/// What a run tells its caller while it goes on; every member is optional.
+struct RunCallbacks {
+  /// Before the first frame: the reconstruction (its settings, `describe()`) and the number of
+  /// frames to come.
+  std::function<void(const Reconstruction&, std::size_t frames_total)> on_start;
+  /// After each processed frame: its position in the run (from 0), its statistics, and the
+  /// reconstruction so far.
+  std::function<void(std::size_t i, const FrameStats&, const Reconstruction&)> on_frame;
+  /// Polled before each frame: true ends the run there; the frames so far are kept and their
+  /// results written.
+  std::function<bool()> stop_requested;
+};
+
+/// Runs `reader`'s frames through a reconstruction with `params` and writes the results. Throws
+/// `Error` for bad settings (naming them), a pose source the dataset cannot serve, a run in which
+/// no frame could be fused, and files it cannot read or write.
+RunResult run_reconstruction(DatasetReader& reader, const RunParams& params,
+                             const RunCallbacks& callbacks = {});
+
+}  // namespace hivox

@@ -1,0 +1,244 @@
+#include "hivox/run/runner.h"
+
+#include <algorithm>
+#include <system_error>
+
+#include <fmt/format.h>
+
+#include "hivox/core/error.h"
+#include "hivox/core/log.h"
+#include "hivox/core/threads.h"
+#include "hivox/core/timer.h"
+#include "hivox/io/ply.h"
+#include "hivox/io/trajectory_io.h"
+#include "hivox/mesh/extract_mesh.h"
+#include "hivox/output/renders.h"
+#include "hivox/output/stats_json.h"
+
+namespace hivox {
+
+namespace fs = std::filesystem;
+
+PoseSpec PoseSpec::parse(std::string_view text) {
+  if (text == "icp") return {PoseSource::Icp, {}};
+  if (text == "gt") return {PoseSource::GroundTruth, {}};
+  if (text.empty())
+    fail(ErrorCode::InvalidArgument,
+         "poses must be 'icp', 'gt' or a TUM trajectory file, got an empty name");
+  return {PoseSource::File, fs::path(text)};
+}
+
+std::string PoseSpec::to_string() const {
+  switch (source) {
+    case PoseSource::Icp:
+      return "icp";
+    case PoseSource::GroundTruth:
+      return "gt";
+    case PoseSource::File:
+      return file.string();
+  }
+  return "?";
+}
+
+void RunParams::validate() const {
+  reconstruction.validate();
+  mesh.validate();
+  if (render_every < 0)
+    fail(ErrorCode::InvalidArgument, "render_every must be >= 0, got {}", render_every);
+  if (poses.source == PoseSource::Icp && !reconstruction.raycast_every_frame)
+    fail(ErrorCode::InvalidArgument,
+         "tracking (poses icp) needs the per-frame raycast of the model (raycast_every_frame)");
+  if (poses.source == PoseSource::File && poses.file.empty())
+    fail(ErrorCode::InvalidArgument, "poses from a file, but no file is named");
+}
+
+namespace {
+
+/// Poses from a TUM trajectory file, matched to frames by nearest timestamp (20 ms).
+class PoseFile {
+ public:
+  explicit PoseFile(const fs::path& path) : poses_(read_tum_trajectory(path)) {
+    if (poses_.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", path.string());
+    std::stable_sort(poses_.begin(), poses_.end(), [](const StampedPose& a, const StampedPose& b) {
+      return a.timestamp_s < b.timestamp_s;
+    });
+  }
+  std::optional<Pose> at(double t_s) const {
+    const long i = find_nearest_pose(poses_, t_s, 0.02);
+    return i < 0 ? std::nullopt : std::optional<Pose>(poses_[static_cast<std::size_t>(i)].T_wc);
+  }
+
+ private:
+  std::vector<StampedPose> poses_;
+};
+
+/// The frame loop's state: the reconstruction, where poses come from, what happened so far.
+class Run {
+ public:
+  Run(DatasetReader& reader, const RunParams& params, const RunCallbacks& callbacks)
+      : reader_(reader), info_(reader.info()), params_(params), callbacks_(callbacks) {}
+
+  RunResult go() {
+    check_pose_source();
+    for (const std::string& w : info_.warnings) log::warn("{}", w);
+    if (!params_.out_dir.empty()) {
+      std::error_code ec;
+      fs::create_directories(params_.out_dir, ec);
+      if (ec)
+        fail(ErrorCode::Io, "{}: cannot create output directory ({})", params_.out_dir.string(),
+             ec.message());
+    }
+    RunResult result;
+    result.reconstruction = std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
+    rec_ = result.reconstruction.get();
+    summary_.frames_total =
+        params_.max_frames > 0 ? std::min(params_.max_frames, reader_.size()) : reader_.size();
+    if (callbacks_.on_start) callbacks_.on_start(*rec_, summary_.frames_total);
+    frame_loop();
+    if (rec_->frame_stats().empty())
+      fail(ErrorCode::InvalidData, "{}: no frame could be integrated", info_.source);
+    finish();
+    result.summary = std::move(summary_);
+    return result;
+  }
+
+ private:
+  void check_pose_source() {
+    switch (params_.poses.source) {
+      case PoseSource::Icp:
+        break;
+      case PoseSource::GroundTruth:
+        if (!info_.has_ground_truth)
+          fail(ErrorCode::InvalidArgument,
+               "{}: --poses gt, but the dataset has no ground-truth poses; pass --poses FILE (a "
+               "TUM trajectory)",
+               info_.source);
+        break;
+      case PoseSource::File:
+        pose_file_ = std::make_unique<PoseFile>(params_.poses.file);
+        break;
+    }
+  }
+
+  void frame_loop() {
+    Stopwatch wall;
+    double processing_ms = 0.0;
+    for (std::size_t i = 0; i < summary_.frames_total; ++i) {
+      if (callbacks_.stop_requested && callbacks_.stop_requested()) {
+        summary_.stopped = true;
+        break;
+      }
+      Stopwatch read_watch;
+      const RgbdFrame frame = reader_.read(i);
+      const double read_ms = read_watch.elapsed_ms();
+      if (frame.T_wc_gt) ground_truth_.push_back({frame.timestamp_s, *frame.T_wc_gt});
+      const FrameStats* s = process(i, frame, read_ms);
+      if (s == nullptr) continue;
+      processing_ms += s->total_ms;
+      if (params_.render_every > 0 &&
+          (i + 1) % static_cast<std::size_t>(params_.render_every) == 0 && !params_.out_dir.empty())
+        write(write_renders(rec_->render(info_.rig.depth_camera, rec_->trajectory().back().T_wc),
+                            params_.out_dir, fmt::format("frame{:06d}_", i)));
+      if (callbacks_.on_frame) callbacks_.on_frame(i, *s, *rec_);
+    }
+    summary_.wall_s = wall.elapsed_ms() / 1e3;
+    summary_.processing_s = processing_ms / 1e3;
+  }
+
+  /// Tracks and fuses, or fuses at the given pose; null for a frame skipped without a pose.
+  const FrameStats* process(std::size_t i, const RgbdFrame& frame, double read_ms) {
+    if (params_.poses.source == PoseSource::Icp) {
+      // The first frame fixes the world frame: at its true pose when known, else at the origin.
+      const FrameStats& s =
+          rec_->track_and_integrate(frame, read_ms, frame.T_wc_gt.value_or(Pose::Identity()));
+      if (s.tracking == TrackingQuality::Lost) {
+        ++summary_.frames_lost;
+        log::warn(
+            "frame {} (t = {:.6f} s): tracking lost (inliers {:.0f} %, residual {:.1f} mm); not "
+            "fused, previous pose kept",
+            i, frame.timestamp_s, 100.0 * s.track_inlier_ratio, 1000.0 * s.track_rms_m);
+      } else {
+        ++summary_.frames_fused;
+      }
+      return &s;
+    }
+    const std::optional<Pose> T_wc = pose_file_ ? pose_file_->at(frame.timestamp_s) : frame.T_wc_gt;
+    if (!T_wc) {
+      ++summary_.frames_skipped;
+      log::warn_once("reconstruct.no_pose",
+                     "frame {} (t = {:.6f} s) has no pose within 20 ms: skipped (counted in "
+                     "stats.json as skipped_frames)",
+                     i, frame.timestamp_s);
+      return nullptr;
+    }
+    ++summary_.frames_fused;
+    return &rec_->integrate(frame, *T_wc, read_ms);
+  }
+
+  /// The results: the trajectory, the renders from the last pose and from above, the mesh and
+  /// the statistics (into the output folder, when there is one), and the trajectory's error.
+  void finish() {
+    const bool files = !params_.out_dir.empty();
+    const fs::path& out = params_.out_dir;
+    if (ground_truth_.size() >= 3 && params_.poses.source != PoseSource::GroundTruth)
+      summary_.ate = evaluate_ate(ground_truth_, rec_->trajectory());
+    if (files) {
+      write_tum_trajectory(
+          out / "trajectory.txt", rec_->trajectory(),
+          fmt::format("hivox reconstruct {} (poses: {})", info_.source, params_.poses.to_string()));
+      summary_.files.push_back(out / "trajectory.txt");
+      const Pose last_pose = rec_->trajectory().back().T_wc;
+      write(write_renders(rec_->render(info_.rig.depth_camera, last_pose), out));
+      // The whole model from above and behind the trajectory, with its refinement levels.
+      const PinholeCamera overview_camera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
+      float overview_depth = 0.0f;
+      const Pose overview = rec_->overview_pose(overview_camera, &overview_depth);
+      write(
+          write_renders(rec_->render(overview_camera, overview, overview_depth), out, "overview_"));
+    }
+    Stopwatch mesh_watch;
+    const TriangleMesh mesh = extract_mesh(rec_->map(), params_.mesh);
+    summary_.mesh_vertices = mesh.vertex_count();
+    summary_.mesh_triangles = mesh.triangle_count();
+    if (files) {
+      write_ply(out / "mesh.ply", mesh);
+      summary_.files.push_back(out / "mesh.ply");
+    }
+    summary_.mesh_s = mesh_watch.elapsed_ms() / 1e3;
+    if (files) {
+      RunInfo run;
+      run.dataset = info_.source;
+      run.pose_source = params_.poses.to_string();
+      run.wall_s = summary_.wall_s;
+      run.threads = thread_count();
+      run.parameters = rec_->describe();
+      run.skipped_frames = static_cast<int64_t>(summary_.frames_skipped);
+      if (summary_.ate) run.ate_rmse_m = summary_.ate->rmse_m;
+      write_stats_json(out / "stats.json", *rec_, run);
+      summary_.files.push_back(out / "stats.json");
+    }
+  }
+
+  void write(const std::vector<fs::path>& written) {
+    summary_.files.insert(summary_.files.end(), written.begin(), written.end());
+  }
+
+  DatasetReader& reader_;
+  const DatasetInfo& info_;
+  const RunParams& params_;
+  const RunCallbacks& callbacks_;
+  Reconstruction* rec_ = nullptr;
+  std::unique_ptr<PoseFile> pose_file_;
+  std::vector<StampedPose> ground_truth_;
+  RunSummary summary_;
+};
+
+}  // namespace
+
+RunResult run_reconstruction(DatasetReader& reader, const RunParams& params,
+                             const RunCallbacks& callbacks) {
+  params.validate();
+  return Run(reader, params, callbacks).go();
+}
+
+}  // namespace hivox

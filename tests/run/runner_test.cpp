@@ -1,0 +1,171 @@
+// The library-level run: the frame rules (first frame, lost frames, frames without a pose), the
+// files it writes, stopping early, and its errors. The reference is the same frames driven
+// through Reconstruction by hand.
+
+#include "hivox/run/runner.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <fstream>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "hivox/core/error.h"
+#include "hivox/io/trajectory_io.h"
+#include "hivox/mesh/extract_mesh.h"
+#include "hivox/synth/synthetic_dataset.h"
+#include "test_util.h"
+
+namespace hivox {
+namespace {
+
+SyntheticDataset desk(int frames, const std::string& noise = "none") {
+  return SyntheticDataset(parse_synthetic_spec("synthetic:desk?frames=" + std::to_string(frames) +
+                                               "&noise=" + noise + "&width=160&height=120"));
+}
+
+RunParams small_run() {
+  RunParams p;
+  p.reconstruction.map.levels = 2;
+  p.reconstruction.map.voxel_size_m = 0.01f;
+  p.reconstruction.map.truncation_m = 0.04f;
+  p.reconstruction.map.max_blocks = 1 << 16;
+  p.reconstruction.map.buckets_per_level = 1 << 14;
+  p.reconstruction.map.excess_per_level = 1 << 14;
+  return p;
+}
+
+/// What a run is compared by: the trajectory and the map's blocks per level.
+void expect_same_reconstruction(const Reconstruction& a, const Reconstruction& b) {
+  ASSERT_EQ(a.trajectory().size(), b.trajectory().size());
+  for (std::size_t i = 0; i < a.trajectory().size(); ++i) {
+    EXPECT_EQ(a.trajectory()[i].timestamp_s, b.trajectory()[i].timestamp_s);
+    EXPECT_TRUE(a.trajectory()[i].T_wc.isApprox(b.trajectory()[i].T_wc, 0.0)) << "pose " << i;
+  }
+  EXPECT_EQ(a.map().blocks_per_level(), b.map().blocks_per_level());
+  EXPECT_EQ(extract_mesh(a.map()).triangle_count(), extract_mesh(b.map()).triangle_count());
+}
+
+TEST(Runner, TrackedRunIsTheOnlineLoopFromTheFirstTruePose) {
+  SyntheticDataset data = desk(300);  // small steps along the path: ICP keeps up
+  RunParams p = small_run();
+  p.max_frames = 12;
+  const RunResult run = run_reconstruction(data, p);
+  // By hand: the first frame at its true pose, then tracking.
+  Reconstruction by_hand(p.reconstruction, data.info().rig);
+  for (std::size_t i = 0; i < p.max_frames; ++i) {
+    const RgbdFrame frame = data.read(i);
+    by_hand.track_and_integrate(frame, 0.0, *frame.T_wc_gt);
+  }
+  expect_same_reconstruction(*run.reconstruction, by_hand);
+  EXPECT_TRUE(run.reconstruction->trajectory()[0].T_wc.isApprox(*data.read(0).T_wc_gt));
+  const RunSummary& s = run.summary;
+  EXPECT_EQ(s.frames_total, 12u);
+  EXPECT_EQ(s.frames_fused + s.frames_lost, 12u);
+  EXPECT_EQ(s.frames_lost, static_cast<std::size_t>(by_hand.tracking_counts().lost));
+  EXPECT_EQ(s.frames_skipped, 0u);
+  ASSERT_TRUE(s.ate.has_value()) << "estimated poses against the ground truth";
+  EXPECT_LT(s.ate->rmse_m, 0.01);
+  EXPECT_GT(s.mesh_triangles, 1000);
+  EXPECT_TRUE(s.files.empty()) << "no output folder, no files";
+}
+
+TEST(Runner, WritesItsFilesAndStatsCountTheFrames) {
+  SyntheticDataset data = desk(6);
+  const test::TempDir dir;
+  RunParams p = small_run();
+  p.poses = PoseSpec::parse("gt");
+  p.max_frames = 5;
+  p.render_every = 2;
+  p.out_dir = dir / "out";
+  const RunResult run = run_reconstruction(data, p);
+  EXPECT_EQ(run.summary.frames_fused, 5u);
+  EXPECT_FALSE(run.summary.ate.has_value()) << "ground-truth poses have no error to report";
+  std::set<std::string> names;
+  for (const auto& f : run.summary.files) {
+    EXPECT_TRUE(std::filesystem::is_regular_file(f)) << f;
+    EXPECT_GT(std::filesystem::file_size(f), 0u) << f;
+    names.insert(f.filename().string());
+  }
+  for (const char* name :
+       {"trajectory.txt", "mesh.ply", "stats.json", "depth.png", "levels.png",
+        "overview_shaded.png", "frame000001_color.png", "frame000003_normals.png"})
+    EXPECT_TRUE(names.count(name)) << name;
+  EXPECT_EQ(names.size(), 3u + 5u * 4u) << "3 files, renders at the end, from above, frames 1, 3";
+  EXPECT_EQ(read_tum_trajectory(p.out_dir / "trajectory.txt").size(), 5u);
+  std::ifstream in(p.out_dir / "stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(in);
+  EXPECT_EQ(stats["frames"], 5);
+  EXPECT_EQ(stats["poses"], "gt");
+}
+
+TEST(Runner, FramesWithoutAPoseInTheFileAreSkippedAndCounted) {
+  SyntheticDataset data = desk(6);
+  const test::TempDir dir;
+  // A trajectory with the true poses of frames 0, 1, 3 and 4 only.
+  std::vector<StampedPose> poses;
+  for (std::size_t i : {0, 1, 3, 4}) {
+    const RgbdFrame f = data.read(i);
+    poses.push_back({f.timestamp_s, *f.T_wc_gt});
+  }
+  write_tum_trajectory(dir / "poses.txt", poses);
+  RunParams p = small_run();
+  p.poses = PoseSpec::parse((dir / "poses.txt").string());
+  EXPECT_EQ(p.poses.source, PoseSource::File);
+  const RunResult run = run_reconstruction(data, p);
+  EXPECT_EQ(run.summary.frames_fused, 4u);
+  EXPECT_EQ(run.summary.frames_skipped, 2u);
+  ASSERT_EQ(run.reconstruction->trajectory().size(), 4u);
+  EXPECT_EQ(run.reconstruction->trajectory()[2].timestamp_s, poses[2].timestamp_s);
+}
+
+TEST(Runner, StopRequestEndsTheRunWithTheFramesSoFar) {
+  SyntheticDataset data = desk(8);
+  const test::TempDir dir;
+  RunParams p = small_run();
+  p.poses = PoseSpec::parse("gt");
+  p.out_dir = dir.path();
+  std::size_t seen = 0;
+  RunCallbacks callbacks;
+  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec) {
+    EXPECT_EQ(i, seen);
+    EXPECT_EQ(s.index, i);
+    EXPECT_EQ(rec.frame_stats().size(), i + 1);
+    ++seen;
+  };
+  callbacks.stop_requested = [&] { return seen == 3; };
+  const RunResult run = run_reconstruction(data, p, callbacks);
+  EXPECT_TRUE(run.summary.stopped);
+  EXPECT_EQ(run.summary.frames_fused, 3u);
+  EXPECT_EQ(read_tum_trajectory(dir / "trajectory.txt").size(), 3u) << "results of those frames";
+}
+
+TEST(Runner, BadSettingsAreNamed) {
+  SyntheticDataset data = desk(2);
+  auto error_of = [&](const RunParams& p) {
+    try {
+      run_reconstruction(data, p);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  RunParams p = small_run();
+  p.render_every = -1;
+  EXPECT_TRUE(test::contains(error_of(p), "render_every")) << error_of(p);
+  p = small_run();
+  p.reconstruction.raycast_every_frame = false;
+  EXPECT_TRUE(test::contains(error_of(p), "raycast")) << error_of(p);
+  p = small_run();
+  p.poses = PoseSpec::parse("/no/such/trajectory.txt");
+  EXPECT_TRUE(test::contains(error_of(p), "/no/such/trajectory.txt")) << error_of(p);
+  p = small_run();
+  p.reconstruction.map.truncation_m = -1.0f;
+  EXPECT_TRUE(test::contains(error_of(p), "truncation_m")) << error_of(p);
+  EXPECT_THROW(PoseSpec::parse(""), Error);
+}
+
+}  // namespace
+}  // namespace hivox
