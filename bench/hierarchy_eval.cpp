@@ -1,4 +1,4 @@
-// The hierarchy experiment (paper §VI, issue 4): fuses one sequence three ways in lockstep --
+// The hierarchy experiment (paper §VI): fuses one sequence three ways in lockstep --
 // fixed finest grid, adaptive levels, fixed coarsest grid -- and reports blocks over time, the
 // saving, time per stage, and accuracy (paper Table I): the mean |SDF| of each reconstruction at
 // points on a reference surface (the exact surface for synthetic scenes, otherwise vertices of

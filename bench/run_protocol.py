@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Runs the issue-3 speed protocol and prints a Markdown table; with the stage benchmarks built,
-also the issue-5 raycast after the last frame.
+"""Runs the fusion speed protocol and prints a Markdown table; with the stage benchmarks built,
+also the raycast after the last frame.
 
 Protocol: TUM fr1/rpy, first N frames (default 200), ground-truth poses, 5 mm voxels, mu = 20 mm,
 depth <= 3 m, 2 threads. hivox and (when `import open3d` works: Debian package python3-open3d)
@@ -193,7 +193,7 @@ def main():
               f"integration + raycast fps hivox / Open3D = {rows[2][1] / open3d_rows[1][1]:.2f}; "
               f"raycast ms Open3D / hivox = {open3d_rows[1][3] / max(rows[2][3], 1e-9):.2f}")
 
-    # The raycast after the last frame (issue 5): the map fused with all frames, the last frame's
+    # The raycast after the last frame: the map fused with all frames, the last frame's
     # view, 640x480, from the stage benchmarks.
     if Path(args.bench).is_file():
         maps = [("fixed 5 mm, mu 20 mm", {}),

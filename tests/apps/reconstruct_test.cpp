@@ -26,7 +26,7 @@ nlohmann::json read_json(const fs::path& p) {
   return nlohmann::json::parse(in);
 }
 
-// Every field issue #3 asks of stats.json, with sane values.
+// Every field stats.json documents (README), with sane values.
 void expect_complete_stats(const nlohmann::json& s, std::size_t frames, int levels) {
   for (const char* key :
        {"frames", "fps", "fps_wall", "timing_ms", "blocks_total", "blocks_per_level",

@@ -1,5 +1,5 @@
 // Dataset readers on small datasets the tests write themselves: every layout, the calibration
-// rules, and every bad-input case of issue 2.
+// rules, and every bad input a reader must name.
 
 #include "hivox/io/dataset.h"
 

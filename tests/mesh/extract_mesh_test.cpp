@@ -302,9 +302,9 @@ TEST(ExtractMesh, FusedSceneAcrossLevelsHasNoCrackWhereTheyMeet) {
   // The sphere on its floor fused from depth images, with the region x >= 0 split to the
   // finest level (4 mm) and fused again, x < 0 kept at the coarsest (16 mm). Where both levels
   // hold the sphere, their surfaces meet on the plane x = 0 within a fraction of a fine voxel
-  // (cutting every cell off at the boundary, as before, left a gap of a cell; sampling the
-  // other level without holding the fine side to the coarse lattice there left up to 5 voxels
-  // where the two sides' contours took different shapes). The floor is left out: at its far
+  // (cutting every cell off at the boundary would leave a gap of a cell; sampling the other
+  // level without holding the fine side to the coarse lattice there, up to 5 voxels where the
+  // two sides' contours take different shapes). The floor is left out: at its far
   // edge the fine side's data reaches further than the coarse side's, a border, not a crack.
   test::SphereOnPlane scene;
   const float voxel = 0.004f, mu = 0.048f;

@@ -1,4 +1,4 @@
-// Raycasting and interpolation where levels meet (issue 5): an exact scene stored at two
+// Raycasting and interpolation where levels meet: an exact scene stored at two
 // resolutions split by the plane x = 0 (finest level for x > 0, coarsest for x < 0).
 
 #include <gtest/gtest.h>

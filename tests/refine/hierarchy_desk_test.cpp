@@ -1,4 +1,4 @@
-// The hierarchy on the synthetic desk (issue 4): where blocks end up, how many there are, and
+// The hierarchy on the synthetic desk: where blocks end up, how many there are, and
 // how accurate the surface is, against fixed 2 mm and 8 mm grids fused from the same frames.
 // Levels and accuracy are judged at points on the true surface (area, not block counts: one
 // coarse block covers the area of 64 finest blocks).
@@ -143,7 +143,7 @@ TEST(HierarchyDesk, NoiseFree) {
   // 0.2 / 0.1 mm levels apply): walls ~97 % coarse, floor ~94 %, flat table top ~93 %, the whole
   // table ~42 % (its rim, and the parts of the top next to the objects on it, are fine), keyboard
   // ~100 % finest, blob ~96 %, blocks ~19 % of the fixed 2 mm grid, error ~1.20x fixed 2 mm and
-  // ~0.49x fixed 8 mm (the issue's 1.25x and 0.6x).
+  // ~0.49x fixed 8 mm (the bounds below: 1.25x and 0.6x).
   expect_sensible_hierarchy(o, 0.9, 1.25, 0.6);
   EXPECT_GE(o.level_share.at("floor")[2], 0.85);
 }
@@ -153,7 +153,7 @@ TEST(HierarchyDesk, KinectNoise) {
   // Measured: walls ~99 % coarse, floor ~93 %, flat table top ~84 %, the whole table ~36 %,
   // keyboard ~71 % finest, blob ~47 %, blocks ~8 % of fixed 2 mm, error ~0.89x fixed 2 mm (noise
   // averages out in the coarser voxels) and ~0.87x fixed 8 mm (itself within 5 % of fixed 2 mm at
-  // this noise, so the issue's 0.6x of fixed 8 mm cannot hold here).
+  // this noise, so 0.6x of fixed 8 mm cannot hold here).
   expect_sensible_hierarchy(o, 0.9, 1.0, 0.95);
   EXPECT_GE(o.level_share.at("floor")[2], 0.85);
 }

@@ -68,7 +68,7 @@ TEST(Tracker, RecoversSmallKnownMotionsOnCleanDepth) {
   }
 }
 
-// Setting (a) of the measurements: a fixed 5 mm grid, truncation 20 mm.
+// The tracking benchmark's fixed setting: a 5 mm grid, truncation 20 mm.
 ReconstructionParams fixed_5mm() {
   ReconstructionParams params;
   params.map.levels = 1;
