@@ -204,6 +204,18 @@ TEST(Hash, ParamsAreValidated) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("voxel_size_m"), std::string::npos);
   }
+  p = MapParams{};
+  p.truncation_m = 0;
+  EXPECT_THROW(p.validate(), Error);
+  p = MapParams{};
+  p.max_blocks = 64;
+  try {
+    VoxelBlockMap on_gpu(p, Device::cuda(0));
+    FAIL() << "this build keeps maps on the CPU only";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Unsupported);
+    EXPECT_NE(std::string(e.what()).find("cuda:0"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

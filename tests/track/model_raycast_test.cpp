@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdio>
 
+#include "hivox/core/error.h"
 #include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/hints.h"
 #include "hivox/synth/synthetic_dataset.h"
 
 namespace hivox {
@@ -63,6 +65,79 @@ TEST(ModelRaycast, PreviousRaycastHintsFindTheSameSurfaces) {
       "hits, %lld more found at a hint\n",
       static_cast<long long>(compared), static_cast<long long>(differ), static_cast<long long>(far),
       static_cast<long long>(hole_hits), static_cast<long long>(gained));
+}
+
+/// Every pixel of two raycasts the same, bit for bit.
+int64_t differing_pixels(const RaycastResult& a, const RaycastResult& b) {
+  int64_t differ = 0;
+  for (int y = 0; y < a.depth_m.height(); ++y)
+    for (int x = 0; x < a.depth_m.width(); ++x)
+      differ += !(a.depth_m(x, y) == b.depth_m(x, y) && a.levels(x, y) == b.levels(x, y) &&
+                  a.points_w(x, y) == b.points_w(x, y) && a.normals_w(x, y) == b.normals_w(x, y));
+  return differ;
+}
+
+// The per-frame raycast's hints come from one helper (FrameHints), which the pipeline, the
+// benchmarks and the bindings call. Its hints are the frame's depth at the raycast's pixel
+// centres and the previous raycast warped with a gap of one truncation band: a raycast given
+// hints built so by hand gives the pipeline's pixels, bit for bit.
+TEST(ModelRaycast, FrameHintsAreTheDepthJustFusedAndThePreviousRaycastWarped) {
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=120&noise=kinect"));
+  ReconstructionParams params;
+  params.map.levels = 2;
+  params.map.voxel_size_m = 0.005f;
+  params.map.truncation_m = 0.02f;
+  Reconstruction rec(params, data.info().rig);
+  const PinholeCamera& depth_camera = data.info().rig.depth_camera;
+  const int n = params.track.model_subsample;
+  const PinholeCamera camera = depth_camera.subsampled(n);
+  RaycastResult previous;
+  int64_t compared = 0, with_fallback = 0;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const RgbdFrame frame = data.read(i);
+    const FrameStats& s = rec.integrate(frame, *frame.T_wc_gt);
+    if (i > 0) {
+      // By hand: the frame's depth at the centres of n x n pixel blocks, the previous raycast
+      // warped into this view.
+      DepthImage start(camera.width, camera.height);
+      for (int y = 0; y < camera.height; ++y)
+        for (int x = 0; x < camera.width; ++x)
+          start(x, y) = frame.depth_m(n * x + n / 2, n * y + n / 2);
+      DepthImage warped;
+      warp_raycast_depth(previous, camera, *frame.T_wc_gt, params.map.truncation_m, &warped);
+      Raycaster by_hand(params.raycast);
+      RaycastStats hand_stats;
+      const RaycastResult& a =
+          by_hand.raycast(rec.map(), camera, *frame.T_wc_gt, params.fusion.depth_range,
+                          {&start, &warped}, &hand_stats);
+      EXPECT_EQ(differing_pixels(a, rec.last_raycast()), 0) << "frame " << i;
+      EXPECT_EQ(hand_stats.found_at_hint, s.raycast_hits_at_hint) << "frame " << i;
+      // The helper on its own gives the same hints.
+      FrameHints helper;
+      const RaycastHints hints = helper.build(frame.depth_m, depth_camera, n, *frame.T_wc_gt,
+                                              &previous, params.map.truncation_m);
+      ASSERT_NE(hints.start_m, nullptr);
+      ASSERT_NE(hints.fallback_m, nullptr);
+      EXPECT_EQ(hints.start_m->width(), camera.width);
+      for (std::size_t k = 0; k < start.size(); ++k) {
+        ASSERT_EQ(hints.start_m->data()[k], start.data()[k]) << k;
+        ASSERT_EQ(hints.fallback_m->data()[k], warped.data()[k]) << k;
+        with_fallback += warped.data()[k] > 0.0f;
+      }
+      compared += static_cast<int64_t>(start.size());
+    }
+    previous = rec.last_raycast();
+  }
+  EXPECT_GT(with_fallback, compared / 2) << "the warped raycast covers most pixels";
+  // Without a previous raycast of the raycast's size there is no fallback.
+  FrameHints helper;
+  const RgbdFrame frame = data.read(0);
+  EXPECT_EQ(helper.build(frame.depth_m, depth_camera, n, *frame.T_wc_gt, nullptr, 0.02f).fallback_m,
+            nullptr);
+  EXPECT_EQ(helper.build(frame.depth_m, depth_camera, 1, *frame.T_wc_gt, &previous, 0.02f).start_m,
+            &frame.depth_m)
+      << "at full resolution the frame's own depth is the start hint";
+  EXPECT_THROW(helper.build(frame.depth_m, camera, n, *frame.T_wc_gt, nullptr, 0.02f), Error);
 }
 
 }  // namespace
