@@ -18,8 +18,9 @@ namespace hivox {
 namespace {}  // namespace
 
 /// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
-/// and the residual statistics of its pairs.
-struct Tracker::IcpSystem {
+/// and the residual statistics of its pairs. One per thread while they are summed: a cache line
+/// of their own.
+struct alignas(64) Tracker::IcpSystem {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
@@ -158,11 +159,13 @@ Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
   const auto threads = static_cast<std::size_t>(thread_count());
   std::vector<IcpSystem> partial(threads);
   if (scratch_.size() < threads) scratch_.resize(threads);
-  for (RowScratch& s : scratch_) s.reserve(w);
   parallel_team([&](const ThreadTeam& team) {
     const int tid = team.index(), nthreads = team.size();
     if (tid >= static_cast<int>(partial.size())) return;
     IcpSystem& acc = partial[static_cast<std::size_t>(tid)];
+    // Each thread sizes its own buffers: allocated by the thread that writes them, they do not
+    // share cache lines with another thread's.
+    scratch_[static_cast<std::size_t>(tid)].reserve(w);
     // A copy of the pass's constants: read through the closure, they are loaded again in every
     // iteration (the stores below might alias them), which keeps the loops from vectorizing.
     const kernels::IcpPass c = pass;
