@@ -223,6 +223,16 @@ IntegrationFrame integration_frame(const FusionInput& in, const FusionParams& pa
 void TsdfIntegrator::integrate(VoxelBlockMap& map, const FusionInput& in,
                                std::span<const BlockRef> blocks) {
   validate_input(in);
+  // The blocks come from the caller now: each must be what the map holds at its pool index.
+  const int32_t high_water = map.block_high_water();
+  for (const BlockRef& b : blocks) {
+    const bool held = b.ptr >= 0 && b.ptr < high_water && map.block_meta(b.ptr).level == b.level &&
+                      map.block_meta(b.ptr).pos == b.pos;
+    if (!held)
+      fail(ErrorCode::InvalidArgument,
+           "integrate: block ({}, {}, {}) of level {} is not pool block {} of this map", b.pos.x,
+           b.pos.y, b.pos.z, b.level, b.ptr);
+  }
   const MutableMapView view = MapAccess::storage(map);
   const IntegrationFrame f = integration_frame(in, params_, map.params(), &scratch_->packed_color);
   // One block per item; on a GPU the frame's images and the block list must be device copies.

@@ -355,6 +355,18 @@ TEST(Integrator, BadInputIsAClearError) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("100x80"), std::string::npos) << e.what();
   }
+  // Blocks to integrate that the map does not hold at those pool indices.
+  const DepthImage good = test::SphereOnPlane{}.render(
+      small_camera(), test::orbit(test::SphereOnPlane{}.centre, 0.9, 0.5, 1)[0]);
+  FusionInput fine{.depth_m = &good, .rig = CameraRig::registered(small_camera())};
+  fine.T_wc = test::orbit(test::SphereOnPlane{}.centre, 0.9, 0.5, 1)[0];
+  std::vector<BlockRef> blocks = integrator.allocate(map, fine).visible_blocks;
+  ASSERT_FALSE(blocks.empty());
+  blocks[0].ptr = map.block_high_water();
+  EXPECT_THROW(integrator.integrate(map, fine, blocks), Error);
+  blocks = integrator.allocate(map, fine).visible_blocks;
+  blocks[0].level = 1;
+  EXPECT_THROW(integrator.integrate(map, fine, blocks), Error);
   FusionParams bad;
   bad.max_weight = 0;
   EXPECT_THROW(TsdfIntegrator{bad}, Error);
