@@ -18,22 +18,13 @@ namespace hivox {
 namespace {}  // namespace
 
 /// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
-/// and the residual statistics of its pairs. One per thread while they are summed: a cache line
-/// of their own.
-struct alignas(64) Tracker::IcpSystem {
+/// and the residual statistics of its pairs.
+struct Tracker::IcpSystem {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
   double distance = 0;  ///< sum of the inliers' distances from the camera centre
   int64_t inliers = 0;
-  IcpSystem& operator+=(const IcpSystem& o) {
-    A += o.A;
-    b += o.b;
-    r2 += o.r2;
-    distance += o.distance;
-    inliers += o.inliers;
-    return *this;
-  }
 };
 
 namespace {
@@ -60,6 +51,15 @@ double rotation_deg(const Pose& T) {
 }
 
 }  // namespace
+
+/// One row's sums of a pass (floats: the row's pixels are summed in floats), kept until the rows
+/// are summed in order. Two cache lines of its own: rows are written by different threads.
+struct alignas(64) Tracker::RowSums {
+  float A[21];  ///< upper triangle of J^T W J, row-major
+  float b[6];   ///< J^T W r
+  float r2 = 0, distance = 0;
+  int32_t inliers = 0;
+};
 
 /// Where Gauss-Newton ended: the pose, the finest level's last system and the pose it was built
 /// at, the iterations run, and whether a step diverged.
@@ -157,12 +157,12 @@ Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
   const Vec3f* model_normals = M.normals_w.data();
   const int w = F.depth_m.width(), h = F.depth_m.height();
   const auto threads = static_cast<std::size_t>(thread_count());
-  std::vector<IcpSystem> partial(threads);
   if (scratch_.size() < threads) scratch_.resize(threads);
+  row_sums_.resize(static_cast<std::size_t>(h));
+  RowSums* const sums = row_sums_.data();
   parallel_team([&](const ThreadTeam& team) {
     const int tid = team.index(), nthreads = team.size();
-    if (tid >= static_cast<int>(partial.size())) return;
-    IcpSystem& acc = partial[static_cast<std::size_t>(tid)];
+    if (tid >= static_cast<int>(scratch_.size())) return;
     // Each thread sizes its own buffers: allocated by the thread that writes them, they do not
     // share cache lines with another thread's.
     scratch_[static_cast<std::size_t>(tid)].reserve(w);
@@ -230,18 +230,27 @@ Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
         for (int m = 0; m < w; ++m) b += Ji[m] * rw[m];
         row_b[i] = b;
       }
-      k = 0;
-      for (int i = 0; i < 6; ++i) {
-        for (int j = i; j < 6; ++j) acc.A(i, j) += row_A[k++];
-        acc.b(i) += row_b[i];
-      }
-      acc.r2 += row_r2;
-      acc.distance += row_distance;
-      acc.inliers += n;
+      RowSums& row = sums[y];
+      std::copy(row_A, row_A + 21, row.A);
+      std::copy(row_b, row_b + 6, row.b);
+      row.r2 = row_r2;
+      row.distance = row_distance;
+      row.inliers = n;
     }
   });
+  // The rows summed in row order, in doubles: the same system whatever the thread count.
   IcpSystem sum;
-  for (const IcpSystem& p : partial) sum += p;
+  for (int y = 0; y < h; ++y) {
+    const RowSums& row = sums[y];
+    int k = 0;
+    for (int i = 0; i < 6; ++i) {
+      for (int j = i; j < 6; ++j) sum.A(i, j) += row.A[k++];
+      sum.b(i) += row.b[i];
+    }
+    sum.r2 += row.r2;
+    sum.distance += row.distance;
+    sum.inliers += row.inliers;
+  }
   sum.A.triangularView<Eigen::StrictlyLower>() = sum.A.transpose();
   return sum;
 }

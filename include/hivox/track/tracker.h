@@ -60,6 +60,7 @@ class Tracker {
   struct IcpSystem;
   struct Alignment;
   struct RowScratch;
+  struct RowSums;
   void build_model_pyramid(const RaycastResult& model);
   /// One pass over pyramid level `level` at pose `T`: projective association against the model
   /// and the normal equations (the ICP reduction; dispatches on the device).
@@ -78,6 +79,7 @@ class Tracker {
   std::vector<ModelLevel> model_;
   Rigid3f T_model_cw_;               ///< world to the model's camera (this call's)
   std::vector<RowScratch> scratch_;  ///< per thread, kept across passes and frames
+  std::vector<RowSums> row_sums_;    ///< per row of the level in a pass
 };
 
 }  // namespace hivox
