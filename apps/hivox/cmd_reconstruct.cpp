@@ -4,6 +4,8 @@
 
 #include <unistd.h>
 
+#include <csignal>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -18,6 +20,7 @@
 #include "commands.h"
 #include "dataset_options.h"
 #include "hivox/core/error.h"
+#include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
 #include "hivox/run/runner.h"
@@ -38,7 +41,9 @@ struct ReconstructOptions {
   std::string icp_loss = "huber";
   std::string poses = "icp";
   std::string device = "cpu";
+  std::string on_bad_frame = "stop";
   std::string out;
+  bool overwrite = false;
   ReconstructionParams params;
   MeshParams mesh;
   std::size_t frames = 0;
@@ -83,9 +88,39 @@ RunParams run_params(ReconstructOptions options) {
   run.render_every = options.render_every;
   run.mesh = options.mesh;
   run.out_dir = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
+  run.overwrite = options.overwrite;
+  run.on_bad_frame = parse_bad_frame_policy(options.on_bad_frame);
   run.validate();
   return run;
 }
+
+/// The signal that asked the run to stop (SIGINT, SIGTERM), or 0. Set by the handler, read
+/// between frames.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void request_stop(int signal) {
+  g_stop_signal = signal;
+  std::signal(signal, SIG_DFL);  // a second interrupt ends the process at once
+}
+
+/// Interrupts stop the run at the next frame, which then writes what it has; restores the
+/// previous handlers when the run is over.
+class StopOnSignals {
+ public:
+  StopOnSignals()
+      : previous_int_(std::signal(SIGINT, request_stop)),
+        previous_term_(std::signal(SIGTERM, request_stop)) {}
+  ~StopOnSignals() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  using Handler = void (*)(int);
+  Handler previous_int_, previous_term_;
+};
 
 /// Centimetres, or millimetres below one (a synthetic or short run's error would read 0.00 cm).
 std::string length(double m) {
@@ -97,9 +132,10 @@ void print_summary(const RunResult& result, const RunParams& run) {
   const RunSummary& s = result.summary;
   const auto frames = static_cast<double>(rec.frame_stats().size());
   fmt::print(
-      "fused {} frames ({} lost, {} skipped without a pose): {:.1f} fps processing, {:.1f} fps "
-      "with reading\n",
-      s.frames_fused, s.frames_lost, s.frames_skipped, frames / s.processing_s, frames / s.wall_s);
+      "fused {} frames ({} lost, {} skipped without a pose, {} unreadable): {:.1f} fps "
+      "processing, {:.1f} fps with reading\n",
+      s.frames_fused, s.frames_lost, s.frames_skipped, s.frames_bad, frames / s.processing_s,
+      frames / s.wall_s);
   const VoxelBlockMap& map = rec.map();
   fmt::print("blocks: {} (peak {}), per level {}, dropped {}, memory {:.1f} MiB\n",
              map.blocks_in_use(), rec.peak_blocks(), fmt::join(map.blocks_per_level(), "/"),
@@ -155,10 +191,40 @@ void run_reconstruct(const ReconstructOptions& options) {
         tty ? "   " : "\n");
     std::fflush(stdout);
   };
-  const RunResult result = run_reconstruction(*reader, run, callbacks);
-  if (options.quiet) return;
-  if (tty) fmt::print("\n");
-  print_summary(result, run);
+  callbacks.stop_requested = [] { return g_stop_signal != 0; };
+  RunResult result;
+  {
+    const StopOnSignals stop_on_signals;
+    result = run_reconstruction(*reader, run, callbacks);
+  }
+  const RunSummary& s = result.summary;
+  if (!options.quiet) {
+    if (tty) fmt::print("\n");
+    print_summary(result, run);
+  }
+  // How the run ended decides the exit status (README, "Exit status").
+  const std::size_t processed = result.reconstruction->frame_stats().size();
+  switch (s.end) {
+    case RunEnd::StopRequested:
+      log::error(
+          "{}: stopped by {} after {} of {} frames; the results of the frames so far are in {}",
+          info.source, g_stop_signal == SIGTERM ? "SIGTERM" : "an interrupt (SIGINT)", processed,
+          s.frames_total, run.out_dir.string());
+      throw ExitStatus{128 + (g_stop_signal != 0 ? static_cast<int>(g_stop_signal) : SIGINT)};
+    case RunEnd::BadFrame:
+      log::error(
+          "{}; the run stopped there (--on-bad-frame stop) and the results of the {} "
+          "frames before it are in {}",
+          s.end_reason, processed, run.out_dir.string());
+      throw ExitStatus{kExitBadFrame};
+    case RunEnd::Completed:
+      break;
+  }
+  if (s.unusable) {
+    log::error("{}: the result is of no use (see the warnings above); files written to {}",
+               info.source, run.out_dir.string());
+    throw ExitStatus{kExitUnusable};
+  }
 }
 
 void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
@@ -243,6 +309,12 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");
   cmd->add_flag("!--no-raycast", p.raycast_every_frame,
                 "skip the per-frame raycast (renders are still made at the end)");
+  cmd->add_option("--on-bad-frame", o.on_bad_frame,
+                  "a frame that cannot be read (missing or corrupt file): 'stop' the run there "
+                  "(the frames before it are written, exit status 4) or 'skip' it with a "
+                  "warning (counted in stats.json)")
+      ->check(CLI::IsMember({"stop", "skip"}))
+      ->capture_default_str();
   cmd->add_option("--render-every", o.render_every,
                   "also write the renders of every N-th frame (0 = only at the end)")
       ->capture_default_str();
@@ -269,6 +341,7 @@ struct DemoOptions {
 void add_demo_command(CLI::App& app) {
   auto options = std::make_shared<DemoOptions>();
   options->run.out = "out/demo";
+  options->run.overwrite = true;  // the demo's folder is its own: each run replaces it whole
   CLI::App* cmd = app.add_subcommand(
       "demo",
       "Reconstruct a built-in synthetic scene (no download): renders an office desk with a "
@@ -309,8 +382,12 @@ void add_reconstruct_command(CLI::App& app) {
   add_fusion_options(cmd, *options);
   cmd->add_option("--frames", options->frames, "process the first N frames (0 = all)")
       ->capture_default_str();
-  cmd->add_option("--out", options->out, "output folder (default out/<dataset name>)")
+  cmd->add_option("--out", options->out,
+                  "output folder (default out/<dataset name>); written whole when the run ends")
       ->type_name("DIR");
+  cmd->add_flag("--overwrite", options->overwrite,
+                "replace an output folder that holds files already (without it such a folder is "
+                "refused, so that two runs' files never mix)");
   cmd->footer(dataset_help() +
               "Examples:\n"
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --levels 1 --voxel-size 0.005 "

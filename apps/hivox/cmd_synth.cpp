@@ -22,6 +22,7 @@ struct SynthOptions {
   std::size_t frames = 300;
   std::string noise = "kinect";
   std::string out;
+  bool overwrite = false;
   int width = 640;
   int height = 480;
   std::uint64_t seed = 1;
@@ -45,13 +46,16 @@ void run_synth(const SynthOptions& o) {
 
   Stopwatch watch;
   const std::size_t every = std::max<std::size_t>(1, o.frames / 10);
-  export_tum(dataset, o.out, o.depth_scale, 0, [&](std::size_t done, std::size_t total) {
-    if (done % every == 0 || done == total) {
-      const double s = watch.elapsed_ms() / 1000.0;
-      fmt::print("  frame {}/{}  {:.1f} fps  {:.1f} s\n", done, total, done / s, s);
-      std::fflush(stdout);
-    }
-  });
+  export_tum(
+      dataset, o.out, o.depth_scale, 0,
+      [&](std::size_t done, std::size_t total) {
+        if (done % every == 0 || done == total) {
+          const double s = watch.elapsed_ms() / 1000.0;
+          fmt::print("  frame {}/{}  {:.1f} fps  {:.1f} s\n", done, total, done / s, s);
+          std::fflush(stdout);
+        }
+      },
+      o.overwrite);
   fmt::print("done: {} frames in {:.1f} s. Read it back with: hivox info {}\n", o.frames,
              watch.elapsed_ms() / 1000.0, o.out);
 }
@@ -90,7 +94,12 @@ void add_synth_command(CLI::App& app) {
                   "1/8-pixel disparity quantisation, grazing-angle and edge dropouts) or 'none'")
       ->check(CLI::IsMember(noise_preset_names()))
       ->capture_default_str();
-  cmd->add_option("--out", o->out, "Output directory (created if missing)")->required();
+  cmd->add_option("--out", o->out,
+                  "Output directory (created if missing; written whole when the export ends)")
+      ->required();
+  cmd->add_flag("--overwrite", o->overwrite,
+                "replace an output directory that holds files already (without it such a "
+                "directory is refused, so that two sequences' frames never mix)");
   cmd->add_option("--width", o->width, "Image width, pixels (focal length scales with it)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();

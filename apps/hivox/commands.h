@@ -6,6 +6,17 @@
 
 namespace hivox::cli {
 
+/// Exit statuses of `hivox` beyond 0 (success), 1 (an error: bad input, a file that cannot be
+/// read or written) and CLI11's own for command-line mistakes; 128 + the signal number when an
+/// interrupt stopped a run (its results so far written). README, "Exit status".
+inline constexpr int kExitUnusable = 3;  ///< a run finished, but its result is of no use
+inline constexpr int kExitBadFrame = 4;  ///< a run stopped at a frame it could not read
+
+/// Thrown by a command to end the program with `code` (after it printed why).
+struct ExitStatus {
+  int code = 1;
+};
+
 /// `hivox info DATASET`: what hivox finds in a dataset folder (cmd_info.cpp).
 void add_info_command(CLI::App& app);
 

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const hivox::cli::ExitStatus& status) {
+    return status.code;
   } catch (const hivox::Error& e) {
     hivox::log::error("{}", e.what());
     return 1;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
 
 namespace hivox {
 
@@ -274,15 +275,17 @@ void write_png_any(const fs::path& path, int width, int height, int bit_depth, i
                    const void* pixels, std::size_t row_bytes) {
   if (width <= 0 || height <= 0)
     fail(ErrorCode::InvalidArgument, "{}: cannot write an empty image", path.string());
-  FilePtr f(std::fopen(path.c_str(), "wb"));
+  AtomicFile file(path);
+  FilePtr f(std::fopen(file.temp_path().c_str(), "wb"));
   if (!f)
     fail(ErrorCode::Io, "{}: cannot open for writing ({})", path.string(), std::strerror(errno));
   std::vector<png_bytep> rows;
   const std::string problem = write_png_file(f.get(), width, height, bit_depth, color_type,
                                              static_cast<const uint8_t*>(pixels), row_bytes, &rows);
   if (!problem.empty()) fail(ErrorCode::Io, "{}: PNG write failed ({})", path.string(), problem);
-  if (std::fflush(f.get()) != 0)
+  if (std::fclose(f.release()) != 0)
     fail(ErrorCode::Io, "{}: write failed ({})", path.string(), std::strerror(errno));
+  file.commit();
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
 
 namespace hivox {
 
@@ -85,10 +86,13 @@ void write_intrinsics_json(const std::filesystem::path& path, const IntrinsicsFi
     const LensDistortion& d = intrinsics.distortion;
     j[kDistortionField] = {d.k1, d.k2, d.p1, d.p2, d.k3};
   }
-  std::ofstream out(path);
+  AtomicFile file(path);
+  std::ofstream out(file.temp_path());
   if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
   out << j.dump(2) << "\n";
+  out.close();
   if (!out) fail(ErrorCode::Io, "{}: write failed", path.string());
+  file.commit();
 }
 
 }  // namespace hivox

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
 
 namespace hivox {
 
@@ -216,7 +217,9 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
   header += "element face " + std::to_string(mesh.triangle_count()) + "\n";
   header += "property list uchar int vertex_indices\nend_header\n";
 
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
+  AtomicFile file(path);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.temp_path().c_str(), "wb"),
+                                                    &std::fclose);
   if (!f) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
   // The body goes out in chunks of about 1 MiB.
   std::vector<char> buf;
@@ -252,7 +255,8 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
     flush(false);
   }
   flush(true);
-  if (!ok || std::fflush(f.get()) != 0) fail(ErrorCode::Io, "{}: write failed", path.string());
+  if (!ok || std::fclose(f.release()) != 0) fail(ErrorCode::Io, "{}: write failed", path.string());
+  file.commit();
 }
 
 TriangleMesh read_ply(const std::filesystem::path& path_in) {

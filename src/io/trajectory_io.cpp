@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/text_lines.h"
 
 namespace hivox {
@@ -33,7 +34,9 @@ std::vector<StampedPose> read_tum_trajectory(const std::filesystem::path& path) 
 
 void write_tum_trajectory(const std::filesystem::path& path, const std::vector<StampedPose>& poses,
                           const std::string& header_comment) {
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "w"), &std::fclose);
+  AtomicFile file(path);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.temp_path().c_str(), "w"),
+                                                    &std::fclose);
   if (!f) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
   if (!header_comment.empty()) std::fprintf(f.get(), "# %s\n", header_comment.c_str());
   std::fprintf(f.get(), "# timestamp tx ty tz qx qy qz qw (camera-to-world)\n");
@@ -42,7 +45,8 @@ void write_tum_trajectory(const std::filesystem::path& path, const std::vector<S
     std::fprintf(f.get(), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", p.timestamp_s, v[0], v[1],
                  v[2], v[3], v[4], v[5], v[6]);
   }
-  if (std::fflush(f.get()) != 0) fail(ErrorCode::Io, "{}: write failed", path.string());
+  if (std::fclose(f.release()) != 0) fail(ErrorCode::Io, "{}: write failed", path.string());
+  file.commit();
 }
 
 long find_nearest_pose(const std::vector<StampedPose>& poses, double t_s, double max_dt_s) {

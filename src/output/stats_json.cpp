@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
 
 namespace hivox {
 
@@ -58,7 +59,13 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["threads"] = run.threads;
   j["parameters"] = run.parameters;
   j["frames"] = frames.size();
+  j["frames_fused"] =
+      run.frames_fused >= 0 ? run.frames_fused : static_cast<int64_t>(frames.size());
   j["skipped_frames"] = run.skipped_frames;
+  j["bad_frames"] = run.bad_frames;
+  j["end"] = run.end;
+  j["warnings"] = run.warnings;
+  j["unusable"] = run.unusable;
   j["fps"] = total > 0 ? 1000.0 * n / total : 0.0;
   j["fps_wall"] = run.wall_s > 0 ? static_cast<double>(frames.size()) / run.wall_s : 0.0;
   j["timing_ms"] = {{"read", read / n},         {"track", track / n},
@@ -86,10 +93,13 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["merges"] = merges;
   if (map.params().levels > 1) j["refine"] = rec.params().refine.to_string();
   j["per_frame"] = std::move(per_frame);
-  std::ofstream out(path);
+  AtomicFile file(path);
+  std::ofstream out(file.temp_path());
   if (!out) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
   out << j.dump(1) << "\n";
+  out.close();
   if (!out) fail(ErrorCode::Io, "{}: write failed", path.string());
+  file.commit();
 }
 
 }  // namespace hivox

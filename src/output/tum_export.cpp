@@ -10,9 +10,11 @@
 
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/image_io.h"
 #include "hivox/io/intrinsics_io.h"
 #include "hivox/io/trajectory_io.h"
+#include "hivox/output/output_folder.h"
 
 namespace hivox {
 
@@ -22,7 +24,8 @@ namespace fs = std::filesystem;
 
 class TextFile {
  public:
-  explicit TextFile(fs::path path) : path_(std::move(path)), f_(std::fopen(path_.c_str(), "w")) {
+  explicit TextFile(fs::path path)
+      : path_(std::move(path)), file_(path_), f_(std::fopen(file_.temp_path().c_str(), "w")) {
     if (!f_) fail(ErrorCode::Io, "{}: cannot open for writing", path_.string());
   }
   void line(const std::string& text) {
@@ -31,6 +34,7 @@ class TextFile {
   }
   void close() {
     if (std::fclose(f_.release()) != 0) fail(ErrorCode::Io, "{}: write failed", path_.string());
+    file_.commit();
   }
 
  private:
@@ -38,16 +42,19 @@ class TextFile {
     void operator()(std::FILE* f) const { std::fclose(f); }
   };
   fs::path path_;
+  AtomicFile file_;
   std::unique_ptr<std::FILE, Closer> f_;
 };
 
 }  // namespace
 
-void export_tum(DatasetReader& reader, const fs::path& dir, double depth_scale, std::size_t frames,
-                const ExportProgress& progress) {
+void export_tum(DatasetReader& reader, const fs::path& out, double depth_scale, std::size_t frames,
+                const ExportProgress& progress, bool overwrite) {
   if (!(depth_scale > 0.0) || !std::isfinite(depth_scale))
     fail(ErrorCode::InvalidArgument,
          "export_tum: depth_scale must be > 0 (raw units per metre), got {}", depth_scale);
+  OutputFolder folder(out, overwrite);
+  const fs::path& dir = folder.dir();
   const DatasetInfo& info = reader.info();
   const std::size_t total = frames == 0 ? reader.size() : std::min(frames, reader.size());
   std::error_code ec;
@@ -111,6 +118,7 @@ void export_tum(DatasetReader& reader, const fs::path& dir, double depth_scale, 
   intrinsics.depth_scale = depth_scale;
   intrinsics.note = origin;
   write_intrinsics_json(dir / "intrinsics.json", intrinsics);
+  folder.commit();
   if (clipped > 0)
     log::warn(
         "export_tum: {} depth pixels beyond {:.2f} m (the 16-bit limit at depth_scale {}) "

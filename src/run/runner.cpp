@@ -12,6 +12,7 @@
 #include "hivox/io/ply.h"
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
+#include "hivox/output/output_folder.h"
 #include "hivox/output/renders.h"
 #include "hivox/output/stats_json.h"
 
@@ -38,6 +39,16 @@ std::string PoseSpec::to_string() const {
       return file.string();
   }
   return "?";
+}
+
+std::string_view to_string(BadFramePolicy policy) {
+  return policy == BadFramePolicy::Skip ? "skip" : "stop";
+}
+
+BadFramePolicy parse_bad_frame_policy(std::string_view name) {
+  if (name == "stop") return BadFramePolicy::Stop;
+  if (name == "skip") return BadFramePolicy::Skip;
+  fail(ErrorCode::InvalidArgument, "on_bad_frame must be 'stop' or 'skip', got '{}'", name);
 }
 
 void RunParams::validate() const {
@@ -81,13 +92,8 @@ class Run {
   RunResult go() {
     check_pose_source();
     for (const std::string& w : info_.warnings) log::warn("{}", w);
-    if (!params_.out_dir.empty()) {
-      std::error_code ec;
-      fs::create_directories(params_.out_dir, ec);
-      if (ec)
-        fail(ErrorCode::Io, "{}: cannot create output directory ({})", params_.out_dir.string(),
-             ec.message());
-    }
+    OutputFolder folder(params_.out_dir, params_.overwrite);
+    folder_ = &folder;
     RunResult result;
     result.reconstruction = std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
     rec_ = result.reconstruction.get();
@@ -95,9 +101,14 @@ class Run {
         params_.max_frames > 0 ? std::min(params_.max_frames, reader_.size()) : reader_.size();
     if (callbacks_.on_start) callbacks_.on_start(*rec_, summary_.frames_total);
     frame_loop();
-    if (rec_->frame_stats().empty())
+    if (rec_->frame_stats().empty()) {
+      if (summary_.end == RunEnd::BadFrame)
+        throw Error(ErrorCode::InvalidData, summary_.end_reason);
       fail(ErrorCode::InvalidData, "{}: no frame could be integrated", info_.source);
+    }
     finish();
+    folder.commit();
+    for (fs::path& f : summary_.files) f = folder.final_path(f);
     result.summary = std::move(summary_);
     return result;
   }
@@ -125,24 +136,68 @@ class Run {
     double processing_ms = 0.0;
     for (std::size_t i = 0; i < summary_.frames_total; ++i) {
       if (callbacks_.stop_requested && callbacks_.stop_requested()) {
-        summary_.stopped = true;
+        summary_.end = RunEnd::StopRequested;
         break;
       }
       Stopwatch read_watch;
-      const RgbdFrame frame = reader_.read(i);
+      RgbdFrame frame;
+      try {
+        frame = reader_.read(i);
+      } catch (const Error& e) {
+        if (params_.on_bad_frame == BadFramePolicy::Stop) {
+          summary_.end = RunEnd::BadFrame;
+          summary_.end_reason = e.what();
+          break;
+        }
+        ++summary_.frames_bad;
+        log::warn("frame {}: {}; skipped (--on-bad-frame skip)", i, e.what());
+        continue;
+      }
       const double read_ms = read_watch.elapsed_ms();
+      check_frame(i, frame);
       if (frame.T_wc_gt) ground_truth_.push_back({frame.timestamp_s, *frame.T_wc_gt});
       const FrameStats* s = process(i, frame, read_ms);
       if (s == nullptr) continue;
       processing_ms += s->total_ms;
+      if (s->valid_pixels == 0) ++summary_.frames_no_depth;
       if (params_.render_every > 0 &&
-          (i + 1) % static_cast<std::size_t>(params_.render_every) == 0 && !params_.out_dir.empty())
+          (i + 1) % static_cast<std::size_t>(params_.render_every) == 0 && folder_->writes())
         write(write_renders(rec_->render(info_.rig.depth_camera, rec_->trajectory().back().T_wc),
-                            params_.out_dir, fmt::format("frame{:06d}_", i)));
+                            folder_->dir(), fmt::format("frame{:06d}_", i)));
       if (callbacks_.on_frame) callbacks_.on_frame(i, *s, *rec_);
     }
     summary_.wall_s = wall.elapsed_ms() / 1e3;
     summary_.processing_s = processing_ms / 1e3;
+  }
+
+  /// What a frame says about the input: timestamps in order, depths inside the range.
+  void check_frame(std::size_t i, const RgbdFrame& frame) {
+    if (last_timestamp_ && !(frame.timestamp_s > *last_timestamp_)) ++timestamps_out_of_order_;
+    last_timestamp_ = frame.timestamp_s;
+    if (i > 0 || frame.depth_m.empty()) return;
+    // The first frame's depths against the range: most beyond it means a wrong depth scale or
+    // too short a range (each frame's pixels inside it are counted by fusion).
+    const DepthRange& range = params_.reconstruction.fusion.depth_range;
+    int64_t measured = 0, beyond = 0, nearer = 0;
+    std::vector<float> depths;
+    for (std::size_t k = 0; k < frame.depth_m.size(); ++k) {
+      const float d = frame.depth_m.data()[k];
+      if (!(d > 0.0f)) continue;
+      ++measured;
+      beyond += d > range.max_m;
+      nearer += d < range.min_m;
+      if (k % 16 == 0) depths.push_back(d);
+    }
+    if (measured == 0 || (beyond + nearer) * 2 < measured) return;
+    std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+    warn(fmt::format(
+        "frame 0: {:.0f} % of the measured depths lie outside the depth range {} (median {:.2f} "
+        "m): check the depth scale (--depth-scale, now {}) or the range (--min-depth, "
+        "--max-depth)",
+        100.0 * static_cast<double>(beyond + nearer) / static_cast<double>(measured),
+        range.to_string(), depths.empty() ? 0.0f : depths[depths.size() / 2],
+        info_.rig.depth_scale > 0 ? fmt::format("{:g} per metre", info_.rig.depth_scale)
+                                  : std::string("metric")));
   }
 
   /// Tracks and fuses, or fuses at the given pose; null for a frame skipped without a pose.
@@ -176,10 +231,11 @@ class Run {
   }
 
   /// The results: the trajectory, the renders from the last pose and from above, the mesh and
-  /// the statistics (into the output folder, when there is one), and the trajectory's error.
+  /// the statistics (into the output folder, when there is one), the trajectory's error, and
+  /// what makes the result doubtful.
   void finish() {
-    const bool files = !params_.out_dir.empty();
-    const fs::path& out = params_.out_dir;
+    const bool files = folder_->writes();
+    const fs::path& out = folder_->dir();
     if (ground_truth_.size() >= 3 && params_.poses.source != PoseSource::GroundTruth)
       summary_.ate = evaluate_ate(ground_truth_, rec_->trajectory());
     if (files) {
@@ -205,6 +261,7 @@ class Run {
       summary_.files.push_back(out / "mesh.ply");
     }
     summary_.mesh_s = mesh_watch.elapsed_ms() / 1e3;
+    judge();
     if (files) {
       RunInfo run;
       run.dataset = info_.source;
@@ -213,10 +270,47 @@ class Run {
       run.threads = thread_count();
       run.parameters = rec_->describe();
       run.skipped_frames = static_cast<int64_t>(summary_.frames_skipped);
+      run.bad_frames = static_cast<int64_t>(summary_.frames_bad);
+      run.frames_fused = static_cast<int64_t>(summary_.frames_fused);
+      run.end = summary_.end == RunEnd::Completed       ? "completed"
+                : summary_.end == RunEnd::StopRequested ? "stopped"
+                                                        : "bad frame";
+      run.warnings = summary_.warnings;
+      run.unusable = summary_.unusable;
       if (summary_.ate) run.ate_rmse_m = summary_.ate->rmse_m;
       write_stats_json(out / "stats.json", *rec_, run);
       summary_.files.push_back(out / "stats.json");
     }
+  }
+
+  /// The checks on the whole run: what makes its result doubtful, or of no use.
+  void judge() {
+    const std::size_t processed = rec_->frame_stats().size();
+    if (timestamps_out_of_order_ > 0)
+      warn(
+          fmt::format("{} frame(s) have a timestamp not after the one before (duplicated or out "
+                      "of order): they were fused in file order",
+                      timestamps_out_of_order_));
+    if (summary_.frames_no_depth > 0)
+      warn(fmt::format("{} of {} frames had no depth inside the depth range {}",
+                       summary_.frames_no_depth, processed,
+                       params_.reconstruction.fusion.depth_range.to_string()));
+    if (summary_.frames_no_depth == processed) summary_.unusable = true;
+    if (summary_.frames_lost * 2 > processed) {
+      warn(fmt::format("tracking was lost on {} of {} frames", summary_.frames_lost, processed));
+      summary_.unusable = true;
+    }
+    if (summary_.mesh_triangles == 0) {
+      warn("the mesh is empty: no surface was observed often enough to be meshed");
+      summary_.unusable = true;
+    }
+    if (summary_.frames_bad > 0)
+      warn(fmt::format("{} frame(s) could not be read and were skipped", summary_.frames_bad));
+  }
+
+  void warn(std::string line) {
+    log::warn("{}", line);
+    summary_.warnings.push_back(std::move(line));
   }
 
   void write(const std::vector<fs::path>& written) {
@@ -227,9 +321,12 @@ class Run {
   const DatasetInfo& info_;
   const RunParams& params_;
   const RunCallbacks& callbacks_;
+  OutputFolder* folder_ = nullptr;
   Reconstruction* rec_ = nullptr;
   std::unique_ptr<PoseFile> pose_file_;
   std::vector<StampedPose> ground_truth_;
+  std::optional<double> last_timestamp_;
+  std::size_t timestamps_out_of_order_ = 0;
   RunSummary summary_;
 };
 

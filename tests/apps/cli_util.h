@@ -14,8 +14,9 @@ struct CliRun {
   std::string output;  // stdout and stderr together
 };
 
-inline CliRun run_hivox(const std::string& args) {
-  const std::string command = std::string(HIVOX_BINARY_DIR) + "/hivox " + args + " 2>&1";
+/// Runs a shell command line, its output and exit status.
+inline CliRun run_shell(const std::string& command_line) {
+  const std::string command = command_line + " 2>&1";
   CliRun run;
   FILE* pipe = popen(command.c_str(), "r");
   if (!pipe) return run;
@@ -25,6 +26,16 @@ inline CliRun run_hivox(const std::string& args) {
   const int status = pclose(pipe);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return run;
+}
+
+/// The path of the built `hivox` program.
+inline std::string hivox_binary() {
+  return std::string(HIVOX_BINARY_DIR) + "/hivox";
+}
+
+/// Runs the built `hivox` with `args`.
+inline CliRun run_hivox(const std::string& args) {
+  return run_shell(hivox_binary() + " " + args);
 }
 
 }  // namespace hivox::test

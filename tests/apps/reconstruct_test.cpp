@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -180,7 +181,8 @@ TEST(Reconstruct, BadInputIsOneClearLine) {
 TEST(Reconstruct, RefinementSettingsFollowTheCriterionAndTheDataset) {
   test::TempDir out;
   const std::string base =
-      "reconstruct 'synthetic:box?frames=2&width=80&height=60&noise=none' --poses gt --out " +
+      "reconstruct 'synthetic:box?frames=2&width=80&height=60&noise=none' --poses gt --overwrite "
+      "--out " +
       out.path().string();
   // Noise-free synthetic depth declares no sensor noise: only the absolute levels apply.
   auto r = run_hivox(base);
@@ -210,6 +212,96 @@ TEST(Reconstruct, PoseFileIsUsed) {
                 " --levels 1 --voxel-size 0.01 --truncation 0.04 --out " + (out / "rec").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(read_tum_trajectory(out / "rec" / "trajectory.txt").size(), 6u);
+}
+
+// A run's folder is written whole when it ends: a folder with files is refused without
+// --overwrite (the old files stay as they were), and replaced as a whole with it.
+TEST(Reconstruct, OneRunsFilesNeverMixWithAnothers) {
+  test::TempDir dir;
+  const fs::path out = dir / "run";
+  const std::string base =
+      "reconstruct 'synthetic:box?frames=4&width=80&height=60&noise=none' --poses gt --levels 1 "
+      "--voxel-size 0.01 --truncation 0.04 --quiet --out " +
+      out.string();
+  auto r = run_hivox(base + " --render-every 2");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_TRUE(fs::exists(out / "frame000001_depth.png"));
+  const auto before = fs::last_write_time(out / "mesh.ply");
+  r = run_hivox(base);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("--overwrite"), std::string::npos) << r.output;
+  EXPECT_EQ(fs::last_write_time(out / "mesh.ply"), before) << "the old results stay as they were";
+  r = run_hivox(base + " --overwrite");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(fs::exists(out / "frame000001_depth.png")) << "the old run's files are gone";
+  EXPECT_TRUE(fs::exists(out / "mesh.ply"));
+  for (const auto& entry : fs::directory_iterator(dir.path()))
+    EXPECT_EQ(entry.path().filename(), "run") << "left behind: " << entry.path();
+}
+
+// An interrupt stops the run at the next frame: the frames so far are fused, their results
+// written, and the exit status says so (128 + SIGINT).
+TEST(Reconstruct, AnInterruptWritesTheFramesSoFarAndExitsNonZero) {
+  test::TempDir dir;
+  const auto r =
+      test::run_shell("timeout --preserve-status -s INT 3 " + test::hivox_binary() +
+                      " reconstruct 'synthetic:desk?frames=2000&noise=none' --poses gt --levels 1 "
+                      "--voxel-size 0.01 --truncation 0.04 --quiet --out " +
+                      dir.path().string());
+  EXPECT_EQ(r.exit_code, 130) << r.output;
+  EXPECT_NE(r.output.find("stopped by an interrupt"), std::string::npos) << r.output;
+  const auto poses = read_tum_trajectory(dir / "trajectory.txt");
+  EXPECT_GT(poses.size(), 0u);
+  EXPECT_LT(poses.size(), 2000u);
+  const auto stats = read_json(dir / "stats.json");
+  EXPECT_EQ(stats["end"], "stopped");
+  EXPECT_EQ(stats["frames"].get<std::size_t>(), poses.size());
+  EXPECT_GT(read_ply(dir / "mesh.ply").triangle_count(), 0);
+}
+
+// A run whose frames give no depth inside the range has no result: it says why and exits 3.
+TEST(Reconstruct, AResultOfNoUseExitsNonZeroAndSaysWhy) {
+  test::TempDir dir;
+  const auto r = run_hivox(
+      "reconstruct 'synthetic:desk?frames=3&width=80&height=60&noise=none' --poses gt "
+      "--max-depth 0.3 --out " +
+      dir.path().string());
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_NE(r.output.find("outside the depth range"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no depth inside the depth range"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("the mesh is empty"), std::string::npos) << r.output;
+  const auto stats = read_json(dir / "stats.json");
+  EXPECT_TRUE(stats["unusable"].get<bool>());
+  EXPECT_GE(stats["warnings"].size(), 2u);
+}
+
+// A frame that cannot be read stops the run there (the frames before it are kept, exit 4), or
+// is skipped and counted with --on-bad-frame skip.
+TEST(Reconstruct, AnUnreadableFrameStopsTheRunOrIsSkipped) {
+  test::TempDir dir;
+  ASSERT_EQ(run_hivox("synth --scene box --frames 6 --width 80 --height 60 --noise none --out " +
+                      (dir / "seq").string())
+                .exit_code,
+            0);
+  // Frame 3's depth image, cut short.
+  std::vector<fs::path> depths;
+  for (const auto& e : fs::directory_iterator(dir / "seq" / "depth")) depths.push_back(e.path());
+  std::sort(depths.begin(), depths.end());
+  ASSERT_EQ(depths.size(), 6u);
+  fs::resize_file(depths[3], fs::file_size(depths[3]) / 2);
+  const std::string base = "reconstruct " + (dir / "seq").string() +
+                           " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet";
+  auto r = run_hivox(base + " --out " + (dir / "stop").string());
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find(depths[3].filename().string()), std::string::npos) << r.output;
+  EXPECT_EQ(read_tum_trajectory(dir / "stop" / "trajectory.txt").size(), 3u);
+  EXPECT_EQ(read_json(dir / "stop" / "stats.json")["end"], "bad frame");
+  r = run_hivox(base + " --on-bad-frame skip --out " + (dir / "skip").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(read_tum_trajectory(dir / "skip" / "trajectory.txt").size(), 5u);
+  const auto stats = read_json(dir / "skip" / "stats.json");
+  EXPECT_EQ(stats["bad_frames"], 1);
+  EXPECT_EQ(stats["frames_fused"], 5);
 }
 
 TEST(Synth, ExportReadsBackWithIdenticalPoses) {

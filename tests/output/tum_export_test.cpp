@@ -82,6 +82,23 @@ TEST(TumExport, AllFramesByDefaultAndBadScale) {
   EXPECT_THROW(export_tum(data, dir / "bad", -5.0), Error);
 }
 
+// An export into a folder that holds a sequence already is refused (the two sequences' frames
+// would mix), and replaces it as a whole when allowed.
+TEST(TumExport, AnExistingSequenceIsReplacedWholeOrNotAtAll) {
+  TempDir dir;
+  SyntheticDataset four(parse_synthetic_spec("synthetic:box?frames=4&width=80&noise=none"));
+  export_tum(four, dir / "seq", 1000);
+  SyntheticDataset two(parse_synthetic_spec("synthetic:spheres?frames=2&width=80&noise=none"));
+  EXPECT_THROW(export_tum(two, dir / "seq", 1000), Error);
+  EXPECT_EQ(read_text_lines(dir / "seq" / "associations.txt").size(), 4u) << "left as it was";
+  export_tum(two, dir / "seq", 1000, 0, {}, /*overwrite=*/true);
+  EXPECT_EQ(read_text_lines(dir / "seq" / "associations.txt").size(), 2u);
+  std::size_t depth_files = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir / "seq" / "depth"))
+    ++depth_files;
+  EXPECT_EQ(depth_files, 2u) << "no frame of the old sequence is left among the new";
+}
+
 TEST(TumExport, UnwritableDirectoryIsAnIoError) {
   TempDir dir;
   test::write_text(dir / "file", "x");

@@ -137,7 +137,7 @@ TEST(Runner, StopRequestEndsTheRunWithTheFramesSoFar) {
   };
   callbacks.stop_requested = [&] { return seen == 3; };
   const RunResult run = run_reconstruction(data, p, callbacks);
-  EXPECT_TRUE(run.summary.stopped);
+  EXPECT_EQ(run.summary.end, RunEnd::StopRequested);
   EXPECT_EQ(run.summary.frames_fused, 3u);
   EXPECT_EQ(read_tum_trajectory(dir / "trajectory.txt").size(), 3u) << "results of those frames";
 }

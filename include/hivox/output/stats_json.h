@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "hivox/pipeline/reconstruction.h"
 
@@ -16,12 +17,18 @@ struct RunInfo {
   std::string pose_source;  ///< "gt", a file name, "icp"
   double wall_s = 0;        ///< the whole loop, reading included
   int threads = 0;
-  std::string parameters;            ///< effective parameters, as printed at start
-  int64_t skipped_frames = 0;        ///< frames not integrated (e.g. without a pose)
-  std::optional<double> ate_rmse_m;  ///< trajectory error against ground truth, when known
+  std::string parameters;             ///< effective parameters, as printed at start
+  int64_t frames_fused = -1;          ///< frames integrated (-1: all processed frames)
+  int64_t skipped_frames = 0;         ///< frames not integrated (e.g. without a pose)
+  int64_t bad_frames = 0;             ///< frames that could not be read (skipped)
+  std::string end = "completed";      ///< how the run ended: completed, stopped, bad frame
+  std::vector<std::string> warnings;  ///< what makes the result doubtful
+  bool unusable = false;              ///< the result is of no use (see RunSummary::unusable)
+  std::optional<double> ate_rmse_m;   ///< trajectory error against ground truth, when known
 };
 
-/// Writes `stats.json` with: frames, fps (processing, reading excluded), fps_wall (everything),
+/// Writes `stats.json` (atomically) with: frames (processed), frames_fused, skipped_frames,
+/// bad_frames, end, warnings, unusable, fps (processing, reading excluded), fps_wall (everything),
 /// timing_ms (mean per stage: read, track, allocate, integrate, refine, raycast, total),
 /// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
 /// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known), and

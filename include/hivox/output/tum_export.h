@@ -24,11 +24,13 @@ namespace hivox {
 /// Called after each written frame with (frames written, frames to write).
 using ExportProgress = std::function<void(std::size_t done, std::size_t total)>;
 
-/// Exports the first `frames` frames of `reader` (0 = all) to `dir` (created if missing;
-/// existing files of the same names are overwritten). Depth beyond the 16-bit range
-/// (65535 / depth_scale metres) is written as invalid, with a warning. Throws `Error` naming
-/// the file that could not be written, or `Error(InvalidArgument)` for depth_scale <= 0.
+/// Exports the first `frames` frames of `reader` (0 = all) to the folder `dir`, written whole
+/// (OutputFolder): a `dir` that holds files already is refused unless `overwrite`, and then
+/// replaced as a whole. Depth beyond the 16-bit range (65535 / depth_scale metres) is written as
+/// invalid, with a warning. Throws `Error` naming the file that could not be written, or
+/// `Error(InvalidArgument)` for depth_scale <= 0.
 void export_tum(DatasetReader& reader, const std::filesystem::path& dir, double depth_scale = 5000,
-                std::size_t frames = 0, const ExportProgress& progress = {});
+                std::size_t frames = 0, const ExportProgress& progress = {},
+                bool overwrite = false);
 
 }  // namespace hivox

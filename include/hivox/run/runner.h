@@ -46,6 +46,15 @@ struct PoseSpec {
   std::string to_string() const;
 };
 
+/// What a run does with a frame it cannot read (a missing, truncated or corrupt file).
+enum class BadFramePolicy {
+  Stop,  ///< end the run there, with the results of the frames before it (RunEnd::BadFrame)
+  Skip,  ///< warn, count it (RunSummary::frames_bad, stats.json) and go on
+};
+std::string_view to_string(BadFramePolicy policy);
+/// Parses "stop" or "skip"; throws `Error(InvalidArgument)` otherwise.
+BadFramePolicy parse_bad_frame_policy(std::string_view name);
+
 struct RunParams {
   ReconstructionParams reconstruction;
   PoseSpec poses;
@@ -53,23 +62,46 @@ struct RunParams {
   /// Also write the renders of every N-th frame (`frameNNNNNN_*.png`); 0 = only at the end.
   int render_every = 0;
   MeshParams mesh;
-  /// Where the result files go (created if missing); empty: no files, the run only returns.
+  /// Where the result files go; empty: no files, the run only returns. The files are written
+  /// into `<out_dir>.partial-<pid>` beside it and the folder is moved into place when the run
+  /// ends (also when it is stopped early), so one run's files never mix with another's.
   std::filesystem::path out_dir;
+  /// An `out_dir` that already holds files is refused, unless this is set: then it is replaced
+  /// as a whole by the new run's folder when the run ends.
+  bool overwrite = false;
+  BadFramePolicy on_bad_frame = BadFramePolicy::Stop;
 
   /// Throws `Error(InvalidArgument)` naming the bad setting.
   void validate() const;
 };
 
+/// How a run ended.
+enum class RunEnd {
+  Completed,      ///< every frame went through
+  StopRequested,  ///< RunCallbacks::stop_requested said so (e.g. an interrupt)
+  BadFrame,       ///< a frame could not be read (BadFramePolicy::Stop)
+};
+
 /// What a run did, frame by frame and at the end.
 struct RunSummary {
-  std::size_t frames_total = 0;    ///< frames the run went through (max_frames applied)
-  std::size_t frames_fused = 0;    ///< integrated into the map
-  std::size_t frames_lost = 0;     ///< tracking lost: not fused, previous pose kept
-  std::size_t frames_skipped = 0;  ///< without a pose (given poses): not processed
-  bool stopped = false;            ///< RunCallbacks::stop_requested ended the run early
-  double wall_s = 0;               ///< the frame loop, reading included
-  double processing_s = 0;         ///< the frame loop's processing (reading excluded)
-  std::optional<AteResult> ate;    ///< estimated poses against the ground truth, when both exist
+  std::size_t frames_total = 0;     ///< frames the run was to go through (max_frames applied)
+  std::size_t frames_fused = 0;     ///< integrated into the map
+  std::size_t frames_lost = 0;      ///< tracking lost: not fused, previous pose kept
+  std::size_t frames_skipped = 0;   ///< without a pose (given poses): not processed
+  std::size_t frames_bad = 0;       ///< could not be read and were skipped (BadFramePolicy::Skip)
+  std::size_t frames_no_depth = 0;  ///< processed, but without a depth inside the depth range
+  RunEnd end = RunEnd::Completed;
+  std::string end_reason;  ///< with RunEnd::BadFrame: the frame's error
+  /// What makes the result doubtful, one line each (also logged): frames without valid depth,
+  /// depths mostly beyond the range, timestamps out of order, tracking lost on most frames, an
+  /// empty mesh.
+  std::vector<std::string> warnings;
+  /// The result is of no use (no frame fused, no valid depth in any frame, an empty mesh, or
+  /// tracking lost on most frames); the files are written all the same.
+  bool unusable = false;
+  double wall_s = 0;             ///< the frame loop, reading included
+  double processing_s = 0;       ///< the frame loop's processing (reading excluded)
+  std::optional<AteResult> ate;  ///< estimated poses against the ground truth, when both exist
   int64_t mesh_vertices = 0, mesh_triangles = 0;
   double mesh_s = 0;
   std::vector<std::filesystem::path> files;  ///< what the run wrote, in order
@@ -95,8 +127,9 @@ struct RunCallbacks {
 };
 
 /// Runs `reader`'s frames through a reconstruction with `params` and writes the results. Throws
-/// `Error` for bad settings (naming them), a pose source the dataset cannot serve, a run in which
-/// no frame could be fused, and files it cannot read or write.
+/// `Error` for bad settings (naming them), a pose source the dataset cannot serve, an output
+/// folder that holds files (without `overwrite`), a first frame it cannot read, and files it
+/// cannot write. A run whose result is of no use returns with `summary.unusable` set.
 RunResult run_reconstruction(DatasetReader& reader, const RunParams& params,
                              const RunCallbacks& callbacks = {});
 
