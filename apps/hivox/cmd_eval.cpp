@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "hivox/core/error.h"
+#include "hivox/core/log.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/io/trajectory_io.h"
 
@@ -32,6 +33,9 @@ std::vector<StampedPose> read_poses(const std::string& path) {
   std::vector<StampedPose> poses = read_tum_trajectory(path);
   if (poses.empty())
     fail(ErrorCode::InvalidData, "{}: no poses (only comments or blank lines)", path);
+  const std::string order = timestamp_order_problems(poses);
+  if (!order.empty())
+    log::warn("{}: {}; poses are associated by nearest timestamp all the same", path, order);
   return poses;
 }
 

@@ -317,11 +317,14 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
       ->capture_default_str();
   cmd->add_option("--render-every", o.render_every,
                   "also write the renders of every N-th frame (0 = only at the end)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--mesh-min-weight", o.mesh.min_weight,
                   "voxels observed fewer times do not make surface")
       ->capture_default_str();
-  cmd->add_option("--threads", o.threads, "CPU threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--threads", o.threads, "CPU threads (0 = all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--device", o.device,
                   "where the map lives and the stages run: cpu, or cuda[:N] (needs a build with "
                   "the CUDA backend)")
@@ -352,6 +355,7 @@ void add_demo_command(CLI::App& app) {
                   "built-in scene (room, desk, box, spheres, keyboard, blob)")
       ->capture_default_str();
   cmd->add_option("--frames", options->frames, "frames along the scene's camera path")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--noise", options->noise, "depth noise model: kinect or none")
       ->capture_default_str();
@@ -381,6 +385,7 @@ void add_reconstruct_command(CLI::App& app) {
   add_dataset_options(cmd, options->data);
   add_fusion_options(cmd, *options);
   cmd->add_option("--frames", options->frames, "process the first N frames (0 = all)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--out", options->out,
                   "output folder (default out/<dataset name>); written whole when the run ends")

@@ -27,6 +27,7 @@ void add_dataset_options(CLI::App* cmd, DatasetOptions& options) {
       ->type_name("FILE");
   cmd->add_option("--max-frames", options.params.max_frames,
                   "use the first N frames only (0 = all)")
+      ->check(CLI::NonNegativeNumber)
       ->type_name("N");
   cmd->add_flag("!--keep-distortion", options.params.undistort,
                 "use frames as stored even when the calibration has lens distortion (by default "

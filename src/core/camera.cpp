@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "hivox/core/error.h"
+#include "hivox/core/image.h"
 
 namespace hivox {
 
@@ -41,6 +42,9 @@ void PinholeCamera::validate(const std::string& what) const {
   if (width <= 0 || height <= 0)
     fail(ErrorCode::InvalidArgument, "{}: image size must be positive, got {}x{}", what, width,
          height);
+  if (width > kMaxImageSide || height > kMaxImageSide)
+    fail(ErrorCode::InvalidArgument, "{}: image size {}x{} exceeds {} pixels a side", what, width,
+         height, kMaxImageSide);
 }
 
 std::string PinholeCamera::to_string() const {

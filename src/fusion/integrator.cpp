@@ -8,6 +8,7 @@
 #include "hivox/core/atomic.h"
 #include "hivox/core/dataset.h"
 #include "hivox/core/error.h"
+#include "hivox/core/log.h"
 #include "map/map_access.h"
 
 namespace hivox {
@@ -39,6 +40,27 @@ struct ThreadState {
   std::vector<BlockKey> missing;
   std::vector<BlockRef> found;
   int64_t valid_pixels = 0;
+  /// The most missing blocks worth keeping: what the pool can still take. The list is
+  /// de-duplicated when it reaches twice that; keys beyond it are counted, not kept, so that the
+  /// lists' memory follows the pool's capacity, not the band's length.
+  std::size_t missing_limit = 0;
+  int64_t missing_beyond = 0;  ///< distinct missing blocks this thread could not keep
+
+  void add_missing(const BlockKey& key) {
+    if (missing.size() >= 2 * missing_limit) {
+      std::sort(missing.begin(), missing.end());
+      missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
+      if (missing.size() > missing_limit) {
+        missing_beyond += static_cast<int64_t>(missing.size() - missing_limit);
+        missing.resize(missing_limit);
+      }
+      if (missing.size() >= missing_limit) {  // full: from now on only counted
+        ++missing_beyond;
+        return;
+      }
+    }
+    missing.push_back(key);
+  }
 };
 
 /// Stage-one visitor on the CPU: looks a block up (once per thread, thanks to the cache),
@@ -56,7 +78,7 @@ struct AllocationVisitor {
     const int32_t entry = find_entry(lv, pos);
     const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
     if (ptr == kPtrEmpty) {
-      state.missing.push_back({pos, level});
+      state.add_missing({pos, level});
     } else if (ptr >= 0 && atomic_load(&stamps[ptr]) != frame &&
                atomic_exchange(&stamps[ptr], frame) != frame) {  // load first: no lock if seen
       state.found.push_back({pos, level, entry, ptr});
@@ -129,6 +151,7 @@ Allocation TsdfIntegrator::allocate_cpu(VoxelBlockMap& map, const FusionInput& i
     s.frame = 0;
   }
   const int32_t frame = s.frame;
+  const auto free_blocks = static_cast<std::size_t>(map.block_capacity() - map.blocks_in_use());
   const int threads = thread_count();
   s.threads.resize(static_cast<std::size_t>(threads));
   const kernels::DepthFrameView depth = depth_view(in, params_);
@@ -144,6 +167,8 @@ Allocation TsdfIntegrator::allocate_cpu(VoxelBlockMap& map, const FusionInput& i
     ts.missing.clear();
     ts.found.clear();
     ts.valid_pixels = 0;
+    ts.missing_limit = free_blocks;
+    ts.missing_beyond = 0;
     AllocationVisitor visitor{view, ts, s.stamps.data(), frame};
     team.for_each(
         height,
@@ -164,10 +189,12 @@ Allocation TsdfIntegrator::allocate_cpu(VoxelBlockMap& map, const FusionInput& i
   std::vector<BlockRef>& visible = out.visible_blocks;
   visible.reserve(s.last_visible + s.last_visible / 4);
   std::vector<BlockKey> missing;
+  int64_t beyond = 0;
   for (const ThreadState& ts : s.threads) {
     missing.insert(missing.end(), ts.missing.begin(), ts.missing.end());
     visible.insert(visible.end(), ts.found.begin(), ts.found.end());
     stats.valid_pixels += ts.valid_pixels;
+    beyond += ts.missing_beyond;
   }
   // Stage 2: de-duplicate (threads may have recorded the same block) and insert.
   std::sort(missing.begin(), missing.end());
@@ -176,7 +203,14 @@ Allocation TsdfIntegrator::allocate_cpu(VoxelBlockMap& map, const FusionInput& i
   const InsertStats inserted = map.insert_blocks(missing, &visible);
   for (std::size_t i = before; i < visible.size(); ++i) s.stamps[visible[i].ptr] = frame;
   stats.new_blocks = inserted.inserted;
-  stats.dropped_blocks = inserted.dropped();
+  stats.dropped_blocks = inserted.dropped() + beyond;
+  if (beyond > 0) {
+    MapAccess::add_dropped_blocks(map, beyond);
+    log::warn_once("map.pool_full",
+                   "voxel block pool is full ({} blocks): new blocks are being dropped and counted "
+                   "in stats (dropped_blocks); raise --max-blocks",
+                   map.block_capacity());
+  }
   s.last_visible = visible.size();
   return out;
 }

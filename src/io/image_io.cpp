@@ -95,8 +95,15 @@ std::string read_png_file(std::FILE* f, PngMode mode, PngRaw* out, std::vector<p
   png_read_info(png, info);
   const int color_type = png_get_color_type(png, info);
   const int bit_depth = png_get_bit_depth(png, info);
-  out->width = static_cast<int>(png_get_image_width(png, info));
-  out->height = static_cast<int>(png_get_image_height(png, info));
+  const png_uint_32 png_width = png_get_image_width(png, info);
+  const png_uint_32 png_height = png_get_image_height(png, info);
+  if (png_width > kMaxImageSide || png_height > kMaxImageSide) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return fmt::format("its header says {}x{} pixels; at most {} a side are read", png_width,
+                       png_height, kMaxImageSide);
+  }
+  out->width = static_cast<int>(png_width);
+  out->height = static_cast<int>(png_height);
   if (mode == PngMode::Raw16Gray) {
     // Depth: accept exactly one 16-bit grey channel; report what was found otherwise.
     out->bit_depth = bit_depth;
@@ -167,6 +174,13 @@ std::string read_jpeg_file(std::FILE* f, ColorImage* out) {
   jpeg_create_decompress(&cinfo);
   jpeg_stdio_src(&cinfo, f);
   jpeg_read_header(&cinfo, TRUE);
+  if (cinfo.image_width > kMaxImageSide || cinfo.image_height > kMaxImageSide) {
+    const std::string problem =
+        fmt::format("its header says {}x{} pixels; at most {} a side are read", cinfo.image_width,
+                    cinfo.image_height, kMaxImageSide);
+    jpeg_destroy_decompress(&cinfo);
+    return problem;
+  }
   cinfo.out_color_space = JCS_RGB;
   jpeg_start_decompress(&cinfo);
   out->resize(static_cast<int>(cinfo.output_width), static_cast<int>(cinfo.output_height));
@@ -217,6 +231,9 @@ PnmHeader read_pnm_header(const fs::path& path, std::FILE* f) {
   h.maxval = static_cast<int>(next_token());
   if (h.width <= 0 || h.height <= 0 || h.maxval <= 0 || h.maxval > 65535)
     fail(ErrorCode::InvalidData, "{}: malformed PNM header", path.string());
+  if (h.width > kMaxImageSide || h.height > kMaxImageSide)
+    fail(ErrorCode::InvalidData, "{}: its header says {}x{} pixels; at most {} a side are read",
+         path.string(), h.width, h.height, kMaxImageSide);
   return h;
 }
 

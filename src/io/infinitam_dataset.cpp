@@ -60,6 +60,10 @@ PinholeCamera parse_intrinsics(const fs::path& path, const std::vector<TextLine>
   if (v[0][0] != std::floor(v[0][0]) || v[0][1] != std::floor(v[0][1]))
     fail(ErrorCode::InvalidData, "{}:{}: {} image size must be integers, found {} x {}",
          path.string(), lines[first].number, which, v[0][0], v[0][1]);
+  for (const double side : v[0])
+    if (!(side >= 1.0 && side <= kMaxImageSide))
+      fail(ErrorCode::InvalidData, "{}:{}: {} image size must be in [1, {}], found {} x {}",
+           path.string(), lines[first].number, which, kMaxImageSide, v[0][0], v[0][1]);
   PinholeCamera camera{static_cast<float>(v[1][0]), static_cast<float>(v[1][1]),
                        static_cast<float>(v[2][0]), static_cast<float>(v[2][1]),
                        static_cast<int>(v[0][0]),   static_cast<int>(v[0][1])};

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
+#include "hivox/core/image.h"
 #include "hivox/io/atomic_file.h"
 
 namespace hivox {
@@ -47,6 +48,9 @@ IntrinsicsFile read_intrinsics_json(const std::filesystem::path& path) {
   if (w != std::floor(w) || h != std::floor(h))
     fail(ErrorCode::InvalidData, "{}: width/height must be integers, found {} x {}", path.string(),
          w, h);
+  if (!(w >= 1 && w <= kMaxImageSide && h >= 1 && h <= kMaxImageSide))
+    fail(ErrorCode::InvalidData, "{}: width/height must be in [1, {}], found {} x {}",
+         path.string(), kMaxImageSide, w, h);
   out.camera.width = static_cast<int>(w);
   out.camera.height = static_cast<int>(h);
   out.camera.validate(path.string());

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <memory>
 
+#include <fmt/format.h>
+
 #include "hivox/core/error.h"
 #include "hivox/io/atomic_file.h"
 #include "hivox/io/text_lines.h"
@@ -47,6 +49,23 @@ void write_tum_trajectory(const std::filesystem::path& path, const std::vector<S
   }
   if (std::fclose(f.release()) != 0) fail(ErrorCode::Io, "{}: write failed", path.string());
   file.commit();
+}
+
+std::string timestamp_order_problems(const std::vector<StampedPose>& poses) {
+  std::size_t duplicated = 0, backwards = 0;
+  std::vector<double> sorted;
+  sorted.reserve(poses.size());
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    sorted.push_back(poses[i].timestamp_s);
+    if (i > 0) backwards += poses[i].timestamp_s < poses[i - 1].timestamp_s;
+  }
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t i = 1; i < sorted.size(); ++i) duplicated += sorted[i] == sorted[i - 1];
+  std::string out;
+  if (duplicated > 0) out = fmt::format("{} timestamp(s) duplicated", duplicated);
+  if (backwards > 0)
+    out += fmt::format("{}{} timestamp(s) out of order", out.empty() ? "" : ", ", backwards);
+  return out;
 }
 
 long find_nearest_pose(const std::vector<StampedPose>& poses, double t_s, double max_dt_s) {

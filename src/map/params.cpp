@@ -20,6 +20,14 @@ void MapParams::validate() const {
     fail(ErrorCode::InvalidArgument, "voxel_size_m must be in (0, 1] metres, got {}", voxel_size_m);
   if (!std::isfinite(truncation_m) || truncation_m <= 0.0f || truncation_m > 1.0f)
     fail(ErrorCode::InvalidArgument, "truncation_m must be in (0, 1] metres, got {}", truncation_m);
+  // Allocation walks each pixel's band [d - mu, d + mu] block by block: a band of thousands of
+  // blocks is a configuration error (a voxel size in the wrong unit), not a workload.
+  if (std::isfinite(voxel_size_m) && voxel_size_m > 0.0f &&
+      truncation_m > kMaxTruncationVoxels * voxel_size_m)
+    fail(ErrorCode::InvalidArgument,
+         "truncation_m {} m is {:.0f} voxels of {} m; at most {} are allowed: raise voxel_size_m "
+         "or lower truncation_m",
+         truncation_m, truncation_m / voxel_size_m, voxel_size_m, kMaxTruncationVoxels);
   if (levels < 1 || levels > kMaxLevels)
     fail(ErrorCode::InvalidArgument, "levels must be between 1 and {}, got {}", kMaxLevels, levels);
   if (max_blocks < 1 || max_blocks > (int64_t{1} << 30))

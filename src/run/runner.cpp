@@ -70,6 +70,9 @@ class PoseFile {
  public:
   explicit PoseFile(const fs::path& path) : poses_(read_tum_trajectory(path)) {
     if (poses_.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", path.string());
+    const std::string order = timestamp_order_problems(poses_);
+    if (!order.empty())
+      log::warn("{}: {}; frames are matched to the nearest pose in time", path.string(), order);
     std::stable_sort(poses_.begin(), poses_.end(), [](const StampedPose& a, const StampedPose& b) {
       return a.timestamp_s < b.timestamp_s;
     });
@@ -97,6 +100,7 @@ class Run {
     RunResult result;
     result.reconstruction = std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
     rec_ = result.reconstruction.get();
+    if (params_.poses.source == PoseSource::Icp) rec_->check_tracking();
     summary_.frames_total =
         params_.max_frames > 0 ? std::min(params_.max_frames, reader_.size()) : reader_.size();
     if (callbacks_.on_start) callbacks_.on_start(*rec_, summary_.frames_total);
@@ -159,7 +163,7 @@ class Run {
       const FrameStats* s = process(i, frame, read_ms);
       if (s == nullptr) continue;
       processing_ms += s->total_ms;
-      if (s->valid_pixels == 0) ++summary_.frames_no_depth;
+      if (s->fused && s->valid_pixels == 0) ++summary_.frames_no_depth;
       if (params_.render_every > 0 &&
           (i + 1) % static_cast<std::size_t>(params_.render_every) == 0 && folder_->writes())
         write(write_renders(rec_->render(info_.rig.depth_camera, rec_->trajectory().back().T_wc),
@@ -295,7 +299,8 @@ class Run {
       warn(fmt::format("{} of {} frames had no depth inside the depth range {}",
                        summary_.frames_no_depth, processed,
                        params_.reconstruction.fusion.depth_range.to_string()));
-    if (summary_.frames_no_depth == processed) summary_.unusable = true;
+    if (summary_.frames_no_depth > 0 && summary_.frames_no_depth == summary_.frames_fused)
+      summary_.unusable = true;
     if (summary_.frames_lost * 2 > processed) {
       warn(fmt::format("tracking was lost on {} of {} frames", summary_.frames_lost, processed));
       summary_.unusable = true;

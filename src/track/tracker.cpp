@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/parallel.h"
+#include "hivox/core/error.h"
 #include "hivox/core/timer.h"
 #include "track_kernels.h"
 
@@ -255,8 +256,31 @@ Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
   return sum;
 }
 
+void Tracker::check_sizes(const PinholeCamera& frame_camera,
+                          const PinholeCamera& model_camera) const {
+  // Each pyramid level halves both images; every level of both must keep pixels to pair.
+  const int coarse = 1 << (params_.levels() - 1);
+  const int fw = frame_camera.width / coarse, fh = frame_camera.height / coarse;
+  const int mw = model_camera.width / coarse, mh = model_camera.height / coarse;
+  if (fw < kMinLevelPx || fh < kMinLevelPx || mw < kMinLevelPx || mh < kMinLevelPx)
+    fail(ErrorCode::InvalidArgument,
+         "tracking: {}x{} depth images (a {}x{} model) are too small for {} ICP pyramid levels: "
+         "the coarsest level would be {}x{} ({}x{} model), at least {}x{} is needed; use fewer "
+         "levels (--icp-iterations with fewer entries), --icp-model-subsample 1, or given poses",
+         frame_camera.width, frame_camera.height, model_camera.width, model_camera.height,
+         params_.levels(), fw, fh, mw, mh, kMinLevelPx, kMinLevelPx);
+}
+
 TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camera,
                            const RaycastResult& model, const Pose& T_wc_init) {
+  camera.validate("tracking camera");
+  if (depth_m.width() != camera.width || depth_m.height() != camera.height)
+    fail(ErrorCode::InvalidArgument, "tracking: the depth image is {}x{} but the camera is {}x{}",
+         depth_m.width(), depth_m.height(), camera.width, camera.height);
+  if (model.depth_m.width() != model.camera.width || model.depth_m.height() != model.camera.height)
+    fail(ErrorCode::InvalidArgument, "tracking: the model is {}x{} but its camera is {}x{}",
+         model.depth_m.width(), model.depth_m.height(), model.camera.width, model.camera.height);
+  check_sizes(camera, model.camera);
   TrackResult result;
   Stopwatch watch;
   build_pyramid(depth_m, camera, params_, depth_range_, frame_);

@@ -12,6 +12,11 @@
 
 namespace hivox {
 
+/// The largest image side hivox accepts (cameras, image files): sizes are checked against it
+/// before anything is allocated, so a corrupt header is an error naming its file, not an
+/// allocation of terabytes.
+inline constexpr int kMaxImageSide = 16384;
+
 struct Rgb8 {
   uint8_t r = 0, g = 0, b = 0;
 };

@@ -4,6 +4,7 @@
 /// comments and blank lines allowed.
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "hivox/core/pose.h"
@@ -17,6 +18,10 @@ std::vector<StampedPose> read_tum_trajectory(const std::filesystem::path& path);
 /// Writes a TUM trajectory (timestamps with 6 decimals, poses with 9).
 void write_tum_trajectory(const std::filesystem::path& path, const std::vector<StampedPose>& poses,
                           const std::string& header_comment = "");
+
+/// What is wrong with the order of `poses`' timestamps, in words ("2 timestamps duplicated, 1
+/// out of order"), or empty when each is later than the one before.
+std::string timestamp_order_problems(const std::vector<StampedPose>& poses);
 
 /// Index of the pose whose timestamp is nearest to `t_s` if within `max_dt_s` (TUM's rule uses
 /// 0.02 s), else -1. `poses` must be sorted by time.

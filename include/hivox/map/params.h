@@ -10,6 +10,9 @@ namespace hivox {
 
 /// Upper bound of `MapParams::levels` (plain arrays in kernel views are sized by it).
 inline constexpr int kMaxLevels = 4;
+/// Upper bound of the truncation band in voxels of the finest level (allocation's work per pixel
+/// grows with it).
+inline constexpr int kMaxTruncationVoxels = 512;
 
 struct MapParams {
   float voxel_size_m = 0.002f;  ///< finest voxel size s; level l has s * 2^l

@@ -104,6 +104,9 @@ class Reconstruction {
   /// the previous pose (the motion prior restarts).
   const FrameStats& track_and_integrate(const RgbdFrame& frame, double read_ms = 0.0,
                                         const Pose& T_wc_first = Pose::Identity());
+  /// Throws `Error(InvalidArgument)` when this reconstruction cannot track its rig's frames
+  /// (images too small for the ICP pyramid); track_and_integrate would fail on its second frame.
+  void check_tracking() const { tracker_.check_sizes(rig_.depth_camera, model_camera()); }
   /// Outcome of the last tracked frame's ICP.
   const TrackResult& last_track() const { return last_track_; }
   const TrackingCounts& tracking_counts() const { return tracking_counts_; }

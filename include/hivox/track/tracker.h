@@ -48,6 +48,12 @@ class Tracker {
   TrackResult track(const DepthImage& depth_m, const PinholeCamera& camera,
                     const RaycastResult& model, const Pose& T_wc_init);
 
+  /// Throws `Error(InvalidArgument)` when images of `frame_camera` tracked against a model of
+  /// `model_camera` are too small for the pyramid (every level of both needs kMinLevelPx pixels
+  /// a side). `track` checks it too; a run checks it before its first frame.
+  void check_sizes(const PinholeCamera& frame_camera, const PinholeCamera& model_camera) const;
+  static constexpr int kMinLevelPx = 1;
+
   /// The frame pyramid of the last call (finest first), e.g. for inspection.
   const std::vector<PyramidLevel>& pyramid() const { return frame_; }
 
