@@ -357,7 +357,7 @@ HIVOX_HD inline void neighbour_blocks(const MapView& map, BlockLookupCache& cach
                                       const Vec3i& block, const Vec3i& span, int32_t ptrs[8]) {
   for (int d = 0; d < 8; ++d) {
     const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-    ptrs[d] = (dx > span.x) | (dy > span.y) | (dz > span.z)
+    ptrs[d] = ((dx > span.x) | (dy > span.y) | (dz > span.z))
                   ? kPtrEmpty
                   : cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
   }

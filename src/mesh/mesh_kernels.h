@@ -190,17 +190,14 @@ HIVOX_HD inline Vec3i corner_offset(int c) {
 
 /// Case index of the cell with lower corner (x, y, z): bit c set when corner c is inside.
 HIVOX_HD inline int cell_case(const PaddedBlock& b, int x, int y, int z) {
+  // Corner k's offset is computed, not read from a local table: GCC 12's UBSan misreports
+  // loads from such a table in this unrolled loop as out of bounds.
   const int i = pad_index(x, y, z);
-  const int d[8] = {0,
-                    1,
-                    kPadSide,
-                    kPadSide + 1,
-                    kPadSide * kPadSide,
-                    kPadSide * kPadSide + 1,
-                    kPadSide * kPadSide + kPadSide,
-                    kPadSide * kPadSide + kPadSide + 1};
   int c = 0;
-  for (int k = 0; k < 8; ++k) c |= (b.tsdf[i + d[k]] < 0.0f ? 1 : 0) << k;
+  for (int k = 0; k < 8; ++k) {
+    const int d = (k & 1) + ((k >> 1) & 1) * kPadSide + ((k >> 2) & 1) * kPadSide * kPadSide;
+    c |= (b.tsdf[i + d] < 0.0f ? 1 : 0) << k;
+  }
   return c;
 }
 

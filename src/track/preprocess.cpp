@@ -46,7 +46,7 @@ void bilateral_filter(const DepthImage& in, DepthImage& out, const TrackParams& 
 #pragma omp simd
           for (int x = x0; x < x1; ++x) {
             const float d = row[x + dx], d0 = centre[x];
-            const float valid = (d >= lo) & (d <= hi) ? 1.0f : 0.0f;  // no branch: vectorizes
+            const float valid = ((d >= lo) & (d <= hi)) ? 1.0f : 0.0f;  // no branch: vectorizes
             const float wt =
                 valid * kernels::bilateral_weight(dist2, valid * (d - d0), inv_px, inv_d);
             sum[x] += wt * d;
