@@ -61,40 +61,52 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
   std::vector<std::array<int32_t, kBlockChildren>> child_block(go.size()), child_entry(go.size());
   std::vector<std::array<BlockSurface, kBlockChildren>> child_surface(go.size());
 
-  // Pass 1: claim blocks and entries, fill the children. No entry of the parents' level changes
-  // here, so every split reads its neighbours as they were.
-  parallel_for(n, [&](int64_t s) {
-    const BlockRef& p = go[static_cast<std::size_t>(s)];
-    const LevelView& lv = view.read.level[p.level];
-    int32_t parents[kBlockChildren];
-    for (int d = 0; d < kBlockChildren; ++d) {
-      if (d == 0) {
-        parents[0] = p.ptr;
-        continue;
+  // Splits go one parent level at a time, finest first: a split reads its neighbours at the
+  // parent's level while it reserves entries one level down, so no level is read while another
+  // thread writes it. (Children of coarser parents, split later, were not visible to finer
+  // parents' splits before either: their entries held kPtrReserved until published.)
+  for (int level = 1; level < view.read.levels; ++level) {
+    std::vector<int64_t> at_level;
+    for (int64_t s = 0; s < n; ++s)
+      if (go[static_cast<std::size_t>(s)].level == level) at_level.push_back(s);
+    const int64_t m = static_cast<int64_t>(at_level.size());
+    // Pass 1: claim blocks and entries, fill the children. No entry of the parents' level
+    // changes here, so every split reads its neighbours as they were.
+    parallel_for(m, [&](int64_t k) {
+      const int64_t s = at_level[static_cast<std::size_t>(k)];
+      const BlockRef& p = go[static_cast<std::size_t>(s)];
+      const LevelView& lv = view.read.level[p.level];
+      int32_t parents[kBlockChildren];
+      for (int d = 0; d < kBlockChildren; ++d) {
+        if (d == 0) {
+          parents[0] = p.ptr;
+          continue;
+        }
+        const int32_t ptr =
+            find_block_ptr(lv, {p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)});
+        parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
       }
-      const int32_t ptr =
-          find_block_ptr(lv, {p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)});
-      parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
-    }
-    for (int c = 0; c < kBlockChildren; ++c) {
-      child_entry[s][c] = kernels::reserve_entry(view, p.level - 1, child_block_pos(p.pos, c));
-      child_block[s][c] = kernels::take_block(view);
-      child_surface[s][c] =
-          kernels::fill_split_child(view, parents, c, child_block[s][c], weight_scale);
-    }
-  });
-  // Pass 2: publish the children, mark the parents Split.
-  parallel_for(n, [&](int64_t s) {
-    const BlockRef& p = go[static_cast<std::size_t>(s)];
-    const MutableLevelView& child_level = view.level[p.level - 1];
-    for (int c = 0; c < kBlockChildren; ++c) {
-      const int32_t b = child_block[s][c];
-      view.meta[b] = BlockMeta{child_block_pos(p.pos, c), child_entry[s][c],
-                               static_cast<int16_t>(p.level - 1), 0, child_surface[s][c]};
-      atomic_store(&child_level.entries[child_entry[s][c]].ptr, b);
-    }
-    atomic_store(&view.level[p.level].entries[p.entry].ptr, kPtrSplit);
-  });
+      for (int c = 0; c < kBlockChildren; ++c) {
+        child_entry[s][c] = kernels::reserve_entry(view, p.level - 1, child_block_pos(p.pos, c));
+        child_block[s][c] = kernels::take_block(view);
+        child_surface[s][c] =
+            kernels::fill_split_child(view, parents, c, child_block[s][c], weight_scale);
+      }
+    });
+    // Pass 2: publish the children, mark the parents Split.
+    parallel_for(m, [&](int64_t k) {
+      const int64_t s = at_level[static_cast<std::size_t>(k)];
+      const BlockRef& p = go[static_cast<std::size_t>(s)];
+      const MutableLevelView& child_level = view.level[p.level - 1];
+      for (int c = 0; c < kBlockChildren; ++c) {
+        const int32_t b = child_block[s][c];
+        view.meta[b] = BlockMeta{child_block_pos(p.pos, c), child_entry[s][c],
+                                 static_cast<int16_t>(p.level - 1), 0, child_surface[s][c]};
+        atomic_store(&child_level.entries[child_entry[s][c]].ptr, b);
+      }
+      atomic_store(&view.level[p.level].entries[p.entry].ptr, kPtrSplit);
+    });
+  }
   // Pass 3: the parents' blocks go back to the pool.
   for (const BlockRef& p : go) {
     kernels::return_block(view, p.ptr);
