@@ -101,6 +101,9 @@ TriangleMesh read_off(const std::filesystem::path& path) {
     if (n < 3)
       fail(ErrorCode::InvalidData, "{}:{}: face has {} corners (need at least 3)", path.string(),
            l.number, n);
+    if (static_cast<uint64_t>(n) > l.fields.size() - 1)  // before allocating for a bogus count
+      fail(ErrorCode::InvalidData, "{}:{}: face declares {} corners but lists {}", path.string(),
+           l.number, n, l.fields.size() - 1);
     corners.resize(static_cast<std::size_t>(n));
     for (int64_t c = 0; c < n; ++c) {
       const int64_t index = parse_count(path, l, static_cast<std::size_t>(c + 1), "vertex index");

@@ -101,6 +101,13 @@ class PlyBody {
   PlyBody(const std::string& path, const std::string& data, std::size_t pos, PlyFormat format)
       : path_(path), data_(data), pos_(pos), format_(format) {}
 
+  /// The most values of type `t` that the rest of the file can hold (an ascii value takes at
+  /// least a separator and a digit): bounds a list's length before allocating for it.
+  double values_left(PlyType t) const {
+    const double left = static_cast<double>(data_.size() - pos_);
+    return format_ == PlyFormat::Ascii ? left / 2.0 : left / static_cast<double>(type_size(t));
+  }
+
   /// Sets what is being read, for error messages.
   void set_context(const std::string& element, int64_t index) {
     element_ = &element;
@@ -421,6 +428,11 @@ TriangleMesh read_ply(const std::filesystem::path& path_in) {
             for (int64_t c = 0; c < static_cast<int64_t>(count); ++c) body.read(p.type);
             continue;
           }
+          if (count > body.values_left(p.type))
+            fail(ErrorCode::InvalidData,
+                 "{}: file ends inside face {}: it lists {} corners, more than the rest of the "
+                 "file holds (truncated?)",
+                 path, i, count);
           corners.resize(static_cast<std::size_t>(count));
           for (int64_t& c : corners) c = static_cast<int64_t>(body.read(p.type));
         }

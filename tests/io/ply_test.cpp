@@ -175,6 +175,12 @@ TEST(Ply, MalformedFilesAreOneLineErrorsNamingTheFile) {
       {"range.ply", good_header + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "index 3"},
       {"line.ply", good_header + "0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "2 corners"},
       {"nan.ply", good_header + "0 0 zero\n1 0 0\n0 1 0\n3 0 1 2\n", "'zero'"},
+      {"corners.ply", good_header + "0 0 0\n1 0 0\n0 1 0\n255 0 1 2\n", "255 corners"},
+      {"list.ply",
+       "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\n"
+       "property float y\nproperty float z\nelement face 1\n"
+       "property list uint int vertex_indices\nend_header\n\xff\xff\xff\x7f",
+       "2147483647 corners"},
       {"huge.ply",
        "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\nproperty float x\n"
        "property float y\nproperty float z\nend_header\n",
@@ -215,6 +221,11 @@ TEST(Off, ReadsHeaderVariantsCommentsAndPolygons) {
   EXPECT_NE(e.find("bad.off:6"), std::string::npos) << e;
   write_bytes(dir / "few.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n");
   EXPECT_NE(error_of([&] { read_off(dir / "few.off"); }).find("few.off"), std::string::npos);
+  // A corner count beyond the line is an error before anything is allocated for it (a fuzzer
+  // found 555555555 taking seconds and gigabytes).
+  write_bytes(dir / "corners.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n555555555 0 1 2\n");
+  EXPECT_NE(error_of([&] { read_off(dir / "corners.off"); }).find("declares 555555555 corners"),
+            std::string::npos);
   write_bytes(dir / "ply.off", "ply\n");
   EXPECT_NE(error_of([&] { read_off(dir / "ply.off"); }).find("OFF header"), std::string::npos);
 }
