@@ -297,7 +297,7 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
     if (skip) {
       const float exit = box_exit(o, d, inv_d, skip_lo, skip_hi);
       const float min_step = 1e-3f * map.level[level].voxel_size_m * inv_len;
-      z = exit > z + min_step ? exit + min_step : z + min_step;
+      z = step_beyond(z, exit > z + min_step ? exit + min_step : z + min_step);
       prev_valid = false;
       continue;
     }
@@ -324,7 +324,7 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
         }
       }
       // Unobserved voxels: no surface can be here; move on as through free space.
-      z += (band_step_m > voxel_m ? band_step_m : voxel_m) * inv_len;
+      z = step_beyond(z, z + (band_step_m > voxel_m ? band_step_m : voxel_m) * inv_len);
       prev_valid = false;
       continue;
     }
@@ -362,7 +362,7 @@ HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, cons
     // surface, by a voxel.
     const float min_step_m = k.min_step_voxels * voxel_m;
     const float dist_m = s.f > 0.0f ? s.f * band_step_m : voxel_m;
-    z += (dist_m > min_step_m ? dist_m : min_step_m) * inv_len;
+    z = step_beyond(z, z + (dist_m > min_step_m ? dist_m : min_step_m) * inv_len);
   }
   return false;
 }

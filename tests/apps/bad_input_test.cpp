@@ -430,6 +430,11 @@ std::vector<Case> cases() {
   c.push_back(flag("--voxel-size -1", "--voxel-size -1", 1, {"voxel_size_m"}));
   c.push_back(flag("--voxel-size 0", "--voxel-size 0", 1, {"voxel_size_m"}));
   c.push_back(flag("--voxel-size 1e-6", "--voxel-size 1e-6", 1, {"truncation_m", "512"}));
+  // Micrometre voxels metres away: ray steps below a float's precision at that depth once
+  // looped forever; the run must end, the full pool's drops counted.
+  c.push_back(flag("--voxel-size 1e-6 with a full pool",
+                   "--voxel-size 1e-6 --truncation 0.0004 --max-blocks 2000 --levels 1 --poses gt",
+                   0, {"pool is full", "dropped"}));
   c.push_back(flag("--truncation 0", "--truncation 0", 1, {"truncation_m"}));
   c.push_back(flag("--truncation 2", "--truncation 2", 1, {"truncation_m"}));
   c.push_back(flag("--levels 0", "--levels 0", 1, {"levels"}));
