@@ -189,9 +189,13 @@ class PlyBody {
   int64_t index_ = 0;
 };
 
+/// A byte from a value clamped to [0, 255]; NaN (float properties can hold it) is 0.
+uint8_t to_byte(double v) {
+  return std::isnan(v) ? 0 : static_cast<uint8_t>(std::clamp(std::round(v), 0.0, 255.0));
+}
+
 uint8_t to_channel(double v, PlyType t) {
-  if (is_float(t)) v *= 255.0;
-  return static_cast<uint8_t>(std::clamp(std::round(v), 0.0, 255.0));
+  return to_byte(is_float(t) ? v * 255.0 : v);
 }
 
 std::string read_file(const std::filesystem::path& path) {
@@ -402,9 +406,7 @@ TriangleMesh read_ply(const std::filesystem::path& path_in) {
           };
           mesh.colors[i] = {ch(r), ch(g), ch(b)};
         }
-        if (level >= 0)
-          mesh.levels[i] =
-              static_cast<uint8_t>(std::clamp(values[static_cast<std::size_t>(level)], 0.0, 255.0));
+        if (level >= 0) mesh.levels[i] = to_byte(values[static_cast<std::size_t>(level)]);
       }
     } else if (e.name == "face") {
       int list = e.find("vertex_indices");
@@ -434,7 +436,15 @@ TriangleMesh read_ply(const std::filesystem::path& path_in) {
                  "file holds (truncated?)",
                  path, i, count);
           corners.resize(static_cast<std::size_t>(count));
-          for (int64_t& c : corners) c = static_cast<int64_t>(body.read(p.type));
+          for (int64_t& c : corners) {
+            // Checked as read: a float index (NaN, 1e30) must not reach the integer cast.
+            const double index = body.read(p.type);
+            if (!(index >= 0.0 && index < static_cast<double>(mesh.positions_w.size())) ||
+                !have_vertices)
+              fail(ErrorCode::InvalidData, "{}: face {} has vertex index {} outside [0, {})", path,
+                   i, index, mesh.positions_w.size());
+            c = static_cast<int64_t>(index);
+          }
         }
         if (corners.size() < 3)
           fail(ErrorCode::InvalidData, "{}: face {} has {} corners (need at least 3)", path, i,
@@ -443,10 +453,6 @@ TriangleMesh read_ply(const std::filesystem::path& path_in) {
           mesh.triangles.push_back({static_cast<int32_t>(corners[0]),
                                     static_cast<int32_t>(corners[c]),
                                     static_cast<int32_t>(corners[c + 1])});
-        for (const int64_t c : corners)
-          if (c < 0 || c >= static_cast<int64_t>(mesh.positions_w.size()) || !have_vertices)
-            fail(ErrorCode::InvalidData, "{}: face {} has vertex index {} outside [0, {})", path, i,
-                 c, mesh.positions_w.size());
       }
     } else {
       for (int64_t i = 0; i < e.count; ++i) {

@@ -181,6 +181,11 @@ TEST(Ply, MalformedFilesAreOneLineErrorsNamingTheFile) {
        "property float y\nproperty float z\nelement face 1\n"
        "property list uint int vertex_indices\nend_header\n\xff\xff\xff\x7f",
        "2147483647 corners"},
+      {"nanindex.ply",
+       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 1\nproperty list uchar float vertex_indices\n"
+       "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 nan\n",
+       "index nan"},
       {"huge.ply",
        "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\nproperty float x\n"
        "property float y\nproperty float z\nend_header\n",
