@@ -4,6 +4,7 @@
 // clang-format off
 #include <cstdio>
 #include <jpeglib.h>
+#include <jerror.h>
 // clang-format on
 
 #include <array>
@@ -159,14 +160,20 @@ void jpeg_error_exit(j_common_ptr cinfo) {
   (*cinfo->err->format_message)(cinfo, err->message);
   std::longjmp(err->jump, 1);
 }
-void jpeg_silent(j_common_ptr, int) {}
+// libjpeg decodes past damaged data with a warning and fills the rest of the image with grey;
+// such a frame is an error here, not a silently wrong image. Stray bytes between markers
+// (JWRN_EXTRANEOUS_DATA) are skipped without harm and stay quiet.
+void jpeg_warning_is_error(j_common_ptr cinfo, int msg_level) {
+  if (msg_level == -1 && cinfo->err->msg_code != JWRN_EXTRANEOUS_DATA)
+    (*cinfo->err->error_exit)(cinfo);
+}
 
 std::string read_jpeg_file(std::FILE* f, ColorImage* out) {
   jpeg_decompress_struct cinfo;
   JpegErrorManager err;
   cinfo.err = jpeg_std_error(&err.base);
   err.base.error_exit = jpeg_error_exit;
-  err.base.emit_message = jpeg_silent;
+  err.base.emit_message = jpeg_warning_is_error;
   if (setjmp(err.jump)) {
     jpeg_destroy_decompress(&cinfo);
     return err.message[0] ? err.message : "corrupt JPEG";

@@ -142,6 +142,15 @@ TEST(ImageIo, RealJpegAndDepth) {
   EXPECT_EQ(d.width(), 640);
   std::string e = error_of([&] { read_depth16(dir / "rgb" / "1305031229.528748.jpg"); });
   EXPECT_NE(e.find("JPEG"), std::string::npos) << e;
+
+  // Cut in half, the JPEG would decode with a grey lower half; it is an error instead.
+  test::TempDir tmp;
+  const std::filesystem::path cut = tmp / "cut.jpg";
+  std::filesystem::copy_file(dir / "rgb" / "1305031229.528748.jpg", cut);
+  std::filesystem::resize_file(cut, std::filesystem::file_size(cut) / 2);
+  e = error_of([&] { read_color(cut); });
+  EXPECT_NE(e.find("cut.jpg"), std::string::npos) << e;
+  EXPECT_NE(e.find("Premature end"), std::string::npos) << e;
 }
 
 }  // namespace
