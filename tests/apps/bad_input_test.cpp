@@ -298,63 +298,32 @@ std::vector<Case> cases() {
                },
                1,
                {"intrinsics.json", "JSON"}});
-  c.push_back({"intrinsics without fx",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"fx\"", "\"f_x\"");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "fx"}});
-  c.push_back({"intrinsics fx negative",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"fx\": 65.625", "\"fx\": -65.625");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "fx"}});
-  c.push_back({"intrinsics fx a string",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"fx\": 65.625", "\"fx\": \"big\"");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "fx"}});
-  c.push_back({"intrinsics width 1e9",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"width\": 80", "\"width\": 1e9");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "width"}});
-  c.push_back({"intrinsics width 1e30",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"width\": 80", "\"width\": 1e30");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "width"}});
-  c.push_back({"intrinsics width fractional",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"width\": 80", "\"width\": 80.5");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "integer"}});
-  c.push_back({"intrinsics depth_scale 0",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"depth_scale\": 5000.0",
-                            "\"depth_scale\": 0");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"intrinsics.json", "depth_scale"}});
-  c.push_back({"intrinsics size unlike the images",
-               [](const fs::path& d) {
-                 replace_in(d / "seq" / "intrinsics.json", "\"width\": 80", "\"width\": 160");
-                 return reconstruct(d, "--poses gt");
-               },
-               1,
-               {"80x60", "160x60"}});
+  // The base sequence's intrinsics.json with `from` replaced by `to`, run with its poses.
+  const auto intrinsics_edit = [](const char* name, std::string from, std::string to,
+                                  std::vector<std::string> expected) {
+    return Case{name,
+                [from, to](const fs::path& d) {
+                  replace_in(d / "seq" / "intrinsics.json", from, to);
+                  return reconstruct(d, "--poses gt");
+                },
+                1, std::move(expected)};
+  };
+  c.push_back(
+      intrinsics_edit("intrinsics without fx", "\"fx\"", "\"f_x\"", {"intrinsics.json", "fx"}));
+  c.push_back(intrinsics_edit("intrinsics fx negative", "\"fx\": 65.625", "\"fx\": -65.625",
+                              {"intrinsics.json", "fx"}));
+  c.push_back(intrinsics_edit("intrinsics fx a string", "\"fx\": 65.625", "\"fx\": \"big\"",
+                              {"intrinsics.json", "fx"}));
+  c.push_back(intrinsics_edit("intrinsics width 1e9", "\"width\": 80", "\"width\": 1e9",
+                              {"intrinsics.json", "width"}));
+  c.push_back(intrinsics_edit("intrinsics width 1e30", "\"width\": 80", "\"width\": 1e30",
+                              {"intrinsics.json", "width"}));
+  c.push_back(intrinsics_edit("intrinsics width fractional", "\"width\": 80", "\"width\": 80.5",
+                              {"intrinsics.json", "integer"}));
+  c.push_back(intrinsics_edit("intrinsics depth_scale 0", "\"depth_scale\": 5000.0",
+                              "\"depth_scale\": 0", {"intrinsics.json", "depth_scale"}));
+  c.push_back(intrinsics_edit("intrinsics size unlike the images", "\"width\": 80",
+                              "\"width\": 160", {"80x60", "160x60"}));
   c.push_back({"depth scale off by 1000x",
                [](const fs::path& d) { return reconstruct(d, "--poses gt --depth-scale 5000000"); },
                3,
