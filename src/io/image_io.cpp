@@ -25,6 +25,13 @@ namespace hivox {
 
 namespace {
 
+/// What is wrong with an image header's size before anything is allocated for it, or "".
+std::string header_size_problem(long width, long height) {
+  if (width <= kMaxImageSide && height <= kMaxImageSide) return "";
+  return fmt::format("its header says {}x{} pixels; at most {} a side are read", width, height,
+                     kMaxImageSide);
+}
+
 namespace fs = std::filesystem;
 
 enum class FileFormat { Png, Jpeg, Pnm, Unknown };
@@ -98,10 +105,9 @@ std::string read_png_file(std::FILE* f, PngMode mode, PngRaw* out, std::vector<p
   const int bit_depth = png_get_bit_depth(png, info);
   const png_uint_32 png_width = png_get_image_width(png, info);
   const png_uint_32 png_height = png_get_image_height(png, info);
-  if (png_width > kMaxImageSide || png_height > kMaxImageSide) {
+  if (std::string problem = header_size_problem(png_width, png_height); !problem.empty()) {
     png_destroy_read_struct(&png, &info, nullptr);
-    return fmt::format("its header says {}x{} pixels; at most {} a side are read", png_width,
-                       png_height, kMaxImageSide);
+    return problem;
   }
   out->width = static_cast<int>(png_width);
   out->height = static_cast<int>(png_height);
@@ -181,10 +187,8 @@ std::string read_jpeg_file(std::FILE* f, ColorImage* out) {
   jpeg_create_decompress(&cinfo);
   jpeg_stdio_src(&cinfo, f);
   jpeg_read_header(&cinfo, TRUE);
-  if (cinfo.image_width > kMaxImageSide || cinfo.image_height > kMaxImageSide) {
-    const std::string problem =
-        fmt::format("its header says {}x{} pixels; at most {} a side are read", cinfo.image_width,
-                    cinfo.image_height, kMaxImageSide);
+  if (std::string problem = header_size_problem(cinfo.image_width, cinfo.image_height);
+      !problem.empty()) {
     jpeg_destroy_decompress(&cinfo);
     return problem;
   }
@@ -238,9 +242,8 @@ PnmHeader read_pnm_header(const fs::path& path, std::FILE* f) {
   h.maxval = static_cast<int>(next_token());
   if (h.width <= 0 || h.height <= 0 || h.maxval <= 0 || h.maxval > 65535)
     fail(ErrorCode::InvalidData, "{}: malformed PNM header", path.string());
-  if (h.width > kMaxImageSide || h.height > kMaxImageSide)
-    fail(ErrorCode::InvalidData, "{}: its header says {}x{} pixels; at most {} a side are read",
-         path.string(), h.width, h.height, kMaxImageSide);
+  if (std::string problem = header_size_problem(h.width, h.height); !problem.empty())
+    fail(ErrorCode::InvalidData, "{}: {}", path.string(), problem);
   return h;
 }
 
