@@ -15,17 +15,20 @@ void add_info_command(CLI::App& app) {
   auto options = std::make_shared<DatasetOptions>();
   CLI::App* cmd = app.add_subcommand(
       "info",
-      "Show what hivox finds in a dataset folder: layout, frame count, resolution, intrinsics, "
-      "depth scale and depth range, colour, ground-truth poses and warnings.");
+      "Show what hivox finds in a dataset folder (layout, frame count, resolution, intrinsics, "
+      "depth scale and depth range, colour, ground-truth poses and warnings) or in a map file "
+      "(.hvx: levels, blocks per level, memory, bounding box, settings).");
   add_dataset_options(cmd, *options);
   cmd->footer(dataset_help() +
               "Examples:\n"
               "  hivox info ../shared/data/tum_fr1_rpy\n"
               "  hivox info ~/data/rgbd_dataset_freiburg2_desk --preset tum_fr2\n"
               "  hivox info ~/data/chess --depth-scale 1000\n"
+              "  hivox info rpy.hvx\n"
               "A median depth outside 0.1-10 m is reported as a warning with the likely depth "
               "scale.");
   cmd->callback([options] {
+    if (print_map_file_info(options->dataset)) return;
     const std::unique_ptr<DatasetReader> reader = open_dataset(*options);
     std::fputs(describe_dataset(*reader).c_str(), stdout);
   });

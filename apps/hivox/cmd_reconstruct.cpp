@@ -23,6 +23,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
+#include "hivox/io/map_file.h"
 #include "hivox/run/runner.h"
 
 namespace hivox::cli {
@@ -47,6 +48,11 @@ struct ReconstructOptions {
   ReconstructionParams params;
   MeshParams mesh;
   std::size_t frames = 0;
+  std::size_t first_frame = 0;
+  std::string map_in, map_out;
+  /// The options that shape a map: with --map, those not given take the file's values.
+  CLI::Option *levels_option = nullptr, *voxel_size_option = nullptr, *truncation_option = nullptr,
+              *max_weight_option = nullptr, *no_color_option = nullptr;
   int threads = 0;
   int render_every = 0;
   bool no_color = false;
@@ -79,10 +85,28 @@ RunParams run_params(ReconstructOptions options) {
     options.params.map.store_color = false;
     options.params.fusion.integrate_color = false;
   }
+  if (!options.map_in.empty()) {
+    // The map's own shape for every option left out; one given must agree (the run checks).
+    const MapFileInfo info = read_map_file_info(options.map_in);
+    MapParams& m = options.params.map;
+    auto given = [](const CLI::Option* o) { return o != nullptr && o->count() > 0; };
+    if (!given(options.levels_option)) m.levels = info.map.levels;
+    if (!given(options.voxel_size_option)) m.voxel_size_m = info.map.voxel_size_m;
+    if (!given(options.truncation_option)) m.truncation_m = info.map.truncation_m;
+    if (!given(options.max_weight_option))
+      options.params.fusion.max_weight = info.fusion.max_weight;
+    if (!given(options.no_color_option)) {
+      m.store_color = info.map.store_color;
+      options.params.fusion.integrate_color = info.map.store_color;
+    }
+  }
   RunParams run;
   run.reconstruction = options.params;
   run.poses = PoseSpec::parse(options.poses);
+  run.first_frame = options.first_frame;
   run.max_frames = options.frames;
+  run.map_in = options.map_in;
+  run.map_out = options.map_out;
   if (options.render_every < 0)
     fail(ErrorCode::InvalidArgument, "--render-every must be >= 0, got {}", options.render_every);
   run.render_every = options.render_every;
@@ -155,6 +179,10 @@ void print_summary(const RunResult& result, const RunParams& run) {
       "wrote {}/{{trajectory.txt, stats.json, "
       "{{,overview_}}{{depth,normals,shaded,color,levels}}.png}}\n",
       run.out_dir.string());
+  if (!run.map_in.empty())
+    fmt::print("continued the map {} (loaded in {:.2f} s)\n", run.map_in.string(), s.map_load_s);
+  if (!run.map_out.empty())
+    fmt::print("map saved to {} in {:.2f} s\n", run.map_out.string(), s.map_save_s);
 }
 
 void run_reconstruct(const ReconstructOptions& options) {
@@ -170,7 +198,8 @@ void run_reconstruct(const ReconstructOptions& options) {
     total = frames;
     if (options.quiet) return;
     fmt::print("hivox reconstruct {}\n", info.source);
-    fmt::print("frames: {} of {} ({}x{}), poses: {}, threads: {}\n", frames, reader->size(),
+    fmt::print("frames: {} of {}{} ({}x{}), poses: {}, threads: {}\n", frames, reader->size(),
+               run.first_frame > 0 ? fmt::format(" from frame {}", run.first_frame) : "",
                info.rig.depth_camera.width, info.rig.depth_camera.height, run.poses.to_string(),
                thread_count());
     fmt::print("camera: {} [{}]\n", info.rig.depth_camera.to_string(), info.intrinsics_source);
@@ -181,10 +210,11 @@ void run_reconstruct(const ReconstructOptions& options) {
   };
   // The progress line.
   callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec) {
-    if (options.quiet || !(tty || (i + 1) % 50 == 0 || i + 1 == total)) return;
+    const std::size_t done = i + 1 - run.first_frame;
+    if (options.quiet || !(tty || done % 50 == 0 || done == total)) return;
     const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
     fmt::print(
-        "{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "", i + 1, total,
+        "{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "", done, total,
         fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"), rec.map().dropped_blocks(),
         run.poses.source == PoseSource::Icp ? fmt::format("  lost {}", rec.tracking_counts().lost)
                                             : std::string(),
@@ -233,20 +263,23 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "where camera poses come from: 'icp' (tracking against the model), 'gt' (the "
                   "dataset's ground truth) or a TUM trajectory file (camera-to-world)")
       ->capture_default_str();
-  cmd->add_option("--levels", p.map.levels, "resolution levels (1 = fixed grid)")
-      ->capture_default_str();
-  cmd->add_option("--voxel-size", p.map.voxel_size_m, "finest voxel size, metres")
-      ->capture_default_str();
-  cmd->add_option("--truncation", p.map.truncation_m, "truncation band mu, metres")
-      ->capture_default_str();
+  o.levels_option = cmd->add_option("--levels", p.map.levels, "resolution levels (1 = fixed grid)")
+                        ->capture_default_str();
+  o.voxel_size_option =
+      cmd->add_option("--voxel-size", p.map.voxel_size_m, "finest voxel size, metres")
+          ->capture_default_str();
+  o.truncation_option =
+      cmd->add_option("--truncation", p.map.truncation_m, "truncation band mu, metres")
+          ->capture_default_str();
   cmd->add_option("--min-depth", p.fusion.depth_range.min_m,
                   "ignore depth nearer than this, metres")
       ->capture_default_str();
   cmd->add_option("--max-depth", p.fusion.depth_range.max_m,
                   "ignore depth farther than this, metres")
       ->capture_default_str();
-  cmd->add_option("--max-weight", p.fusion.max_weight, "cap of the per-voxel observation count")
-      ->capture_default_str();
+  o.max_weight_option =
+      cmd->add_option("--max-weight", p.fusion.max_weight, "cap of the per-voxel observation count")
+          ->capture_default_str();
   cmd->add_option("--depth-sampling", o.depth_sampling,
                   "how voxels read the depth image: 'bilinear' (no pixel staircase on slanted "
                   "surfaces) or 'nearest' pixel (integration ~1.2x faster)")
@@ -306,7 +339,8 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
       ->capture_default_str();
   cmd->add_flag("!--no-motion-prior", p.track.constant_velocity,
                 "start ICP at the previous pose instead of extrapolating the last motion");
-  cmd->add_flag("--no-color", o.no_color, "do not store or fuse colour (4 instead of 8 B/voxel)");
+  o.no_color_option = cmd->add_flag("--no-color", o.no_color,
+                                    "do not store or fuse colour (4 instead of 8 B/voxel)");
   cmd->add_flag("!--no-raycast", p.raycast_every_frame,
                 "skip the per-frame raycast (renders are still made at the end)");
   cmd->add_option("--on-bad-frame", o.on_bad_frame,
@@ -384,9 +418,22 @@ void add_reconstruct_command(CLI::App& app) {
       "(trajectory.txt, TUM format), statistics (stats.json) and renders of the model (PNG).");
   add_dataset_options(cmd, options->data);
   add_fusion_options(cmd, *options);
-  cmd->add_option("--frames", options->frames, "process the first N frames (0 = all)")
+  cmd->add_option("--frames", options->frames, "process N frames (0 = all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_option("--first-frame", options->first_frame,
+                  "start at this frame of the dataset (0 = its first)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--save-map", options->map_out,
+                  "save the map to this file (.hvx) at the end, also when the run is "
+                  "interrupted; `hivox mesh`, `render`, `info`, `export` and --map read it")
+      ->type_name("FILE");
+  cmd->add_option("--map", options->map_in,
+                  "continue the map saved in this file: the frames are fused into it (its voxel "
+                  "size, levels, truncation, colour and maximum weight apply; tracking starts "
+                  "from the map's last pose)")
+      ->type_name("FILE");
   cmd->add_option("--out", options->out,
                   "output folder (default out/<dataset name>); written whole when the run ends")
       ->type_name("DIR");
@@ -397,7 +444,10 @@ void add_reconstruct_command(CLI::App& app) {
               "Examples:\n"
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --levels 1 --voxel-size 0.005 "
               "--truncation 0.02\n"
-              "  hivox reconstruct ~/data/fr2_desk --preset tum_fr2 --poses my_trajectory.txt\n");
+              "  hivox reconstruct ~/data/fr2_desk --preset tum_fr2 --poses my_trajectory.txt\n"
+              "  hivox reconstruct ../shared/data/tum_fr1_rpy --frames 300 --save-map rpy.hvx\n"
+              "  hivox reconstruct ../shared/data/tum_fr1_rpy --first-frame 300 --map rpy.hvx "
+              "--save-map rpy_all.hvx\n");
   cmd->callback([options] { run_reconstruct(*options); });
 }
 

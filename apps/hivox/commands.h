@@ -2,6 +2,8 @@
 // Each subcommand of the `hivox` program lives in its own cmd_*.cpp and registers itself here.
 // Commands are thin: they parse options, call the library and print.
 
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 namespace hivox::cli {
@@ -30,6 +32,11 @@ void add_demo_command(CLI::App& app);
 /// `hivox synth`: renders a built-in synthetic scene and writes it as a TUM RGB-D sequence.
 void add_synth_command(CLI::App& app);
 
+/// `hivox mesh`, `hivox render`, `hivox export` on saved maps (cmd_map.cpp).
+void add_map_commands(CLI::App& app);
+/// `hivox info FILE` for a map file: prints what it holds and returns true; false when `path` is
+/// not a map file (cmd_map.cpp).
+bool print_map_file_info(const std::string& path);
 /// `hivox eval ate --gt FILE --est FILE`: trajectory accuracy against ground truth (cmd_eval.cpp).
 void add_eval_command(CLI::App& app);
 

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   hivox::cli::add_demo_command(app);
   hivox::cli::add_synth_command(app);
   hivox::cli::add_eval_command(app);
+  hivox::cli::add_map_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdio>
+#include <memory>
 #include <string>
 #include <system_error>
 
@@ -31,6 +33,35 @@ void AtomicFile::commit() {
     fail(ErrorCode::Io, "{}: cannot move the written file into place ({})", path_.string(),
          ec.message());
   committed_ = true;
+}
+
+void write_file_atomically(const fs::path& path, std::span<const std::span<const uint8_t>> parts) {
+  AtomicFile file(path);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.temp_path().c_str(), "wb"),
+                                                    &std::fclose);
+  if (!f) fail(ErrorCode::Io, "{}: cannot open for writing", path.string());
+  bool ok = true;
+  for (const std::span<const uint8_t> part : parts)
+    ok = ok && std::fwrite(part.data(), 1, part.size(), f.get()) == part.size();
+  if (!ok || std::fclose(f.release()) != 0)
+    fail(ErrorCode::Io, "{}: write failed (disk full?)", path.string());
+  file.commit();
+}
+
+std::string read_whole_file(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) fail(ErrorCode::Io, "{}: file does not exist", path.string());
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) fail(ErrorCode::Io, "{}: cannot open for reading", path.string());
+  // One read of the size the file has now; a file that grows meanwhile is read in pieces.
+  std::string data(fs::file_size(path, ec), '\0');
+  if (ec) data.clear();
+  std::size_t have = std::fread(data.data(), 1, data.size(), f.get());
+  data.resize(have);
+  char piece[1 << 16];
+  while ((have = std::fread(piece, 1, sizeof piece, f.get())) > 0) data.append(piece, have);
+  if (std::ferror(f.get())) fail(ErrorCode::Io, "{}: read error", path.string());
+  return data;
 }
 
 }  // namespace hivox

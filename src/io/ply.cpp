@@ -198,25 +198,10 @@ uint8_t to_channel(double v, PlyType t) {
   return to_byte(is_float(t) ? v * 255.0 : v);
 }
 
-std::string read_file(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    fail(ErrorCode::Io, "{}: file does not exist", path.string());
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(ErrorCode::Io, "{}: cannot open for reading", path.string());
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) fail(ErrorCode::Io, "{}: read error", path.string());
-  return data;
-}
-
 }  // namespace
 
 void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
-  try {
-    mesh.validate();
-  } catch (const Error& e) {
-    fail(ErrorCode::InvalidArgument, "{}: cannot write: {}", path.string(), e.what());
-  }
+  mesh.validate_for_writing(path.string());
   const bool normals = !mesh.normals_w.empty(), colors = !mesh.colors.empty();
   const bool levels = !mesh.levels.empty();
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment written by hivox\n";
@@ -272,7 +257,7 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
 
 TriangleMesh read_ply(const std::filesystem::path& path_in) {
   const std::string path = path_in.string();
-  const std::string data = read_file(path_in);
+  const std::string data = read_whole_file(path_in);
 
   // Header: lines up to "end_header".
   std::size_t pos = 0;

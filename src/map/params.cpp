@@ -64,4 +64,18 @@ std::string MapParams::to_string() const {
       excess_per_level, store_color ? "on" : "off");
 }
 
+std::string MapParams::shape_difference(const MapParams& other) const {
+  // Exact comparisons: a map's voxels sit at multiples of its voxel size, so any difference
+  // moves them.
+  if (voxel_size_m != other.voxel_size_m)
+    return fmt::format("voxel size {:g} m against {:g} m", voxel_size_m, other.voxel_size_m);
+  if (levels != other.levels) return fmt::format("{} levels against {}", levels, other.levels);
+  if (truncation_m != other.truncation_m)
+    return fmt::format("truncation {:g} m against {:g} m", truncation_m, other.truncation_m);
+  if (store_color != other.store_color)
+    return fmt::format("colour {} against {}", store_color ? "stored" : "not stored",
+                       other.store_color ? "stored" : "not stored");
+  return {};
+}
+
 }  // namespace hivox

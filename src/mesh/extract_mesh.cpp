@@ -44,10 +44,11 @@ struct BlockScratch {
   int16_t boundary_rank[kPadEdges];       ///< padded edge id -> index in BlockMesh::vertices
 };
 
-/// Marching cubes over one block: vertices on its owned edges, triangles of its owned cells.
+/// Marching cubes over one block: vertices on its owned edges, triangles of its owned cells
+/// (unless `cells` is false: the vertices only).
 void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
                 const std::vector<int32_t>& index_of_ptr, const MeshParams& params, bool with_color,
-                BlockScratch& scratch, BlockMesh& out) {
+                bool cells, BlockScratch& scratch, BlockMesh& out) {
   kernels::PaddedBlock& pb = scratch.padded;
   kernels::gather_padded_block(view, scratch.cache, b.level, b.pos, b.ptr, params.min_weight,
                                with_color, pb);
@@ -66,6 +67,7 @@ void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
           out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, x, y, z, axis,
                                                       params.compute_normals, with_color));
         }
+  if (!cells) return;
   for (int z = 0; z < kBlockSide; ++z)
     for (int y = 0; y < kBlockSide; ++y)
       for (int x = 0; x < kBlockSide; ++x) {
@@ -162,6 +164,35 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
     return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
   });
+  // With bounds: the blocks whose cells (reaching a voxel into the next block) meet the box are
+  // meshed, and the +x/+y/+z neighbours whose edges their cells use make those vertices only.
+  std::vector<uint8_t> mesh_cells(blocks.size(), 1);
+  if (params.bounds) {
+    const Box3f& box = *params.bounds;
+    auto meets_box = [&](const BlockRef& b) {
+      const float s = map.params().block_size_at(b.level);
+      for (int a = 0; a < 3; ++a)
+        if (static_cast<float>(b.pos[a]) * s > box.max_m[a] ||
+            static_cast<float>(b.pos[a] + 1) * s + s / kBlockSide < box.min_m[a])
+          return false;
+      return true;
+    };
+    std::vector<uint8_t> keep(static_cast<std::size_t>(map.block_high_water()), 0);
+    for (const BlockRef& b : blocks) {
+      if (!meets_box(b)) continue;
+      keep[static_cast<std::size_t>(b.ptr)] = 2;  // cells and vertices
+      for (int d = 1; d < 8; ++d) {
+        const int32_t nb = find_block_ptr(
+            view.level[b.level], {b.pos.x + (d & 1), b.pos.y + ((d >> 1) & 1), b.pos.z + (d >> 2)});
+        if (nb >= 0 && keep[static_cast<std::size_t>(nb)] == 0)
+          keep[static_cast<std::size_t>(nb)] = 1;  // vertices only
+      }
+    }
+    std::erase_if(blocks,
+                  [&](const BlockRef& b) { return keep[static_cast<std::size_t>(b.ptr)] == 0; });
+    for (std::size_t i = 0; i < blocks.size(); ++i)
+      mesh_cells[i] = keep[static_cast<std::size_t>(blocks[i].ptr)] == 2;
+  }
   const int64_t n = static_cast<int64_t>(blocks.size());
   std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
   for (int64_t i = 0; i < n; ++i)
@@ -175,7 +206,8 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
         n,
         [&](int64_t i) {
           mesh_block(view, blocks[i], static_cast<int32_t>(i), index_of_ptr, params, with_color,
-                     *scratch, parts[static_cast<std::size_t>(i)]);
+                     mesh_cells[static_cast<std::size_t>(i)] != 0, *scratch,
+                     parts[static_cast<std::size_t>(i)]);
         },
         CpuSchedule::dynamic(16));
   });
@@ -253,7 +285,12 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
 
 TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
   params.validate();
-  return dispatch(map.device(), "mesh extraction", [&] { return extract_mesh_cpu(map, params); });
+  TriangleMesh mesh =
+      dispatch(map.device(), "mesh extraction", [&] { return extract_mesh_cpu(map, params); });
+  if (params.bounds) mesh = crop_mesh(mesh, *params.bounds);
+  if (params.min_piece_triangles > 0)
+    mesh = remove_small_pieces(mesh, params.min_piece_triangles, map.params().voxel_size_m);
+  return mesh;
 }
 
 }  // namespace hivox

@@ -60,7 +60,9 @@ void OutputFolder::commit() {
 }
 
 fs::path OutputFolder::final_path(const fs::path& written) const {
-  return out_ / written.lexically_relative(staging_);
+  const fs::path inside = written.lexically_relative(staging_);
+  if (inside.empty() || *inside.begin() == "..") return written;  // not one of the folder's
+  return out_ / inside;
 }
 
 }  // namespace hivox

@@ -31,16 +31,49 @@ std::string ReconstructionParams::to_string(const CameraRig* rig) const {
 }
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig)
+    : Reconstruction(params, rig, nullptr, MapSession{}, false) {}
+
+Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                               std::unique_ptr<VoxelBlockMap> map, const MapSession& session)
+    : Reconstruction(params, rig, std::move(map), session, true) {}
+
+Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                               std::unique_ptr<VoxelBlockMap> map, const MapSession& session,
+                               bool continues_map)
     : params_(params),
       rig_(rig),
       integrator_(params_.fusion),
       refiner_(params_.refine, rig.depth_noise),
       raycaster_(params_.raycast),
-      tracker_(params_.track, params_.fusion.depth_range, params_.device) {
+      tracker_(params_.track, params_.fusion.depth_range, params_.device),
+      resumed_(session),
+      continues_map_(continues_map) {
   params_.validate();
   params_.map.warn_about_combinations();
   rig_.validate();
-  map_ = std::make_unique<VoxelBlockMap>(params_.map, params_.device);
+  if (!continues_map) {
+    map_ = std::make_unique<VoxelBlockMap>(params_.map, params_.device);
+    return;
+  }
+  if (!map) fail(ErrorCode::InvalidArgument, "no map to continue");
+  const std::string diff = params_.map.shape_difference(map->params());
+  if (!diff.empty())
+    fail(ErrorCode::InvalidArgument, "the map to continue differs from the settings: {}", diff);
+  if (session.frames_fused < 0)
+    fail(ErrorCode::InvalidArgument, "a map session of {} frames", session.frames_fused);
+  map_ = std::move(map);
+  params_.map = map_->params();  // its capacities are the map's own
+  refiner_.resume_after(session.frames_fused);
+}
+
+MapSession Reconstruction::session() const {
+  MapSession s = resumed_;
+  s.frames_fused = resumed_.frames_fused +
+                   static_cast<int64_t>(std::count_if(frames_.begin(), frames_.end(),
+                                                      [](const FrameStats& f) { return f.fused; }));
+  if (!trajectory_.empty()) s.last_pose = trajectory_.back().T_wc;
+  s.camera = rig_.depth_camera;
+  return s;
 }
 
 const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc,
@@ -54,7 +87,7 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
 
 const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, double read_ms,
                                                       const Pose& T_wc_first) {
-  if (trajectory_.empty()) {
+  if (trajectory_.empty() && !continues_map_) {
     last_track_ = TrackResult{};
     last_track_.T_wc = T_wc_first;
     last_track_.quality = TrackingQuality::Good;
@@ -64,7 +97,8 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
   FrameStats s;
   s.read_ms = read_ms;
   Stopwatch total;
-  const Pose& T_prev = trajectory_.back().T_wc;
+  // The pose tracking starts from: the last frame's, or where a continued map's run resumes.
+  const Pose T_prev = trajectory_.empty() ? T_wc_first : trajectory_.back().T_wc;
   // Track against the model seen from the previous pose (raycast now if it was not).
   const RaycastResult& model = raycaster_.result();
   if (model.depth_m.empty() || !model.T_wc.isApprox(T_prev) ||

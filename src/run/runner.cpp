@@ -9,6 +9,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
+#include "hivox/io/map_file.h"
 #include "hivox/io/ply.h"
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
@@ -59,6 +60,10 @@ void RunParams::validate() const {
   if (poses.source == PoseSource::Icp && !reconstruction.raycast_every_frame)
     fail(ErrorCode::InvalidArgument,
          "tracking (poses icp) needs the per-frame raycast of the model (raycast_every_frame)");
+  if (!map_in.empty() && map_in == map_out)
+    fail(ErrorCode::InvalidArgument,
+         "the map to continue and the map to save are the same file ({}): save to another name",
+         map_in.string());
   if (poses.source == PoseSource::File && poses.file.empty())
     fail(ErrorCode::InvalidArgument, "poses from a file, but no file is named");
 }
@@ -98,11 +103,15 @@ class Run {
     OutputFolder folder(params_.out_dir, params_.overwrite);
     folder_ = &folder;
     RunResult result;
-    result.reconstruction = std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
+    if (params_.first_frame >= reader_.size())
+      fail(ErrorCode::InvalidArgument, "{}: first frame {}, but the dataset has {} frames",
+           info_.source, params_.first_frame, reader_.size());
+    result.reconstruction = make_reconstruction();
     rec_ = result.reconstruction.get();
     if (params_.poses.source == PoseSource::Icp) rec_->check_tracking();
+    const std::size_t available = reader_.size() - params_.first_frame;
     summary_.frames_total =
-        params_.max_frames > 0 ? std::min(params_.max_frames, reader_.size()) : reader_.size();
+        params_.max_frames > 0 ? std::min(params_.max_frames, available) : available;
     if (callbacks_.on_start) callbacks_.on_start(*rec_, summary_.frames_total);
     frame_loop();
     if (rec_->frame_stats().empty()) {
@@ -118,6 +127,21 @@ class Run {
   }
 
  private:
+  /// A new reconstruction, or one that continues the map file `map_in`.
+  std::unique_ptr<Reconstruction> make_reconstruction() {
+    if (params_.map_in.empty())
+      return std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
+    Stopwatch load;
+    const ReconstructionParams& p = params_.reconstruction;
+    check_map_continues(read_map_file_info(params_.map_in), params_.map_in, p.map, p.fusion);
+    LoadedMap loaded = read_map_file(params_.map_in, p.map);
+    session_start_ = loaded.info.session.last_pose;
+    auto rec =
+        std::make_unique<Reconstruction>(p, info_.rig, std::move(loaded.map), loaded.info.session);
+    summary_.map_load_s = load.elapsed_ms() / 1e3;
+    return rec;
+  }
+
   void check_pose_source() {
     switch (params_.poses.source) {
       case PoseSource::Icp:
@@ -138,7 +162,8 @@ class Run {
   void frame_loop() {
     Stopwatch wall;
     double processing_ms = 0.0;
-    for (std::size_t i = 0; i < summary_.frames_total; ++i) {
+    for (std::size_t i = params_.first_frame; i < params_.first_frame + summary_.frames_total;
+         ++i) {
       if (callbacks_.stop_requested && callbacks_.stop_requested()) {
         summary_.end = RunEnd::StopRequested;
         break;
@@ -178,7 +203,7 @@ class Run {
   void check_frame(std::size_t i, const RgbdFrame& frame) {
     if (last_timestamp_ && !(frame.timestamp_s > *last_timestamp_)) ++timestamps_out_of_order_;
     last_timestamp_ = frame.timestamp_s;
-    if (i > 0 || frame.depth_m.empty()) return;
+    if (i > params_.first_frame || frame.depth_m.empty()) return;
     // The first frame's depths against the range: most beyond it means a wrong depth scale or
     // too short a range (each frame's pixels inside it are counted by fusion).
     const DepthRange& range = params_.reconstruction.fusion.depth_range;
@@ -195,10 +220,10 @@ class Run {
     if (measured == 0 || (beyond + nearer) * 2 < measured) return;
     std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
     warn(fmt::format(
-        "frame 0: {:.0f} % of the measured depths lie outside the depth range {} (median {:.2f} "
+        "frame {}: {:.0f} % of the measured depths lie outside the depth range {} (median {:.2f} "
         "m): check the depth scale (--depth-scale, now {}) or the range (--min-depth, "
         "--max-depth)",
-        100.0 * static_cast<double>(beyond + nearer) / static_cast<double>(measured),
+        i, 100.0 * static_cast<double>(beyond + nearer) / static_cast<double>(measured),
         range.to_string(), depths.empty() ? 0.0f : depths[depths.size() / 2],
         info_.rig.depth_scale > 0 ? fmt::format("{:g} per metre", info_.rig.depth_scale)
                                   : std::string("metric")));
@@ -208,8 +233,11 @@ class Run {
   const FrameStats* process(std::size_t i, const RgbdFrame& frame, double read_ms) {
     if (params_.poses.source == PoseSource::Icp) {
       // The first frame fixes the world frame: at its true pose when known, else at the origin.
-      const FrameStats& s =
-          rec_->track_and_integrate(frame, read_ms, frame.T_wc_gt.value_or(Pose::Identity()));
+      // Continuing a map, tracking starts at the map's last pose (where the scan stopped), else
+      // there.
+      const Pose start =
+          session_start_ ? *session_start_ : frame.T_wc_gt.value_or(Pose::Identity());
+      const FrameStats& s = rec_->track_and_integrate(frame, read_ms, start);
       if (s.tracking == TrackingQuality::Lost) {
         ++summary_.frames_lost;
         log::warn(
@@ -240,6 +268,12 @@ class Run {
   void finish() {
     const bool files = folder_->writes();
     const fs::path& out = folder_->dir();
+    if (!params_.map_out.empty()) {  // first: the map is what a rerun cannot recover cheaply
+      Stopwatch save;
+      write_map_file(params_.map_out, rec_->map(), params_.reconstruction.fusion, rec_->session());
+      summary_.map_save_s = save.elapsed_ms() / 1e3;
+      summary_.files.push_back(params_.map_out);
+    }
     if (ground_truth_.size() >= 3 && params_.poses.source != PoseSource::GroundTruth)
       summary_.ate = evaluate_ate(ground_truth_, rec_->trajectory());
     if (files) {
@@ -329,6 +363,7 @@ class Run {
   OutputFolder* folder_ = nullptr;
   Reconstruction* rec_ = nullptr;
   std::unique_ptr<PoseFile> pose_file_;
+  std::optional<Pose> session_start_;  ///< the continued map's last pose
   std::vector<StampedPose> ground_truth_;
   std::optional<double> last_timestamp_;
   std::size_t timestamps_out_of_order_ = 0;

@@ -9,6 +9,8 @@
 #include <set>
 #include <tuple>
 
+#include "test_util.h"
+
 #include "analytic_scene.h"
 #include "hivox/core/error.h"
 #include "hivox/core/threads.h"
@@ -122,15 +124,23 @@ TEST(ExtractMesh, PlaneGivesTheExactGridOfVertices) {
   EXPECT_EQ(topo.euler(), 1);  // a disc
 }
 
-TEST(ExtractMesh, ExactSphereIsAClosedManifoldWithSharedVertices) {
-  // A sphere written straight from its SDF, off the grid and across many blocks (and the
-  // origin, so negative block coordinates too).
-  const float voxel = 0.01f;
+/// A sphere written straight from its SDF into 1 cm voxels, off the grid and across many blocks
+/// (and the origin, so negative block coordinates too).
+/// Returns the sphere's centre and SDF.
+Eigen::Vector3d write_exact_sphere(VoxelBlockMap& map, test::Sdf* sdf_out = nullptr) {
   const double mu = 0.04, r = 0.173;
   const Eigen::Vector3d c(0.0123, -0.0311, 0.0457);
-  const test::Sdf sdf = [&](const Eigen::Vector3d& p) { return (p - c).norm() - r; };
-  VoxelBlockMap map(test::mesh_map_params(voxel));
+  const test::Sdf sdf = [c, r](const Eigen::Vector3d& p) { return (p - c).norm() - r; };
   test::write_sdf_band(map, 0, c.array() - 0.3, c.array() + 0.3, mu, mu, sdf);
+  if (sdf_out) *sdf_out = sdf;
+  return c;
+}
+
+TEST(ExtractMesh, ExactSphereIsAClosedManifoldWithSharedVertices) {
+  const float voxel = 0.01f;
+  VoxelBlockMap map(test::mesh_map_params(voxel));
+  test::Sdf sdf;
+  const Eigen::Vector3d c = write_exact_sphere(map, &sdf);
   const TriangleMesh m = extract_mesh(map);
   ASSERT_GT(m.triangle_count(), 5000);
   const test::MeshTopology topo = test::mesh_topology(m.vertex_count(), m.triangles);
@@ -509,6 +519,83 @@ TEST(ExtractMesh, FloatingSphereSeenFromAllSidesIsWatertight) {
   for (const Vec3f& p : m.positions_w)
     max_err = std::max(max_err, std::abs(scene.sdf(to_eigen(p))));
   EXPECT_LT(max_err, 0.5 * voxel);
+}
+
+/// The triangles of a mesh as sets of corner positions, independent of vertex numbering.
+std::multiset<std::array<float, 9>> triangle_set(const TriangleMesh& m) {
+  std::multiset<std::array<float, 9>> out;
+  for (const auto& t : m.triangles) {
+    std::array<float, 9> k{};
+    for (int c = 0; c < 3; ++c)
+      for (int a = 0; a < 3; ++a) k[3 * c + a] = m.positions_w[t[c]][a];
+    out.insert(k);
+  }
+  return out;
+}
+
+// Meshing inside bounds (blocks outside skipped) gives exactly the triangles of the whole mesh
+// whose corners lie inside.
+TEST(MeshBounds, BoundsGiveTheWholeMeshCropped) {
+  VoxelBlockMap map(test::mesh_map_params(0.01f));
+  write_exact_sphere(map);
+  const TriangleMesh whole = extract_mesh(map);
+  MeshParams p;
+  p.bounds = Box3f{{-0.05f, -0.3f, -0.02f}, {0.3f, 0.07f, 0.4f}};
+  const TriangleMesh inside = extract_mesh(map, p);
+  const TriangleMesh cropped = crop_mesh(whole, *p.bounds);
+  EXPECT_GT(inside.triangle_count(), 500);
+  EXPECT_LT(inside.triangle_count(), whole.triangle_count() / 2);
+  EXPECT_TRUE(triangle_set(inside) == triangle_set(cropped));
+  for (const Vec3f& v : inside.positions_w) EXPECT_TRUE(p.bounds->contains(v));
+  const test::MeshTopology topo = test::mesh_topology(inside.vertex_count(), inside.triangles);
+  EXPECT_EQ(topo.unused_vertices, 0);
+  EXPECT_EQ(duplicate_positions(inside), 0);
+  p.bounds = Box3f{{1.0f, 1.0f, 1.0f}, {2.0f, 2.0f, 2.0f}};
+  EXPECT_EQ(extract_mesh(map, p).triangle_count(), 0);
+  p.bounds = Box3f{{1.0f, 1.0f, 1.0f}, {0.0f, 2.0f, 2.0f}};
+  EXPECT_TRUE(test::contains(test::error_of([&] { extract_mesh(map, p); }).what(), "min <= max"));
+}
+
+// A small sphere beside a big one is a piece of its own and goes; the big one stays whole.
+TEST(MeshPieces, SmallPiecesAreRemovedBigOnesKept) {
+  const float voxel = 0.01f;
+  const double mu = 0.04;
+  const Eigen::Vector3d big(0.0, 0.0, 0.0), small(0.5, 0.0, 0.0);
+  const test::Sdf sdf = [&](const Eigen::Vector3d& p) {
+    return std::min((p - big).norm() - 0.2, (p - small).norm() - 0.05);
+  };
+  VoxelBlockMap map(test::mesh_map_params(voxel));
+  test::write_sdf_band(map, 0, {-0.3, -0.3, -0.3}, {0.6, 0.3, 0.3}, mu, mu, sdf);
+  const TriangleMesh all = extract_mesh(map);
+  MeshParams p;
+  p.min_piece_triangles = 2000;
+  int64_t removed = -1;
+  const TriangleMesh kept = remove_small_pieces(all, p.min_piece_triangles, voxel, &removed);
+  EXPECT_EQ(removed, 1);
+  EXPECT_LT(kept.triangle_count(), all.triangle_count());
+  for (const Vec3f& v : kept.positions_w) EXPECT_LT(v.x, 0.3f);
+  const test::MeshTopology topo = test::mesh_topology(kept.vertex_count(), kept.triangles);
+  EXPECT_EQ(topo.components, 1);
+  EXPECT_TRUE(topo.closed_manifold());
+  EXPECT_EQ(extract_mesh(map, p).triangle_count(), kept.triangle_count());
+  EXPECT_EQ(remove_small_pieces(all, 1, voxel).triangle_count(), all.triangle_count());
+}
+
+// Across a change of level the two sides share no vertex, but they are one piece.
+TEST(MeshPieces, APieceSpanningTwoLevelsIsOnePiece) {
+  const float voxel = 0.01f;
+  const double plane_z = 0.0437, mu = 0.08;
+  auto plane = [&](const Eigen::Vector3d& p) { return p.z() - plane_z; };
+  VoxelBlockMap map(test::mesh_map_params(voxel, 2));
+  test::write_sdf_blocks(map, 1, {-1, 0, 0}, {0, 0, 0}, mu, plane);
+  split_to_finest_exact(map, 1, mu, plane, [](const BlockRef& b) { return b.pos.x < 0; });
+  const TriangleMesh m = extract_mesh(map);
+  const test::MeshTopology topo = test::mesh_topology(m.vertex_count(), m.triangles);
+  ASSERT_EQ(topo.components, 2) << "the levels' parts share no vertex";
+  int64_t removed = -1;
+  const TriangleMesh kept = remove_small_pieces(m, m.triangle_count() * 2 / 3, voxel, &removed);
+  EXPECT_EQ(removed, 0);
+  EXPECT_EQ(kept.triangle_count(), m.triangle_count());
 }
 
 }  // namespace

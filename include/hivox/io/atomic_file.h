@@ -4,7 +4,10 @@
 /// path, renamed over it once complete. A reader (or a later run) sees the previous file or the
 /// whole new one, never a part, whatever interrupts the writing.
 
+#include <cstdint>
 #include <filesystem>
+#include <span>
+#include <string>
 
 namespace hivox {
 
@@ -28,5 +31,14 @@ class AtomicFile {
   std::filesystem::path path_, temp_;
   bool committed_ = false;
 };
+
+/// Writes `parts` one after the other as the file `path`, atomically (an AtomicFile). A file that
+/// cannot be written is `Error(Io)` naming `path`.
+void write_file_atomically(const std::filesystem::path& path,
+                           std::span<const std::span<const uint8_t>> parts);
+
+/// The whole content of the file `path`. A missing file, or one that cannot be read, is
+/// `Error(Io)` naming it.
+std::string read_whole_file(const std::filesystem::path& path);
 
 }  // namespace hivox

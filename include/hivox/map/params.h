@@ -30,6 +30,10 @@ struct MapParams {
   float block_size_at(int level) const { return 8.0f * voxel_size_at(level); }
   int bytes_per_voxel() const { return store_color ? 8 : 4; }
 
+  /// Whether `other` shapes voxels differently (voxel size, levels, truncation, colour; the
+  /// capacities do not count): the first such field in words, naming both values, or empty.
+  std::string shape_difference(const MapParams& other) const;
+
   /// Throws `Error(InvalidArgument)` naming the bad field.
   void validate() const;
   /// Warns (log) about combinations that work badly, e.g. a truncation band narrower than two

@@ -2,7 +2,11 @@
 /// @file
 /// Mesh extraction parameters.
 
+#include <cstdint>
+#include <optional>
 #include <string>
+
+#include "hivox/mesh/triangle_mesh.h"
 
 namespace hivox {
 
@@ -16,6 +20,12 @@ struct MeshParams {
   float min_weight = 1.0f;
   bool compute_normals = true;  ///< per-vertex normals from the TSDF gradient
   bool with_color = true;       ///< per-vertex colour when the map stores colour
+  /// Mesh only this box: blocks outside it are skipped and only triangles whose corners all lie
+  /// inside are kept.
+  std::optional<Box3f> bounds;
+  /// Remove connected pieces of fewer triangles than this (0: keep all); pieces are joined
+  /// across level boundaries (remove_small_pieces, joined within a finest voxel).
+  int64_t min_piece_triangles = 0;
 
   /// Throws `Error(InvalidArgument)` naming the bad field.
   void validate() const;

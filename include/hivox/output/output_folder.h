@@ -28,7 +28,7 @@ class OutputFolder {
   /// Moves the folder into place; an older `out` is moved aside first and removed after. Throws
   /// `Error(Io)` saying where the results are when it cannot.
   void commit();
-  /// The final path of a file written into dir().
+  /// The final path of a file written into dir(); other paths are returned as they are.
   std::filesystem::path final_path(const std::filesystem::path& written) const;
 
  private:

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "hivox/core/pose.h"
 #include "hivox/core/timer.h"
 #include "hivox/fusion/integrator.h"
+#include "hivox/map/stored_map.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
@@ -89,6 +91,13 @@ class Reconstruction {
  public:
   /// `rig`: the sensor whose frames are fused (cameras, their relative pose, depth noise).
   Reconstruction(const ReconstructionParams& params, const CameraRig& rig);
+  /// Continues into `map` (e.g. loaded from a map file), which `session` describes. The map's
+  /// shape (voxel size, levels, truncation, colour) must equal `params.map`'s, else
+  /// `Error(InvalidArgument)` names the first field that differs; its capacities are its own.
+  /// Frames fused from here on continue the refinement's cadence; in track_and_integrate the
+  /// first frame is tracked against the map (not fused blindly at its start pose).
+  Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                 std::unique_ptr<VoxelBlockMap> map, const MapSession& session);
 
   const ReconstructionParams& params() const { return params_; }
   const CameraRig& rig() const { return rig_; }
@@ -100,8 +109,9 @@ class Reconstruction {
 
   /// The online loop: estimates the pose of `frame` by ICP against the raycast of the model
   /// from the previous pose, then fuses it there (allocate, integrate, refine, raycast). The
-  /// first frame is fused at `T_wc_first`. A frame whose tracking is lost is not fused and keeps
-  /// the previous pose (the motion prior restarts).
+  /// first frame is fused at `T_wc_first`; in a reconstruction that continues a map it is tracked
+  /// from `T_wc_first` instead. A frame whose tracking is lost is not fused and keeps the previous
+  /// pose (the motion prior restarts).
   const FrameStats& track_and_integrate(const RgbdFrame& frame, double read_ms = 0.0,
                                         const Pose& T_wc_first = Pose::Identity());
   /// Throws `Error(InvalidArgument)` when this reconstruction cannot track its rig's frames
@@ -128,6 +138,9 @@ class Reconstruction {
   const std::vector<FrameStats>& frame_stats() const { return frames_; }
   const std::vector<StampedPose>& trajectory() const { return trajectory_; }
   int64_t peak_blocks() const { return peak_blocks_; }
+  /// Where the reconstruction stands, the map's earlier frames included: what a map file keeps
+  /// beside the voxels to continue it.
+  MapSession session() const;
 
  private:
   ReconstructionParams params_;
@@ -154,6 +167,10 @@ class Reconstruction {
   std::vector<FrameStats> frames_;
   std::vector<StampedPose> trajectory_;
   int64_t peak_blocks_ = 0;
+  MapSession resumed_;  ///< the session of the map this reconstruction continues
+  bool continues_map_ = false;
+  Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                 std::unique_ptr<VoxelBlockMap> map, const MapSession& session, bool continues_map);
 };
 
 }  // namespace hivox

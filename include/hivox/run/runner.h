@@ -6,11 +6,13 @@
 ///
 /// The run: poses from ICP tracking, the dataset's ground truth or a trajectory file; the first
 /// frame of a tracked run sits at its ground-truth pose when the dataset has one (so that
-/// renders and meshes line up with the ground truth), else at the origin; a frame whose tracking
+/// renders and meshes line up with the ground truth), else at the origin (a run that continues a
+/// map file tracks its first frame from the map's last pose, where the scan stopped, else from
+/// there); a frame whose tracking
 /// is lost is not fused and keeps the previous pose (Reconstruction::track_and_integrate); a
 /// frame without a pose (given poses) is skipped and counted. At the end, in the output folder:
 /// `trajectory.txt`, the renders from the last pose and from an overview pose, `mesh.ply` and
-/// `stats.json`.
+/// `stats.json`; the map file when asked for.
 
 #include <cstddef>
 #include <cstdint>
@@ -58,7 +60,17 @@ BadFramePolicy parse_bad_frame_policy(std::string_view name);
 struct RunParams {
   ReconstructionParams reconstruction;
   PoseSpec poses;
-  std::size_t max_frames = 0;  ///< the first N frames; 0 = all
+  std::size_t first_frame = 0;  ///< the dataset's frames from this one (0 = the first)
+  std::size_t max_frames = 0;   ///< at most N frames from first_frame; 0 = all
+  /// A map file to continue (`.hvx`): its map is loaded and the frames are fused into it, the
+  /// refinement's cadence and (when tracking) the pose picked up where it stopped. Its shape
+  /// (voxel size, levels, truncation, colour) and maximum weight must equal
+  /// `reconstruction`'s, else `Error(InvalidArgument)` names the difference; the capacities are
+  /// `reconstruction.map`'s.
+  std::filesystem::path map_in;
+  /// Where to save the map at the end (also after a stop or a bad frame): a map file that
+  /// `map_in`, `hivox mesh`, `hivox render` and `hivox info` read. Empty: not saved.
+  std::filesystem::path map_out;
   /// Also write the renders of every N-th frame (`frameNNNNNN_*.png`); 0 = only at the end.
   int render_every = 0;
   MeshParams mesh;
@@ -104,6 +116,7 @@ struct RunSummary {
   std::optional<AteResult> ate;  ///< estimated poses against the ground truth, when both exist
   int64_t mesh_vertices = 0, mesh_triangles = 0;
   double mesh_s = 0;
+  double map_load_s = 0, map_save_s = 0;     ///< reading RunParams::map_in, writing map_out
   std::vector<std::filesystem::path> files;  ///< what the run wrote, in order
 };
 

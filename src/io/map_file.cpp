@@ -1,0 +1,577 @@
+#include "hivox/io/map_file.h"
+
+#include <zstd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+#include <span>
+#include <string_view>
+
+#define XXH_INLINE_ALL
+#include <xxhash.h>
+
+#include <fmt/format.h>
+
+#include "core/parallel.h"
+#include "hivox/core/error.h"
+#include "hivox/core/version.h"
+#include "hivox/io/atomic_file.h"
+
+namespace hivox {
+
+namespace fs = std::filesystem;
+
+static_assert(std::endian::native == std::endian::little,
+              "map files are little-endian; a big-endian build would swap every field");
+
+namespace {
+
+// The layout (docs/map-files.md): header, chunk table, zstd chunks, checksum, end marker.
+constexpr std::array<char, 8> kMagic = {'H', 'I', 'V', 'O', 'X', 'M', 'A', 'P'};
+constexpr std::array<char, 8> kEndMagic = {'H', 'V', 'X', 'E', 'N', 'D', '\0', '\0'};
+constexpr std::size_t kTrailerBytes = 8 + kEndMagic.size();  // checksum, end marker
+constexpr std::size_t kVersionBytes = 16;
+/// Raw bytes per compressed chunk: chunks compress and decompress in parallel.
+constexpr uint32_t kChunkBytes = 1u << 20;
+constexpr int kZstdLevel = 1;
+constexpr uint32_t kHasPose = 1, kHasCamera = 2;
+
+/// Raw bytes of a level's payload: Split entries' and blocks' coordinates, blocks' update counts,
+/// then the voxels field by field (TSDF, weight, colour), block after block.
+struct LevelCounts {
+  int64_t blocks = 0, splits = 0;
+  uint64_t raw_bytes(bool color) const {
+    const auto b = static_cast<uint64_t>(blocks), s = static_cast<uint64_t>(splits);
+    return 12 * (s + b) + 2 * b + uint64_t{kBlockVoxels} * b * (color ? 8 : 4);
+  }
+};
+
+uint64_t checksum(std::span<const uint8_t> bytes) {
+  return XXH3_64bits(bytes.data(), bytes.size());
+}
+
+class Writer {
+ public:
+  template <typename T>
+  void put(const T& v) {
+    const auto* p = reinterpret_cast<const uint8_t*>(&v);
+    bytes_.insert(bytes_.end(), p, p + sizeof(T));
+  }
+  void put_bytes(const void* data, std::size_t n) {
+    const auto* p = static_cast<const uint8_t*>(data);
+    bytes_.insert(bytes_.end(), p, p + n);
+  }
+  std::vector<uint8_t>& bytes() { return bytes_; }
+
+ private:
+  std::vector<uint8_t> bytes_;
+};
+
+/// Bounds-checked reading of the header: a field past the end is the file's error.
+class Reader {
+ public:
+  Reader(std::span<const uint8_t> bytes, const std::string& what) : bytes_(bytes), what_(what) {}
+  template <typename T>
+  T get(const char* field) {
+    T v;
+    need(sizeof(T), field);
+    std::memcpy(&v, bytes_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return v;
+  }
+  std::span<const uint8_t> get_bytes(std::size_t n, const char* field) {
+    need(n, field);
+    const std::span<const uint8_t> out = bytes_.subspan(at_, n);
+    at_ += n;
+    return out;
+  }
+  std::size_t at() const { return at_; }
+
+ private:
+  void need(std::size_t n, const char* field) const {
+    if (n > bytes_.size() - at_)
+      fail(ErrorCode::InvalidData, "{}: the header ends inside {} (truncated or corrupted)", what_,
+           field);
+  }
+  std::span<const uint8_t> bytes_;
+  std::size_t at_ = 0;
+  const std::string& what_;
+};
+
+/// One level's payload, built field by field in the canonical order.
+std::vector<uint8_t> level_payload(const VoxelBlockMap& map, int level, LevelCounts* counts) {
+  const std::vector<Vec3i> splits = sorted_split_entries(map, level);
+  const std::vector<BlockRef> blocks = sorted_blocks(map, level);
+  counts->blocks = static_cast<int64_t>(blocks.size());
+  counts->splits = static_cast<int64_t>(splits.size());
+  const bool color = map.params().store_color;
+  std::vector<uint8_t> raw(counts->raw_bytes(color));
+  uint8_t* out = raw.data();
+  auto put_key = [&](const Vec3i& p) {
+    const int32_t xyz[3] = {p.x, p.y, p.z};
+    std::memcpy(out, xyz, sizeof xyz);
+    out += sizeof xyz;
+  };
+  for (const Vec3i& p : splits) put_key(p);
+  for (const BlockRef& b : blocks) put_key(b.pos);
+  for (const BlockRef& b : blocks) {
+    const uint16_t updates = map.block_meta(b.ptr).updates;
+    std::memcpy(out, &updates, 2);
+    out += 2;
+  }
+  const int64_t n = counts->blocks;
+  auto* tsdf = reinterpret_cast<int16_t*>(out);
+  auto* weight = reinterpret_cast<uint16_t*>(out + 2 * kBlockVoxels * n);
+  uint8_t* rgbw = out + 4 * kBlockVoxels * n;
+  parallel_for(n, [&](int64_t i) {
+    const TsdfVoxel* v = map.block_tsdf(blocks[static_cast<std::size_t>(i)].ptr);
+    int16_t* t = tsdf + i * kBlockVoxels;
+    uint16_t* w = weight + i * kBlockVoxels;
+    for (int k = 0; k < kBlockVoxels; ++k) {
+      t[k] = v[k].tsdf;
+      w[k] = v[k].weight;
+    }
+    if (color)
+      std::memcpy(rgbw + i * kBlockVoxels * 4,
+                  map.block_color(blocks[static_cast<std::size_t>(i)].ptr),
+                  kBlockVoxels * sizeof(ColorVoxel));
+  });
+  return raw;
+}
+
+struct Chunks {
+  std::vector<uint32_t> raw_bytes, stored_bytes;
+  std::vector<std::vector<uint8_t>> data;
+};
+
+/// Compresses `raw` in chunks of kChunkBytes, in parallel (the same bytes whatever the thread
+/// count: every chunk is its own zstd frame).
+void compress_into(std::span<const uint8_t> raw, Chunks& out, const fs::path& path) {
+  const std::size_t first = out.data.size();
+  const std::size_t n = (raw.size() + kChunkBytes - 1) / kChunkBytes;
+  out.data.resize(first + n);
+  out.raw_bytes.resize(first + n);
+  out.stored_bytes.resize(first + n);
+  std::vector<uint8_t> failed(n, 0);
+  parallel_for(static_cast<int64_t>(n), [&](int64_t c) {
+    const std::size_t begin = static_cast<std::size_t>(c) * kChunkBytes;
+    const std::size_t size = std::min<std::size_t>(kChunkBytes, raw.size() - begin);
+    std::vector<uint8_t>& dst = out.data[first + static_cast<std::size_t>(c)];
+    dst.resize(ZSTD_compressBound(size));
+    const std::size_t stored =
+        ZSTD_compress(dst.data(), dst.size(), raw.data() + begin, size, kZstdLevel);
+    if (ZSTD_isError(stored)) {  // out of memory: the bound always fits
+      failed[static_cast<std::size_t>(c)] = 1;
+      return;
+    }
+    dst.resize(stored);
+    out.raw_bytes[first + static_cast<std::size_t>(c)] = static_cast<uint32_t>(size);
+    out.stored_bytes[first + static_cast<std::size_t>(c)] = static_cast<uint32_t>(stored);
+  });
+  if (std::find(failed.begin(), failed.end(), 1) != failed.end())
+    fail(ErrorCode::Io, "{}: compression failed (out of memory?); nothing was written",
+         path.string());
+}
+
+uint32_t sampling_code(DepthSampling s) {
+  return s == DepthSampling::Nearest ? 0u : 1u;
+}
+
+/// The header fields, parsed and checked; the chunk table follows them.
+struct Header {
+  MapFileInfo info;
+  std::vector<LevelCounts> counts;
+  std::vector<uint32_t> chunks_per_level;
+  uint32_t chunk_bytes = 0;
+};
+
+/// Checks what can be checked without the header's fields: size, magic, version, end marker and
+/// checksum. Returns the version.
+uint32_t check_envelope(std::span<const uint8_t> bytes, const std::string& what) {
+  if (bytes.size() < kMagic.size() + 4 ||
+      std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) != 0)
+    fail(ErrorCode::InvalidData, "{}: not a hivox map file (no HIVOXMAP magic at its start)", what);
+  uint32_t version = 0;
+  std::memcpy(&version, bytes.data() + kMagic.size(), 4);
+  if (version == 0 || version > kMapFileVersion)
+    fail(ErrorCode::Unsupported,
+         "{}: map file format version {}; this hivox ({}) reads versions 1 to {}{}", what, version,
+         library_version(), kMapFileVersion,
+         version > kMapFileVersion ? " (written by a newer hivox? update it to read this file)"
+                                   : "");
+  if (bytes.size() < kMagic.size() + 4 + kTrailerBytes ||
+      std::memcmp(bytes.data() + bytes.size() - kEndMagic.size(), kEndMagic.data(),
+                  kEndMagic.size()) != 0)
+    fail(ErrorCode::InvalidData,
+         "{}: no end marker: the file is truncated (an interrupted copy?) or corrupted", what);
+  const std::size_t body = bytes.size() - kTrailerBytes;
+  uint64_t stored = 0;
+  std::memcpy(&stored, bytes.data() + body, 8);
+  if (checksum(bytes.first(body)) != stored)
+    fail(ErrorCode::InvalidData,
+         "{}: checksum mismatch: the file is corrupted (some byte differs from what was written)",
+         what);
+  return version;
+}
+
+Header parse_header(Reader& r, const std::string& what, int64_t file_bytes) {
+  Header h;
+  MapFileInfo& info = h.info;
+  info.file_bytes = file_bytes;
+  r.get_bytes(kMagic.size(), "the magic");
+  info.format_version = r.get<uint32_t>("the format version");
+  const std::span<const uint8_t> version = r.get_bytes(kVersionBytes, "the library version");
+  info.library_version.assign(
+      reinterpret_cast<const char*>(version.data()),
+      strnlen(reinterpret_cast<const char*>(version.data()), kVersionBytes));
+  auto bad = [&](const std::string& problem) {
+    fail(ErrorCode::InvalidData, "{}: {} (corrupted, or not written by hivox)", what, problem);
+  };
+  MapParams& m = info.map;
+  m.levels = static_cast<int>(r.get<uint32_t>("the level count"));
+  m.voxel_size_m = r.get<float>("the voxel size");
+  m.truncation_m = r.get<float>("the truncation");
+  const auto block_side = r.get<uint32_t>("the block side");
+  const auto tsdf_bytes = r.get<uint32_t>("the TSDF field size");
+  const auto weight_bytes = r.get<uint32_t>("the weight field size");
+  const auto color_bytes = r.get<uint32_t>("the colour field size");
+  const auto tsdf_scale = r.get<float>("the TSDF scale");
+  if (block_side != kBlockSide || tsdf_bytes != 2 || weight_bytes != 2 ||
+      (color_bytes != 0 && color_bytes != 4) || tsdf_scale != kTsdfScale)
+    fail(ErrorCode::Unsupported,
+         "{}: voxel layout {}^3 blocks, TSDF {} B, weight {} B, colour {} B, scale {:g}; this "
+         "hivox stores 8^3 blocks of 2 + 2 (+ 4) B, scale {:g}",
+         what, block_side, tsdf_bytes, weight_bytes, color_bytes, tsdf_scale, kTsdfScale);
+  m.store_color = color_bytes == 4;
+  FusionParams& f = info.fusion;
+  f.max_weight = r.get<int32_t>("the maximum weight");
+  const auto sampling = r.get<uint32_t>("the depth sampling");
+  if (sampling > 1) bad(fmt::format("unknown depth sampling {}", sampling));
+  f.depth_sampling = sampling == 0 ? DepthSampling::Nearest : DepthSampling::Bilinear;
+  f.depth_range.min_m = r.get<float>("the depth range");
+  f.depth_range.max_m = r.get<float>("the depth range");
+  f.integrate_color = r.get<uint32_t>("the colour flag") != 0;
+  MapSession& s = info.session;
+  s.frames_fused = r.get<int64_t>("the frame count");
+  const auto flags = r.get<uint32_t>("the session flags");
+  std::array<double, 12> pose{};
+  for (double& v : pose) v = r.get<double>("the last pose");
+  std::array<float, 4> k{};
+  for (float& v : k) v = r.get<float>("the camera");
+  const auto width = r.get<int32_t>("the camera");
+  const auto height = r.get<int32_t>("the camera");
+  m.max_blocks = r.get<int64_t>("the capacities");
+  m.buckets_per_level = r.get<int64_t>("the capacities");
+  m.excess_per_level = r.get<int64_t>("the capacities");
+  h.chunk_bytes = r.get<uint32_t>("the chunk size");
+  if (h.chunk_bytes == 0 || h.chunk_bytes > (1u << 30))
+    bad(fmt::format("chunk size {} bytes", h.chunk_bytes));
+  try {
+    m.validate();
+    f.validate();
+  } catch (const Error& e) {
+    bad(e.what());
+  }
+  if (s.frames_fused < 0) bad(fmt::format("{} frames fused", s.frames_fused));
+  if (flags & kHasPose) {
+    Pose T = Pose::Identity();
+    for (int row = 0; row < 3; ++row)
+      for (int col = 0; col < 4; ++col)
+        T.matrix()(row, col) = pose[static_cast<std::size_t>(row * 4 + col)];
+    if (!T.matrix().allFinite()) bad("the last pose is not finite");
+    s.last_pose = T;
+  }
+  if (flags & kHasCamera) {
+    const PinholeCamera c{k[0], k[1], k[2], k[3], width, height};
+    try {
+      c.validate();
+    } catch (const Error& e) {
+      bad(fmt::format("camera: {}", e.what()));
+    }
+    s.camera = c;
+  }
+  for (int l = 0; l < m.levels; ++l) {
+    LevelCounts c;
+    c.blocks = r.get<int64_t>("the block counts");
+    c.splits = r.get<int64_t>("the block counts");
+    const auto chunks = r.get<uint32_t>("the chunk counts");
+    // Every block takes bytes of the file (a chunk holds at most 1 GiB raw), which bounds the
+    // counts before anything is allocated from them.
+    if (c.blocks < 0 || c.splits < 0 || c.blocks > (int64_t{1} << 31) ||
+        c.splits > (int64_t{1} << 31))
+      bad(fmt::format("level {}: {} blocks, {} split entries", l, c.blocks, c.splits));
+    const uint64_t raw = c.raw_bytes(m.store_color);
+    if (chunks != (raw + h.chunk_bytes - 1) / h.chunk_bytes)
+      bad(fmt::format("level {}: {} chunks for {} bytes", l, chunks, raw));
+    h.counts.push_back(c);
+    h.chunks_per_level.push_back(chunks);
+    info.blocks_per_level.push_back(c.blocks);
+    info.splits_per_level.push_back(c.splits);
+  }
+  return h;
+}
+
+void check_counts_fit(const Header& h, const MapParams& capacity, const std::string& what) {
+  int64_t blocks = 0;
+  for (const LevelCounts& c : h.counts) blocks += c.blocks;
+  if (blocks > capacity.max_blocks)
+    fail(ErrorCode::OutOfCapacity,
+         "{}: the map holds {} blocks, more than the voxel-block pool's {} (raise --max-blocks)",
+         what, blocks, capacity.max_blocks);
+}
+
+}  // namespace
+
+void write_map_file(const fs::path& path, const VoxelBlockMap& map, const FusionParams& fusion,
+                    const MapSession& session) {
+  const MapParams& m = map.params();
+  Chunks chunks;
+  std::vector<LevelCounts> counts(static_cast<std::size_t>(m.levels));
+  std::vector<uint32_t> chunks_per_level;
+  for (int l = 0; l < m.levels; ++l) {
+    const std::size_t before = chunks.data.size();
+    const std::vector<uint8_t> raw = level_payload(map, l, &counts[static_cast<std::size_t>(l)]);
+    compress_into(raw, chunks, path);
+    chunks_per_level.push_back(static_cast<uint32_t>(chunks.data.size() - before));
+  }
+
+  Writer w;
+  w.put_bytes(kMagic.data(), kMagic.size());
+  w.put(kMapFileVersion);
+  std::array<char, kVersionBytes> version{};
+  const std::string_view v = library_version();
+  std::memcpy(version.data(), v.data(), std::min(v.size(), kVersionBytes));
+  w.put_bytes(version.data(), version.size());
+  w.put(static_cast<uint32_t>(m.levels));
+  w.put(m.voxel_size_m);
+  w.put(m.truncation_m);
+  w.put(static_cast<uint32_t>(kBlockSide));
+  w.put(uint32_t{2});
+  w.put(uint32_t{2});
+  w.put(static_cast<uint32_t>(m.store_color ? 4 : 0));
+  w.put(kTsdfScale);
+  w.put(static_cast<int32_t>(fusion.max_weight));
+  w.put(sampling_code(fusion.depth_sampling));
+  w.put(fusion.depth_range.min_m);
+  w.put(fusion.depth_range.max_m);
+  w.put(static_cast<uint32_t>(fusion.integrate_color ? 1 : 0));
+  w.put(session.frames_fused);
+  w.put((session.last_pose ? kHasPose : 0u) | (session.camera ? kHasCamera : 0u));
+  const Pose T = session.last_pose.value_or(Pose::Identity());
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 4; ++col) w.put(T.matrix()(row, col));
+  const PinholeCamera c = session.camera.value_or(PinholeCamera{});
+  w.put(c.fx);
+  w.put(c.fy);
+  w.put(c.cx);
+  w.put(c.cy);
+  w.put(static_cast<int32_t>(session.camera ? c.width : 0));
+  w.put(static_cast<int32_t>(session.camera ? c.height : 0));
+  w.put(m.max_blocks);
+  w.put(m.buckets_per_level);
+  w.put(m.excess_per_level);
+  w.put(kChunkBytes);
+  for (int l = 0; l < m.levels; ++l) {
+    w.put(counts[static_cast<std::size_t>(l)].blocks);
+    w.put(counts[static_cast<std::size_t>(l)].splits);
+    w.put(chunks_per_level[static_cast<std::size_t>(l)]);
+  }
+  for (std::size_t i = 0; i < chunks.data.size(); ++i) {
+    w.put(chunks.raw_bytes[i]);
+    w.put(chunks.stored_bytes[i]);
+  }
+  // The checksum covers the header and every chunk.
+  XXH3_state_t* state = XXH3_createState();
+  XXH3_64bits_reset(state);
+  XXH3_64bits_update(state, w.bytes().data(), w.bytes().size());
+  for (const std::vector<uint8_t>& d : chunks.data) XXH3_64bits_update(state, d.data(), d.size());
+  const uint64_t sum = XXH3_64bits_digest(state);
+  XXH3_freeState(state);
+  Writer trailer;
+  trailer.put(sum);
+  trailer.put_bytes(kEndMagic.data(), kEndMagic.size());
+
+  std::vector<std::span<const uint8_t>> parts;
+  parts.emplace_back(w.bytes());
+  for (const std::vector<uint8_t>& d : chunks.data) parts.emplace_back(d);
+  parts.emplace_back(trailer.bytes());
+  write_file_atomically(path, parts);
+}
+
+namespace {
+
+/// The whole file, checked (envelope) and its header parsed.
+struct OpenedFile {
+  std::string bytes;
+  Header header;
+  std::size_t table_at = 0;  ///< where the chunk table starts
+};
+
+OpenedFile open_map_file(const fs::path& path) {
+  OpenedFile f;
+  const std::string what = path.string();
+  f.bytes = read_whole_file(path);
+  const std::span<const uint8_t> all(reinterpret_cast<const uint8_t*>(f.bytes.data()),
+                                     f.bytes.size());
+  check_envelope(all, what);
+  Reader r(all.first(all.size() - kTrailerBytes), what);
+  f.header = parse_header(r, what, static_cast<int64_t>(all.size()));
+  f.table_at = r.at();
+  return f;
+}
+
+}  // namespace
+
+bool is_map_file(const fs::path& path) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  std::array<char, kMagic.size()> head{};
+  return f && std::fread(head.data(), 1, head.size(), f.get()) == head.size() && head == kMagic;
+}
+
+MapFileInfo read_map_file_info(const fs::path& path) {
+  return open_map_file(path).header.info;
+}
+
+LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& capacities) {
+  const std::string what = path.string();
+  OpenedFile f = open_map_file(path);
+  const Header& h = f.header;
+  MapParams params = h.info.map;
+  int64_t total_blocks = 0;
+  for (const LevelCounts& c : h.counts) total_blocks += c.blocks;
+  if (capacities) {
+    params.max_blocks = capacities->max_blocks;
+    params.buckets_per_level = capacities->buckets_per_level;
+    params.excess_per_level = capacities->excess_per_level;
+  } else {
+    params.max_blocks = std::max(params.max_blocks, total_blocks);
+  }
+  check_counts_fit(h, params, what);
+
+  // The chunk table: raw sizes must add up to each level's payload; stored sizes to the body.
+  const std::span<const uint8_t> all(reinterpret_cast<const uint8_t*>(f.bytes.data()),
+                                     f.bytes.size());
+  Reader table(all.first(all.size() - kTrailerBytes), what);
+  table.get_bytes(f.table_at, "the header");
+  std::size_t total_chunks = 0;
+  for (const uint32_t n : h.chunks_per_level) total_chunks += n;
+  if (total_chunks > all.size() / 8)
+    fail(ErrorCode::InvalidData, "{}: {} chunks do not fit in the file (corrupted)", what,
+         total_chunks);
+  std::vector<uint32_t> raw_bytes(total_chunks), stored_bytes(total_chunks);
+  for (std::size_t i = 0; i < total_chunks; ++i) {
+    raw_bytes[i] = table.get<uint32_t>("the chunk table");
+    stored_bytes[i] = table.get<uint32_t>("the chunk table");
+  }
+  std::vector<std::size_t> chunk_at(total_chunks);
+  std::size_t at = table.at();
+  for (std::size_t i = 0; i < total_chunks; ++i) {
+    chunk_at[i] = at;
+    if (stored_bytes[i] > all.size() - kTrailerBytes - at)
+      fail(ErrorCode::InvalidData, "{}: chunk {} reaches past the end of the file (corrupted)",
+           what, i);
+    at += stored_bytes[i];
+  }
+  if (at != all.size() - kTrailerBytes)
+    fail(ErrorCode::InvalidData, "{}: {} bytes after the last chunk (corrupted)", what,
+         all.size() - kTrailerBytes - at);
+
+  auto map = std::make_unique<VoxelBlockMap>(params);
+  const bool color = params.store_color;
+  std::vector<BlockKey> keys, splits;
+  std::vector<std::vector<uint8_t>> raw_levels(h.counts.size());
+  struct Planes {
+    const uint8_t* updates;
+    const uint8_t* tsdf;
+    const uint8_t* weight;
+    const uint8_t* color;
+    int64_t blocks;
+  };
+  std::vector<Planes> planes(h.counts.size());
+  std::size_t chunk = 0;
+  for (std::size_t l = 0; l < h.counts.size(); ++l) {
+    const LevelCounts& c = h.counts[l];
+    const uint64_t expected = c.raw_bytes(color);
+    uint64_t sum = 0;
+    for (uint32_t k = 0; k < h.chunks_per_level[l]; ++k) {
+      const uint32_t r = raw_bytes[chunk + k];
+      if (r == 0 || r > h.chunk_bytes || (k + 1 < h.chunks_per_level[l] && r != h.chunk_bytes))
+        fail(ErrorCode::InvalidData, "{}: chunk {} holds {} bytes (corrupted)", what, chunk + k, r);
+      sum += r;
+    }
+    if (sum != expected)
+      fail(ErrorCode::InvalidData, "{}: level {}'s chunks hold {} bytes, its {} blocks need {}",
+           what, l, sum, c.blocks, expected);
+    std::vector<uint8_t>& raw = raw_levels[l];
+    raw.resize(expected);
+    const std::size_t first = chunk;
+    std::vector<uint8_t> ok(h.chunks_per_level[l], 0);
+    parallel_for(static_cast<int64_t>(h.chunks_per_level[l]), [&](int64_t k) {
+      const std::size_t i = first + static_cast<std::size_t>(k);
+      const std::size_t got =
+          ZSTD_decompress(raw.data() + static_cast<std::size_t>(k) * h.chunk_bytes, raw_bytes[i],
+                          all.data() + chunk_at[i], stored_bytes[i]);
+      ok[static_cast<std::size_t>(k)] = !ZSTD_isError(got) && got == raw_bytes[i];
+    });
+    for (uint32_t k = 0; k < h.chunks_per_level[l]; ++k)
+      if (!ok[k])
+        fail(ErrorCode::InvalidData, "{}: chunk {} does not decompress to its {} bytes (corrupted)",
+             what, first + k, raw_bytes[first + k]);
+    chunk += h.chunks_per_level[l];
+    const uint8_t* p = raw.data();
+    auto key_at = [&](int64_t i) {
+      int32_t xyz[3];
+      std::memcpy(xyz, p + 12 * i, sizeof xyz);
+      return BlockKey{{xyz[0], xyz[1], xyz[2]}, static_cast<int32_t>(l)};
+    };
+    for (int64_t i = 0; i < c.splits; ++i) splits.push_back(key_at(i));
+    for (int64_t i = 0; i < c.blocks; ++i) keys.push_back(key_at(c.splits + i));
+    const uint8_t* updates = p + 12 * (c.splits + c.blocks);
+    const uint8_t* tsdf = updates + 2 * c.blocks;
+    const uint8_t* weight = tsdf + 2 * kBlockVoxels * c.blocks;
+    planes[l] = {updates, tsdf, weight, color ? weight + 2 * kBlockVoxels * c.blocks : nullptr,
+                 c.blocks};
+  }
+  // Block i of the concatenated keys: its level and index there.
+  std::vector<int64_t> level_start(planes.size() + 1, 0);
+  for (std::size_t l = 0; l < planes.size(); ++l)
+    level_start[l + 1] = level_start[l] + planes[l].blocks;
+  restore_blocks(
+      *map, keys, splits,
+      [&](std::size_t i, TsdfVoxel* tsdf, ColorVoxel* rgb, uint16_t* updates) {
+        const auto b = static_cast<int64_t>(i);
+        const std::size_t l = static_cast<std::size_t>(
+            std::upper_bound(level_start.begin(), level_start.end(), b) - level_start.begin() - 1);
+        const Planes& pl = planes[l];
+        const int64_t j = b - level_start[l];
+        std::memcpy(updates, pl.updates + 2 * j, 2);
+        int16_t t[kBlockVoxels];
+        uint16_t w[kBlockVoxels];
+        std::memcpy(t, pl.tsdf + 2 * kBlockVoxels * j, sizeof t);
+        std::memcpy(w, pl.weight + 2 * kBlockVoxels * j, sizeof w);
+        for (int k = 0; k < kBlockVoxels; ++k) tsdf[k] = {t[k], w[k]};
+        if (rgb != nullptr && pl.color != nullptr)
+          std::memcpy(rgb, pl.color + 4 * kBlockVoxels * j, kBlockVoxels * sizeof(ColorVoxel));
+      },
+      what);
+  return {std::move(map), h.info};
+}
+
+void check_map_continues(const MapFileInfo& info, const fs::path& path, const MapParams& map,
+                         const FusionParams& fusion) {
+  const std::string diff = info.map.shape_difference(map);
+  if (!diff.empty())
+    fail(ErrorCode::InvalidArgument,
+         "{}: the map was made with other settings than this run's ({}, the file's first): a map "
+         "continues only with its own (leave the option out to take the file's)",
+         path.string(), diff);
+  if (info.fusion.max_weight != fusion.max_weight)
+    fail(ErrorCode::InvalidArgument,
+         "{}: the map was fused with maximum weight {}, this run asks for {} (leave --max-weight "
+         "out to take the file's)",
+         path.string(), info.fusion.max_weight, fusion.max_weight);
+}
+
+}  // namespace hivox
