@@ -176,8 +176,8 @@ void run_mesh(const MeshOptions& o) {
                mesh.vertex_count(), mesh.triangle_count(), params.to_string(), extract_s,
                watch.elapsed_ms() / 1e3, o.out);
   if (mesh.triangle_count() == 0) {
-    log::error("{}: the mesh is empty (no surface observed at least {} times{})", o.map,
-               params.min_weight, params.bounds ? " inside the bounds" : "");
+    log::error("{}: the mesh is empty (no surface{} whose voxels were observed {} or more times)",
+               o.map, params.bounds ? " inside the bounds" : "", params.min_weight);
     throw ExitStatus{kExitUnusable};
   }
 }

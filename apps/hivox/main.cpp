@@ -1,15 +1,18 @@
 #include <exception>
+#include <string>
 
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
+#include "hivox/core/version.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
       "hivox: dense 3D reconstruction from RGB-D images with hierarchical voxel block hashing"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(hivox::library_version()));
   hivox::cli::add_info_command(app);
   hivox::cli::add_reconstruct_command(app);
   hivox::cli::add_demo_command(app);

@@ -262,9 +262,6 @@ Header parse_header(Reader& r, const std::string& what, int64_t file_bytes) {
   for (float& v : k) v = r.get<float>("the camera");
   const auto width = r.get<int32_t>("the camera");
   const auto height = r.get<int32_t>("the camera");
-  m.max_blocks = r.get<int64_t>("the capacities");
-  m.buckets_per_level = r.get<int64_t>("the capacities");
-  m.excess_per_level = r.get<int64_t>("the capacities");
   h.chunk_bytes = r.get<uint32_t>("the chunk size");
   if (h.chunk_bytes == 0 || h.chunk_bytes > (1u << 30))
     bad(fmt::format("chunk size {} bytes", h.chunk_bytes));
@@ -320,6 +317,14 @@ void check_counts_fit(const Header& h, const MapParams& capacity, const std::str
     fail(ErrorCode::OutOfCapacity,
          "{}: the map holds {} blocks, more than the voxel-block pool's {} (raise --max-blocks)",
          what, blocks, capacity.max_blocks);
+  // Every split entry takes a hash entry: this bounds what their coordinates may take in memory.
+  const int64_t entries = capacity.buckets_per_level + capacity.excess_per_level;
+  for (std::size_t l = 0; l < h.counts.size(); ++l)
+    if (h.counts[l].blocks + h.counts[l].splits > entries)
+      fail(ErrorCode::OutOfCapacity,
+           "{}: level {} holds {} blocks and split entries, more than its hash table's {} entries "
+           "(raise --hash-buckets or --hash-excess)",
+           what, l, h.counts[l].blocks + h.counts[l].splits, entries);
 }
 
 }  // namespace
@@ -369,9 +374,6 @@ void write_map_file(const fs::path& path, const VoxelBlockMap& map, const Fusion
   w.put(c.cy);
   w.put(static_cast<int32_t>(session.camera ? c.width : 0));
   w.put(static_cast<int32_t>(session.camera ? c.height : 0));
-  w.put(m.max_blocks);
-  w.put(m.buckets_per_level);
-  w.put(m.excess_per_level);
   w.put(kChunkBytes);
   for (int l = 0; l < m.levels; ++l) {
     w.put(counts[static_cast<std::size_t>(l)].blocks);
@@ -446,7 +448,17 @@ LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& ca
     params.buckets_per_level = capacities->buckets_per_level;
     params.excess_per_level = capacities->excess_per_level;
   } else {
-    params.max_blocks = std::max(params.max_blocks, total_blocks);
+    // The defaults, raised to hold the file (a file holds content, not the writer's
+    // capacities, so that the same content gives the same bytes).
+    const MapParams defaults;
+    int64_t per_level = 0;
+    for (const LevelCounts& c : h.counts) per_level = std::max(per_level, c.blocks + c.splits);
+    const int64_t cap = int64_t{1} << 28;
+    params.max_blocks = std::max(defaults.max_blocks, total_blocks);
+    params.buckets_per_level = std::max(
+        defaults.buckets_per_level,
+        static_cast<int64_t>(std::bit_ceil(static_cast<uint64_t>(std::min(per_level, cap)))));
+    params.excess_per_level = std::max(defaults.excess_per_level, std::min(per_level, cap));
   }
   check_counts_fit(h, params, what);
 

@@ -133,8 +133,8 @@ class Run {
       return std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
     Stopwatch load;
     const ReconstructionParams& p = params_.reconstruction;
-    check_map_continues(read_map_file_info(params_.map_in), params_.map_in, p.map, p.fusion);
     LoadedMap loaded = read_map_file(params_.map_in, p.map);
+    check_map_continues(loaded.info, params_.map_in, p.map, p.fusion);
     session_start_ = loaded.info.session.last_pose;
     auto rec =
         std::make_unique<Reconstruction>(p, info_.rig, std::move(loaded.map), loaded.info.session);

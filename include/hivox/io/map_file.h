@@ -31,7 +31,8 @@ inline constexpr uint32_t kMapFileVersion = 1;
 struct MapFileInfo {
   uint32_t format_version = 0;
   std::string library_version;  ///< of the hivox that wrote it
-  /// The map's shape (voxel size, levels, truncation, colour) and the writer's capacities.
+  /// The map's shape (voxel size, levels, truncation, colour); the capacities are MapParams'
+  /// defaults (a file holds content, not the capacities of the map that wrote it).
   MapParams map;
   FusionParams fusion;  ///< the fusion settings its frames were integrated with
   MapSession session;
@@ -59,9 +60,9 @@ struct LoadedMap {
 };
 
 /// Loads a map file into a new CPU map. Capacities (pool size, hash buckets and overflow per
-/// level) come from `capacities` when given (its shape fields are ignored), else the writer's
-/// raised to hold the blocks; a file that does not fit them is `Error(OutOfCapacity)` naming
-/// the option to raise.
+/// level) come from `capacities` when given (its shape fields are ignored), else MapParams'
+/// defaults raised to hold the file's blocks; a file that does not fit them is
+/// `Error(OutOfCapacity)` naming the option to raise.
 LoadedMap read_map_file(const std::filesystem::path& path,
                         const std::optional<MapParams>& capacities = std::nullopt);
 
