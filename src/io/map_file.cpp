@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cstring>
 #include <span>
@@ -33,18 +34,43 @@ constexpr std::array<char, 8> kMagic = {'H', 'I', 'V', 'O', 'X', 'M', 'A', 'P'};
 constexpr std::array<char, 8> kEndMagic = {'H', 'V', 'X', 'E', 'N', 'D', '\0', '\0'};
 constexpr std::size_t kTrailerBytes = 8 + kEndMagic.size();  // checksum, end marker
 constexpr std::size_t kVersionBytes = 16;
-/// Raw bytes per compressed chunk: chunks compress and decompress in parallel.
-constexpr uint32_t kChunkBytes = 1u << 20;
+/// Raw bytes per chunk of a level's index (coordinates and update counts).
+constexpr uint64_t kIndexChunkBytes = 1u << 20;
+/// Blocks per voxel chunk. A chunk holds whole blocks, so saving fills each chunk straight from
+/// the map and loading writes it straight into the map, a chunk per thread at a time: neither
+/// makes a copy of a level. Chunks compress and decompress in parallel.
+constexpr int64_t kGroupBlocks = 128;
 constexpr int kZstdLevel = 1;
 constexpr uint32_t kHasPose = 1, kHasCamera = 2;
 
-/// Raw bytes of a level's payload: Split entries' and blocks' coordinates, blocks' update counts,
-/// then the voxels field by field (TSDF, weight, colour), block after block.
+/// Bytes of one block's voxels in a chunk: TSDF and weight (2 + 2 B), colour (4 B).
+uint64_t block_bytes(bool color) {
+  return uint64_t{kBlockVoxels} * (color ? 8 : 4);
+}
+
+/// A level's counts and the chunks they make: first the index (Split entries' and blocks'
+/// coordinates, blocks' update counts) in chunks of kIndexChunkBytes, then the voxels in chunks
+/// of kGroupBlocks blocks, field by field inside each (all TSDF values, all weights, all colours).
 struct LevelCounts {
   int64_t blocks = 0, splits = 0;
-  uint64_t raw_bytes(bool color) const {
-    const auto b = static_cast<uint64_t>(blocks), s = static_cast<uint64_t>(splits);
-    return 12 * (s + b) + 2 * b + uint64_t{kBlockVoxels} * b * (color ? 8 : 4);
+  uint64_t index_bytes() const {
+    return 12 * static_cast<uint64_t>(splits + blocks) + 2 * static_cast<uint64_t>(blocks);
+  }
+  int64_t index_chunks() const {
+    return static_cast<int64_t>((index_bytes() + kIndexChunkBytes - 1) / kIndexChunkBytes);
+  }
+  int64_t voxel_chunks() const { return (blocks + kGroupBlocks - 1) / kGroupBlocks; }
+  int64_t chunks() const { return index_chunks() + voxel_chunks(); }
+  /// Blocks in voxel chunk `k`.
+  int64_t group_blocks(int64_t k) const {
+    return std::min(kGroupBlocks, blocks - k * kGroupBlocks);
+  }
+  /// Raw bytes of chunk `k` (index chunks first).
+  uint64_t chunk_raw_bytes(int64_t k, bool color) const {
+    if (k < index_chunks())
+      return std::min(kIndexChunkBytes,
+                      index_bytes() - static_cast<uint64_t>(k) * kIndexChunkBytes);
+    return static_cast<uint64_t>(group_blocks(k - index_chunks())) * block_bytes(color);
   }
 };
 
@@ -100,79 +126,64 @@ class Reader {
   const std::string& what_;
 };
 
-/// One level's payload, built field by field in the canonical order.
-std::vector<uint8_t> level_payload(const VoxelBlockMap& map, int level, LevelCounts* counts) {
-  const std::vector<Vec3i> splits = sorted_split_entries(map, level);
-  const std::vector<BlockRef> blocks = sorted_blocks(map, level);
-  counts->blocks = static_cast<int64_t>(blocks.size());
-  counts->splits = static_cast<int64_t>(splits.size());
-  const bool color = map.params().store_color;
-  std::vector<uint8_t> raw(counts->raw_bytes(color));
-  uint8_t* out = raw.data();
+/// What a level's chunks are made from.
+struct LevelContent {
+  std::vector<Vec3i> splits;
+  std::vector<BlockRef> blocks;
+  std::vector<uint8_t> index;  ///< the raw index
+};
+
+LevelContent level_content(const VoxelBlockMap& map, int level) {
+  LevelContent c;
+  c.splits = sorted_split_entries(map, level);
+  c.blocks = sorted_blocks(map, level);
+  LevelCounts counts{static_cast<int64_t>(c.blocks.size()), static_cast<int64_t>(c.splits.size())};
+  c.index.resize(counts.index_bytes());
+  uint8_t* out = c.index.data();
   auto put_key = [&](const Vec3i& p) {
     const int32_t xyz[3] = {p.x, p.y, p.z};
     std::memcpy(out, xyz, sizeof xyz);
     out += sizeof xyz;
   };
-  for (const Vec3i& p : splits) put_key(p);
-  for (const BlockRef& b : blocks) put_key(b.pos);
-  for (const BlockRef& b : blocks) {
+  for (const Vec3i& p : c.splits) put_key(p);
+  for (const BlockRef& b : c.blocks) put_key(b.pos);
+  for (const BlockRef& b : c.blocks) {
     const uint16_t updates = map.block_meta(b.ptr).updates;
     std::memcpy(out, &updates, 2);
     out += 2;
   }
-  const int64_t n = counts->blocks;
+  return c;
+}
+
+/// The raw voxel chunk of `n` blocks from `blocks`: their TSDF values, weights, colours.
+void fill_voxel_chunk(const VoxelBlockMap& map, const BlockRef* blocks, int64_t n, bool color,
+                      uint8_t* out) {
   auto* tsdf = reinterpret_cast<int16_t*>(out);
   auto* weight = reinterpret_cast<uint16_t*>(out + 2 * kBlockVoxels * n);
   uint8_t* rgbw = out + 4 * kBlockVoxels * n;
-  parallel_for(n, [&](int64_t i) {
-    const TsdfVoxel* v = map.block_tsdf(blocks[static_cast<std::size_t>(i)].ptr);
-    int16_t* t = tsdf + i * kBlockVoxels;
-    uint16_t* w = weight + i * kBlockVoxels;
+  for (int64_t i = 0; i < n; ++i) {
+    const TsdfVoxel* v = map.block_tsdf(blocks[i].ptr);
     for (int k = 0; k < kBlockVoxels; ++k) {
-      t[k] = v[k].tsdf;
-      w[k] = v[k].weight;
+      tsdf[i * kBlockVoxels + k] = v[k].tsdf;
+      weight[i * kBlockVoxels + k] = v[k].weight;
     }
     if (color)
-      std::memcpy(rgbw + i * kBlockVoxels * 4,
-                  map.block_color(blocks[static_cast<std::size_t>(i)].ptr),
+      std::memcpy(rgbw + i * kBlockVoxels * 4, map.block_color(blocks[i].ptr),
                   kBlockVoxels * sizeof(ColorVoxel));
-  });
-  return raw;
+  }
 }
 
-struct Chunks {
-  std::vector<uint32_t> raw_bytes, stored_bytes;
-  std::vector<std::vector<uint8_t>> data;
-};
-
-/// Compresses `raw` in chunks of kChunkBytes, in parallel (the same bytes whatever the thread
-/// count: every chunk is its own zstd frame).
-void compress_into(std::span<const uint8_t> raw, Chunks& out, const fs::path& path) {
-  const std::size_t first = out.data.size();
-  const std::size_t n = (raw.size() + kChunkBytes - 1) / kChunkBytes;
-  out.data.resize(first + n);
-  out.raw_bytes.resize(first + n);
-  out.stored_bytes.resize(first + n);
-  std::vector<uint8_t> failed(n, 0);
-  parallel_for(static_cast<int64_t>(n), [&](int64_t c) {
-    const std::size_t begin = static_cast<std::size_t>(c) * kChunkBytes;
-    const std::size_t size = std::min<std::size_t>(kChunkBytes, raw.size() - begin);
-    std::vector<uint8_t>& dst = out.data[first + static_cast<std::size_t>(c)];
-    dst.resize(ZSTD_compressBound(size));
-    const std::size_t stored =
-        ZSTD_compress(dst.data(), dst.size(), raw.data() + begin, size, kZstdLevel);
-    if (ZSTD_isError(stored)) {  // out of memory: the bound always fits
-      failed[static_cast<std::size_t>(c)] = 1;
-      return;
-    }
-    dst.resize(stored);
-    out.raw_bytes[first + static_cast<std::size_t>(c)] = static_cast<uint32_t>(size);
-    out.stored_bytes[first + static_cast<std::size_t>(c)] = static_cast<uint32_t>(stored);
-  });
-  if (std::find(failed.begin(), failed.end(), 1) != failed.end())
-    fail(ErrorCode::Io, "{}: compression failed (out of memory?); nothing was written",
-         path.string());
+/// The inverse: block `i` of a raw voxel chunk of `n` blocks into the map's storage.
+void read_voxel_chunk(const uint8_t* in, int64_t n, int64_t i, bool color, TsdfVoxel* tsdf,
+                      ColorVoxel* rgb) {
+  int16_t t[kBlockVoxels];
+  uint16_t w[kBlockVoxels];
+  std::memcpy(t, in + 2 * kBlockVoxels * i, sizeof t);
+  std::memcpy(w, in + 2 * kBlockVoxels * (n + i), sizeof w);
+  for (int k = 0; k < kBlockVoxels; ++k) tsdf[k] = {t[k], w[k]};
+  if (color && rgb != nullptr)
+    std::memcpy(rgb, in + 4 * kBlockVoxels * n + 4 * kBlockVoxels * i,
+                kBlockVoxels * sizeof(ColorVoxel));
 }
 
 uint32_t sampling_code(DepthSampling s) {
@@ -183,8 +194,6 @@ uint32_t sampling_code(DepthSampling s) {
 struct Header {
   MapFileInfo info;
   std::vector<LevelCounts> counts;
-  std::vector<uint32_t> chunks_per_level;
-  uint32_t chunk_bytes = 0;
 };
 
 /// Checks what can be checked without the header's fields: size, magic, version, end marker and
@@ -262,9 +271,6 @@ Header parse_header(Reader& r, const std::string& what, int64_t file_bytes) {
   for (float& v : k) v = r.get<float>("the camera");
   const auto width = r.get<int32_t>("the camera");
   const auto height = r.get<int32_t>("the camera");
-  h.chunk_bytes = r.get<uint32_t>("the chunk size");
-  if (h.chunk_bytes == 0 || h.chunk_bytes > (1u << 30))
-    bad(fmt::format("chunk size {} bytes", h.chunk_bytes));
   try {
     m.validate();
     f.validate();
@@ -293,17 +299,10 @@ Header parse_header(Reader& r, const std::string& what, int64_t file_bytes) {
     LevelCounts c;
     c.blocks = r.get<int64_t>("the block counts");
     c.splits = r.get<int64_t>("the block counts");
-    const auto chunks = r.get<uint32_t>("the chunk counts");
-    // Every block takes bytes of the file (a chunk holds at most 1 GiB raw), which bounds the
-    // counts before anything is allocated from them.
     if (c.blocks < 0 || c.splits < 0 || c.blocks > (int64_t{1} << 31) ||
         c.splits > (int64_t{1} << 31))
       bad(fmt::format("level {}: {} blocks, {} split entries", l, c.blocks, c.splits));
-    const uint64_t raw = c.raw_bytes(m.store_color);
-    if (chunks != (raw + h.chunk_bytes - 1) / h.chunk_bytes)
-      bad(fmt::format("level {}: {} chunks for {} bytes", l, chunks, raw));
     h.counts.push_back(c);
-    h.chunks_per_level.push_back(chunks);
     info.blocks_per_level.push_back(c.blocks);
     info.splits_per_level.push_back(c.splits);
   }
@@ -332,15 +331,54 @@ void check_counts_fit(const Header& h, const MapParams& capacity, const std::str
 void write_map_file(const fs::path& path, const VoxelBlockMap& map, const FusionParams& fusion,
                     const MapSession& session) {
   const MapParams& m = map.params();
-  Chunks chunks;
-  std::vector<LevelCounts> counts(static_cast<std::size_t>(m.levels));
-  std::vector<uint32_t> chunks_per_level;
+  const bool color = m.store_color;
+  std::vector<LevelContent> levels;
+  std::vector<LevelCounts> counts;
   for (int l = 0; l < m.levels; ++l) {
-    const std::size_t before = chunks.data.size();
-    const std::vector<uint8_t> raw = level_payload(map, l, &counts[static_cast<std::size_t>(l)]);
-    compress_into(raw, chunks, path);
-    chunks_per_level.push_back(static_cast<uint32_t>(chunks.data.size() - before));
+    levels.push_back(level_content(map, l));
+    counts.push_back({static_cast<int64_t>(levels.back().blocks.size()),
+                      static_cast<int64_t>(levels.back().splits.size())});
   }
+  // Every chunk of every level, compressed in parallel (each its own zstd frame: the same bytes
+  // whatever the thread count).
+  struct Job {
+    int level;
+    int64_t k;  ///< chunk of the level
+  };
+  std::vector<Job> jobs;
+  for (int l = 0; l < m.levels; ++l)
+    for (int64_t k = 0; k < counts[static_cast<std::size_t>(l)].chunks(); ++k)
+      jobs.push_back({l, k});
+  std::vector<std::vector<uint8_t>> chunks(jobs.size());
+  std::vector<uint8_t> failed(jobs.size(), 0);
+  parallel_for_dynamic(static_cast<int64_t>(jobs.size()), 1, [&](int64_t j) {
+    const Job& job = jobs[static_cast<std::size_t>(j)];
+    const LevelContent& level = levels[static_cast<std::size_t>(job.level)];
+    const LevelCounts& c = counts[static_cast<std::size_t>(job.level)];
+    const uint64_t raw_bytes = c.chunk_raw_bytes(job.k, color);
+    thread_local std::vector<uint8_t> raw;
+    const uint8_t* src = nullptr;
+    if (job.k < c.index_chunks()) {
+      src = level.index.data() + static_cast<uint64_t>(job.k) * kIndexChunkBytes;
+    } else {
+      const int64_t g = job.k - c.index_chunks();
+      raw.resize(raw_bytes);
+      fill_voxel_chunk(map, level.blocks.data() + g * kGroupBlocks, c.group_blocks(g), color,
+                       raw.data());
+      src = raw.data();
+    }
+    std::vector<uint8_t>& dst = chunks[static_cast<std::size_t>(j)];
+    dst.resize(ZSTD_compressBound(raw_bytes));
+    const std::size_t stored = ZSTD_compress(dst.data(), dst.size(), src, raw_bytes, kZstdLevel);
+    if (ZSTD_isError(stored)) {  // out of memory: the bound always fits
+      failed[static_cast<std::size_t>(j)] = 1;
+      return;
+    }
+    dst.resize(stored);
+  });
+  if (std::find(failed.begin(), failed.end(), 1) != failed.end())
+    fail(ErrorCode::Io, "{}: compression failed (out of memory?); nothing was written",
+         path.string());
 
   Writer w;
   w.put_bytes(kMagic.data(), kMagic.size());
@@ -355,7 +393,7 @@ void write_map_file(const fs::path& path, const VoxelBlockMap& map, const Fusion
   w.put(static_cast<uint32_t>(kBlockSide));
   w.put(uint32_t{2});
   w.put(uint32_t{2});
-  w.put(static_cast<uint32_t>(m.store_color ? 4 : 0));
+  w.put(static_cast<uint32_t>(color ? 4 : 0));
   w.put(kTsdfScale);
   w.put(static_cast<int32_t>(fusion.max_weight));
   w.put(sampling_code(fusion.depth_sampling));
@@ -374,21 +412,16 @@ void write_map_file(const fs::path& path, const VoxelBlockMap& map, const Fusion
   w.put(c.cy);
   w.put(static_cast<int32_t>(session.camera ? c.width : 0));
   w.put(static_cast<int32_t>(session.camera ? c.height : 0));
-  w.put(kChunkBytes);
-  for (int l = 0; l < m.levels; ++l) {
-    w.put(counts[static_cast<std::size_t>(l)].blocks);
-    w.put(counts[static_cast<std::size_t>(l)].splits);
-    w.put(chunks_per_level[static_cast<std::size_t>(l)]);
+  for (const LevelCounts& lc : counts) {
+    w.put(lc.blocks);
+    w.put(lc.splits);
   }
-  for (std::size_t i = 0; i < chunks.data.size(); ++i) {
-    w.put(chunks.raw_bytes[i]);
-    w.put(chunks.stored_bytes[i]);
-  }
-  // The checksum covers the header and every chunk.
+  for (const std::vector<uint8_t>& d : chunks) w.put(static_cast<uint32_t>(d.size()));
+  // The checksum covers the header, the chunk table and every chunk.
   XXH3_state_t* state = XXH3_createState();
   XXH3_64bits_reset(state);
   XXH3_64bits_update(state, w.bytes().data(), w.bytes().size());
-  for (const std::vector<uint8_t>& d : chunks.data) XXH3_64bits_update(state, d.data(), d.size());
+  for (const std::vector<uint8_t>& d : chunks) XXH3_64bits_update(state, d.data(), d.size());
   const uint64_t sum = XXH3_64bits_digest(state);
   XXH3_freeState(state);
   Writer trailer;
@@ -397,7 +430,7 @@ void write_map_file(const fs::path& path, const VoxelBlockMap& map, const Fusion
 
   std::vector<std::span<const uint8_t>> parts;
   parts.emplace_back(w.bytes());
-  for (const std::vector<uint8_t>& d : chunks.data) parts.emplace_back(d);
+  for (const std::vector<uint8_t>& d : chunks) parts.emplace_back(d);
   parts.emplace_back(trailer.bytes());
   write_file_atomically(path, parts);
 }
@@ -441,6 +474,7 @@ LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& ca
   OpenedFile f = open_map_file(path);
   const Header& h = f.header;
   MapParams params = h.info.map;
+  const bool color = params.store_color;
   int64_t total_blocks = 0;
   for (const LevelCounts& c : h.counts) total_blocks += c.blocks;
   if (capacities) {
@@ -462,112 +496,110 @@ LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& ca
   }
   check_counts_fit(h, params, what);
 
-  // The chunk table: raw sizes must add up to each level's payload; stored sizes to the body.
+  // The chunk table (stored sizes; raw sizes follow from the counts), then where each chunk is.
   const std::span<const uint8_t> all(reinterpret_cast<const uint8_t*>(f.bytes.data()),
                                      f.bytes.size());
-  Reader table(all.first(all.size() - kTrailerBytes), what);
+  const std::size_t body_end = all.size() - kTrailerBytes;
+  Reader table(all.first(body_end), what);
   table.get_bytes(f.table_at, "the header");
-  std::size_t total_chunks = 0;
-  for (const uint32_t n : h.chunks_per_level) total_chunks += n;
-  if (total_chunks > all.size() / 8)
+  std::vector<std::size_t> first_chunk(h.counts.size() + 1, 0);
+  for (std::size_t l = 0; l < h.counts.size(); ++l)
+    first_chunk[l + 1] = first_chunk[l] + static_cast<std::size_t>(h.counts[l].chunks());
+  const std::size_t total_chunks = first_chunk.back();
+  if (total_chunks > all.size() / 4)
     fail(ErrorCode::InvalidData, "{}: {} chunks do not fit in the file (corrupted)", what,
          total_chunks);
-  std::vector<uint32_t> raw_bytes(total_chunks), stored_bytes(total_chunks);
-  for (std::size_t i = 0; i < total_chunks; ++i) {
-    raw_bytes[i] = table.get<uint32_t>("the chunk table");
-    stored_bytes[i] = table.get<uint32_t>("the chunk table");
-  }
-  std::vector<std::size_t> chunk_at(total_chunks);
+  std::vector<std::size_t> chunk_at(total_chunks), stored(total_chunks);
+  for (std::size_t i = 0; i < total_chunks; ++i) stored[i] = table.get<uint32_t>("the chunk table");
   std::size_t at = table.at();
   for (std::size_t i = 0; i < total_chunks; ++i) {
     chunk_at[i] = at;
-    if (stored_bytes[i] > all.size() - kTrailerBytes - at)
+    if (stored[i] > body_end - at)
       fail(ErrorCode::InvalidData, "{}: chunk {} reaches past the end of the file (corrupted)",
            what, i);
-    at += stored_bytes[i];
+    at += stored[i];
   }
-  if (at != all.size() - kTrailerBytes)
+  if (at != body_end)
     fail(ErrorCode::InvalidData, "{}: {} bytes after the last chunk (corrupted)", what,
-         all.size() - kTrailerBytes - at);
-
-  auto map = std::make_unique<VoxelBlockMap>(params);
-  const bool color = params.store_color;
-  std::vector<BlockKey> keys, splits;
-  std::vector<std::vector<uint8_t>> raw_levels(h.counts.size());
-  struct Planes {
-    const uint8_t* updates;
-    const uint8_t* tsdf;
-    const uint8_t* weight;
-    const uint8_t* color;
-    int64_t blocks;
+         body_end - at);
+  // Decompresses chunk k of level l into `out` (its raw size); false when it does not.
+  auto decompress = [&](std::size_t l, int64_t k, uint8_t* out) {
+    const std::size_t i = first_chunk[l] + static_cast<std::size_t>(k);
+    const uint64_t raw = h.counts[l].chunk_raw_bytes(k, color);
+    const std::size_t got = ZSTD_decompress(out, raw, all.data() + chunk_at[i], stored[i]);
+    return !ZSTD_isError(got) && got == raw;
   };
-  std::vector<Planes> planes(h.counts.size());
-  std::size_t chunk = 0;
+
+  // The indexes: coordinates and update counts of every level.
+  std::vector<BlockKey> keys, splits;
+  std::vector<uint16_t> updates;
+  std::vector<int64_t> level_start(h.counts.size() + 1, 0);  // first key of each level
   for (std::size_t l = 0; l < h.counts.size(); ++l) {
     const LevelCounts& c = h.counts[l];
-    const uint64_t expected = c.raw_bytes(color);
-    uint64_t sum = 0;
-    for (uint32_t k = 0; k < h.chunks_per_level[l]; ++k) {
-      const uint32_t r = raw_bytes[chunk + k];
-      if (r == 0 || r > h.chunk_bytes || (k + 1 < h.chunks_per_level[l] && r != h.chunk_bytes))
-        fail(ErrorCode::InvalidData, "{}: chunk {} holds {} bytes (corrupted)", what, chunk + k, r);
-      sum += r;
-    }
-    if (sum != expected)
-      fail(ErrorCode::InvalidData, "{}: level {}'s chunks hold {} bytes, its {} blocks need {}",
-           what, l, sum, c.blocks, expected);
-    std::vector<uint8_t>& raw = raw_levels[l];
-    raw.resize(expected);
-    const std::size_t first = chunk;
-    std::vector<uint8_t> ok(h.chunks_per_level[l], 0);
-    parallel_for(static_cast<int64_t>(h.chunks_per_level[l]), [&](int64_t k) {
-      const std::size_t i = first + static_cast<std::size_t>(k);
-      const std::size_t got =
-          ZSTD_decompress(raw.data() + static_cast<std::size_t>(k) * h.chunk_bytes, raw_bytes[i],
-                          all.data() + chunk_at[i], stored_bytes[i]);
-      ok[static_cast<std::size_t>(k)] = !ZSTD_isError(got) && got == raw_bytes[i];
+    std::vector<uint8_t> index(c.index_bytes());
+    std::vector<uint8_t> ok(static_cast<std::size_t>(c.index_chunks()), 0);
+    parallel_for(c.index_chunks(), [&](int64_t k) {
+      ok[static_cast<std::size_t>(k)] =
+          decompress(l, k, index.data() + static_cast<uint64_t>(k) * kIndexChunkBytes);
     });
-    for (uint32_t k = 0; k < h.chunks_per_level[l]; ++k)
-      if (!ok[k])
-        fail(ErrorCode::InvalidData, "{}: chunk {} does not decompress to its {} bytes (corrupted)",
-             what, first + k, raw_bytes[first + k]);
-    chunk += h.chunks_per_level[l];
-    const uint8_t* p = raw.data();
+    if (std::find(ok.begin(), ok.end(), 0) != ok.end())
+      fail(ErrorCode::InvalidData, "{}: the index of level {} does not decompress (corrupted)",
+           what, l);
     auto key_at = [&](int64_t i) {
       int32_t xyz[3];
-      std::memcpy(xyz, p + 12 * i, sizeof xyz);
+      std::memcpy(xyz, index.data() + 12 * i, sizeof xyz);
       return BlockKey{{xyz[0], xyz[1], xyz[2]}, static_cast<int32_t>(l)};
     };
     for (int64_t i = 0; i < c.splits; ++i) splits.push_back(key_at(i));
     for (int64_t i = 0; i < c.blocks; ++i) keys.push_back(key_at(c.splits + i));
-    const uint8_t* updates = p + 12 * (c.splits + c.blocks);
-    const uint8_t* tsdf = updates + 2 * c.blocks;
-    const uint8_t* weight = tsdf + 2 * kBlockVoxels * c.blocks;
-    planes[l] = {updates, tsdf, weight, color ? weight + 2 * kBlockVoxels * c.blocks : nullptr,
-                 c.blocks};
+    const uint8_t* u = index.data() + 12 * (c.splits + c.blocks);
+    for (int64_t i = 0; i < c.blocks; ++i) {
+      uint16_t v = 0;
+      std::memcpy(&v, u + 2 * i, 2);
+      updates.push_back(v);
+    }
+    level_start[l + 1] = level_start[l] + c.blocks;
   }
-  // Block i of the concatenated keys: its level and index there.
-  std::vector<int64_t> level_start(planes.size() + 1, 0);
-  for (std::size_t l = 0; l < planes.size(); ++l)
-    level_start[l + 1] = level_start[l] + planes[l].blocks;
+
+  // The voxels go from each chunk straight into the map: the restore fills contiguous runs of
+  // blocks per thread, so each thread decompresses a chunk once into its own buffer.
+  static std::atomic<uint64_t> loads{0};
+  const uint64_t load = ++loads;
+  std::atomic<bool> damaged{false};
+  auto map = std::make_unique<VoxelBlockMap>(params);
   restore_blocks(
       *map, keys, splits,
-      [&](std::size_t i, TsdfVoxel* tsdf, ColorVoxel* rgb, uint16_t* updates) {
+      [&](std::size_t i, TsdfVoxel* tsdf, ColorVoxel* rgb, uint16_t* block_updates) {
+        struct Cache {
+          uint64_t load = 0;
+          std::size_t level = 0;
+          int64_t group = -1;
+          bool ok = false;
+          std::vector<uint8_t> raw;
+        };
+        thread_local Cache cache;
         const auto b = static_cast<int64_t>(i);
-        const std::size_t l = static_cast<std::size_t>(
+        const auto l = static_cast<std::size_t>(
             std::upper_bound(level_start.begin(), level_start.end(), b) - level_start.begin() - 1);
-        const Planes& pl = planes[l];
+        const LevelCounts& c = h.counts[l];
         const int64_t j = b - level_start[l];
-        std::memcpy(updates, pl.updates + 2 * j, 2);
-        int16_t t[kBlockVoxels];
-        uint16_t w[kBlockVoxels];
-        std::memcpy(t, pl.tsdf + 2 * kBlockVoxels * j, sizeof t);
-        std::memcpy(w, pl.weight + 2 * kBlockVoxels * j, sizeof w);
-        for (int k = 0; k < kBlockVoxels; ++k) tsdf[k] = {t[k], w[k]};
-        if (rgb != nullptr && pl.color != nullptr)
-          std::memcpy(rgb, pl.color + 4 * kBlockVoxels * j, kBlockVoxels * sizeof(ColorVoxel));
+        const int64_t g = j / kGroupBlocks;
+        if (cache.load != load || cache.level != l || cache.group != g) {
+          cache = {load, l, g, false, std::move(cache.raw)};
+          cache.raw.resize(c.chunk_raw_bytes(c.index_chunks() + g, color));
+          cache.ok = decompress(l, c.index_chunks() + g, cache.raw.data());
+          if (!cache.ok) damaged = true;
+        }
+        *block_updates = updates[i];
+        if (cache.ok)
+          read_voxel_chunk(cache.raw.data(), c.group_blocks(g), j % kGroupBlocks, color, tsdf, rgb);
       },
       what);
+  if (damaged) {
+    map->clear();
+    fail(ErrorCode::InvalidData, "{}: a voxel chunk does not decompress to its size (corrupted)",
+         what);
+  }
   return {std::move(map), h.info};
 }
 

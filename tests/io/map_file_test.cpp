@@ -261,15 +261,15 @@ TEST(MapFile, ContentBehindAValidChecksumIsCheckedToo) {
   Error e = load_error(bad);
   EXPECT_EQ(e.code(), ErrorCode::Unsupported);
   EXPECT_TRUE(test::contains(e.what(), "newer")) << e.what();
-  // Every byte of the header and the chunk table changed, checksum fixed: an error or a map
-  // that is consistent, never a crash.
-  const std::size_t header = 300;
+  // Every byte before the checksum changed (header, chunk table, index, voxels), the checksum
+  // fixed: an error naming the file or a consistent map, never a crash.
   int refused = 0;
+  std::map<std::string, int> caught_by;
   MapParams small;
   small.max_blocks = 64;
   small.buckets_per_level = 64;
   small.excess_per_level = 64;
-  for (std::size_t i = 12; i < header; ++i) {
+  for (std::size_t i = 12; i + 16 < bytes.size(); ++i) {
     b = bytes;
     b[i] = static_cast<char>(b[i] ^ 0x5a);
     write_bytes(bad, with_checksum(b));
@@ -279,9 +279,17 @@ TEST(MapFile, ContentBehindAValidChecksumIsCheckedToo) {
     } catch (const Error& err) {
       ++refused;
       EXPECT_TRUE(test::contains(err.what(), bad.string())) << err.what();
+      const std::string w = err.what();
+      for (const char* check : {"voxel chunk", "index of level", "stored twice", "chunk"})
+        if (test::contains(w, check)) {
+          ++caught_by[check];
+          break;
+        }
     }
   }
   EXPECT_GT(refused, 100);
+  EXPECT_GT(caught_by["voxel chunk"], 0) << "damaged voxels behind a valid checksum";
+  EXPECT_GT(caught_by["index of level"], 0) << "a damaged index behind a valid checksum";
 }
 
 TEST(MapFile, ForeignMissingAndContradictingFilesGiveClearErrors) {
