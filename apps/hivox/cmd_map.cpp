@@ -160,7 +160,19 @@ void run_mesh(const MeshOptions& o) {
   params.validate();
   const LoadedMap loaded = load(o.map, o.quiet);
   Stopwatch watch;
-  TriangleMesh mesh = extract_mesh(*loaded.map, params);
+  // Small pieces are removed here rather than inside extract_mesh, to say how many went.
+  MeshParams whole = params;
+  whole.min_piece_triangles = 0;
+  TriangleMesh mesh = extract_mesh(*loaded.map, whole);
+  std::string pieces;
+  if (params.min_piece_triangles > 0) {
+    int64_t removed = 0;
+    const int64_t before = mesh.triangle_count();
+    mesh = remove_small_pieces(mesh, params.min_piece_triangles, loaded.map->params().voxel_size_m,
+                               &removed);
+    pieces = fmt::format("; removed {} pieces of fewer than {} triangles ({} triangles)", removed,
+                         params.min_piece_triangles, before - mesh.triangle_count());
+  }
   const double extract_s = watch.lap_ms() / 1e3;
   if (o.level_colors) {
     mesh.colors.resize(mesh.positions_w.size());
@@ -172,8 +184,8 @@ void run_mesh(const MeshOptions& o) {
   else
     write_ply(out, mesh);
   if (!o.quiet)
-    fmt::print("mesh: {} vertices, {} triangles ({}) in {:.2f} s, written in {:.2f} s -> {}\n",
-               mesh.vertex_count(), mesh.triangle_count(), params.to_string(), extract_s,
+    fmt::print("mesh: {} vertices, {} triangles ({}) in {:.2f} s{}, written in {:.2f} s -> {}\n",
+               mesh.vertex_count(), mesh.triangle_count(), params.to_string(), extract_s, pieces,
                watch.elapsed_ms() / 1e3, o.out);
   if (mesh.triangle_count() == 0) {
     log::error("{}: the mesh is empty (no surface{} whose voxels were observed {} or more times)",
