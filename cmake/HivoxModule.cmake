@@ -39,8 +39,11 @@ function(hivox_add_module name)
   add_library(${target} STATIC ${M_SOURCES})
   add_library(hivox::${name} ALIAS ${target})
   target_include_directories(${target}
-    PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+    PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include> $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
     PRIVATE ${PROJECT_SOURCE_DIR}/src)
+  # Installed and exported as hivox::NAME (cmake/hivoxConfig.cmake.in).
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${name})
+  set_property(GLOBAL APPEND PROPERTY HIVOX_MODULES ${target})
   foreach(dep IN LISTS M_DEPS)
     if(NOT TARGET hivox_${dep})
       message(FATAL_ERROR "hivox module '${name}' depends on '${dep}', which is not defined before it")
