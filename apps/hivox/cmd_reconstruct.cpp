@@ -18,6 +18,7 @@
 #include <fmt/ranges.h>
 
 #include "commands.h"
+#include "config_file.h"
 #include "dataset_options.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
@@ -50,6 +51,8 @@ struct ReconstructOptions {
   std::size_t frames = 0;
   std::size_t first_frame = 0;
   std::string map_in, map_out;
+  std::string config_file;  ///< read before parsing (config_file.h); kept for --help
+  std::string config_json;  ///< the effective settings, written as config.json
   /// The options that shape a map: with --map, those not given take the file's values.
   CLI::Option *levels_option = nullptr, *voxel_size_option = nullptr, *truncation_option = nullptr,
               *max_weight_option = nullptr, *no_color_option = nullptr;
@@ -107,6 +110,7 @@ RunParams run_params(ReconstructOptions options) {
   run.max_frames = options.frames;
   run.map_in = options.map_in;
   run.map_out = options.map_out;
+  run.config_json = options.config_json;
   if (options.render_every < 0)
     fail(ErrorCode::InvalidArgument, "--render-every must be >= 0, got {}", options.render_every);
   run.render_every = options.render_every;
@@ -364,6 +368,11 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "the CUDA backend)")
       ->capture_default_str();
   cmd->add_flag("--quiet", o.quiet, "print nothing but warnings and errors");
+  cmd->add_option("--config", o.config_file,
+                  "read settings from a config.json that a run wrote into its output folder; "
+                  "options given here override it (repeats a run: hivox reconstruct DATASET "
+                  "--config OUT/config.json --out NEW)")
+      ->type_name("FILE");
 }
 
 struct DemoOptions {
@@ -402,8 +411,9 @@ void add_demo_command(CLI::App& app) {
       "The same scenes can be used anywhere a dataset is expected, e.g.\n"
       "  hivox reconstruct 'synthetic:desk?frames=300&noise=kinect'\n"
       "or written to disk as a TUM sequence with `hivox synth`.");
-  cmd->callback([options] {
+  cmd->callback([options, cmd] {
     ReconstructOptions run = options->run;
+    run.config_json = effective_config_json(*cmd);
     run.data.dataset = fmt::format("synthetic:{}?frames={}&noise={}", options->scene,
                                    options->frames, options->noise);
     run_reconstruct(run);
@@ -448,7 +458,10 @@ void add_reconstruct_command(CLI::App& app) {
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --frames 300 --save-map rpy.hvx\n"
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --first-frame 300 --map rpy.hvx "
               "--save-map rpy_all.hvx\n");
-  cmd->callback([options] { run_reconstruct(*options); });
+  cmd->callback([options, cmd] {
+    options->config_json = effective_config_json(*cmd);
+    run_reconstruct(*options);
+  });
 }
 
 }  // namespace hivox::cli

@@ -1,9 +1,11 @@
 #include <exception>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
+#include "config_file.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
 #include "hivox/core/version.h"
@@ -20,7 +22,11 @@ int main(int argc, char** argv) {
   hivox::cli::add_eval_command(app);
   hivox::cli::add_map_commands(app);
   try {
-    app.parse(argc, argv);
+    // Settings of a --config file become arguments before the command line's own.
+    std::vector<std::string> args = hivox::cli::expand_config_args({argv, argv + argc}, app);
+    std::vector<char*> expanded;
+    for (std::string& a : args) expanded.push_back(a.data());
+    app.parse(static_cast<int>(expanded.size()), expanded.data());
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const hivox::cli::ExitStatus& status) {

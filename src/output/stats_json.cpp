@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
+#include "hivox/core/version.h"
 #include "hivox/io/atomic_file.h"
 
 namespace hivox {
@@ -54,7 +55,13 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   }
   const VoxelBlockMap& map = rec.map();
   json j;
+  j["hivox_version"] = std::string(library_version());
   j["dataset"] = run.dataset;
+  const PinholeCamera& cam = rec.rig().depth_camera;
+  j["camera"] = {{"fx", cam.fx}, {"fy", cam.fy},       {"cx", cam.cx},
+                 {"cy", cam.cy}, {"width", cam.width}, {"height", cam.height}};
+  j["depth_scale"] = run.depth_scale;
+  if (!run.config_json.empty()) j["config"] = json::parse(run.config_json);
   j["poses"] = run.pose_source;
   j["threads"] = run.threads;
   j["parameters"] = run.parameters;

@@ -9,6 +9,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/map_file.h"
 #include "hivox/io/ply.h"
 #include "hivox/io/trajectory_io.h"
@@ -316,6 +317,15 @@ class Run {
       run.warnings = summary_.warnings;
       run.unusable = summary_.unusable;
       if (summary_.ate) run.ate_rmse_m = summary_.ate->rmse_m;
+      run.depth_scale = info_.rig.depth_scale;
+      run.config_json = params_.config_json;
+      if (!params_.config_json.empty()) {
+        const std::string& c = params_.config_json;
+        const std::span<const uint8_t> part(reinterpret_cast<const uint8_t*>(c.data()), c.size());
+        write_file_atomically(out / "config.json",
+                              std::span<const std::span<const uint8_t>>(&part, 1));
+        summary_.files.push_back(out / "config.json");
+      }
       write_stats_json(out / "stats.json", *rec_, run);
       summary_.files.push_back(out / "stats.json");
     }

@@ -25,13 +25,17 @@ struct RunInfo {
   std::vector<std::string> warnings;  ///< what makes the result doubtful
   bool unusable = false;              ///< the result is of no use (see RunSummary::unusable)
   std::optional<double> ate_rmse_m;   ///< trajectory error against ground truth, when known
+  double depth_scale = 0;             ///< raw depth units per metre used (0: metric depth)
+  /// The run's settings as the caller wrote them (RunParams::config_json), embedded as `config`.
+  std::string config_json;
 };
 
 /// Writes `stats.json` (atomically) with: frames (processed), frames_fused, skipped_frames,
 /// bad_frames, end, warnings, unusable, fps (processing, reading excluded), fps_wall (everything),
 /// timing_ms (mean per stage: read, track, allocate, integrate, refine, raycast, total),
 /// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
-/// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known), and
+/// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known),
+/// hivox_version, camera (the depth camera's intrinsics), depth_scale, config (when given), and
 /// per_frame (block counts per level, stage times, tracking quality and ICP numbers).
 void write_stats_json(const std::filesystem::path& path, const Reconstruction& reconstruction,
                       const RunInfo& run);

@@ -82,6 +82,9 @@ struct RunParams {
   /// as a whole by the new run's folder when the run ends.
   bool overwrite = false;
   BadFramePolicy on_bad_frame = BadFramePolicy::Stop;
+  /// The run's settings as the caller keeps them (e.g. the CLI's config.json): written as
+  /// `config.json` into the output folder and embedded in stats.json; empty = neither.
+  std::string config_json;
 
   /// Throws `Error(InvalidArgument)` naming the bad setting.
   void validate() const;
