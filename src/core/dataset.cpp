@@ -10,6 +10,10 @@ std::string_view to_string(DatasetLayout layout) {
       return "7-Scenes";
     case DatasetLayout::InfiniTam:
       return "InfiniTAM";
+    case DatasetLayout::Open3d:
+      return "Open3D";
+    case DatasetLayout::ImageFolder:
+      return "image folder";
     case DatasetLayout::Synthetic:
       return "synthetic";
   }

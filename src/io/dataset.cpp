@@ -169,10 +169,14 @@ DatasetLayout detect_layout(const fs::path& dir) {
     return DatasetLayout::Tum;
   if (fs::is_regular_file(dir / "calib.txt", ec)) return DatasetLayout::InfiniTam;
   if (!detail::seven_scenes_sequences(dir).empty()) return DatasetLayout::SevenScenes;
+  if (detail::is_image_folder_layout(dir))
+    return fs::is_regular_file(dir / "camera_intrinsic.json", ec) ? DatasetLayout::Open3d
+                                                                  : DatasetLayout::ImageFolder;
   fail(ErrorCode::InvalidData,
        "{}: not a dataset layout hivox knows; looked for associations.txt or depth.txt (+ "
-       "rgb.txt) (TUM), calib.txt with numbered frames (InfiniTAM), and "
-       "seq-NN/frame-NNNNNN.depth.png or frame-NNNNNN.depth.png (7-Scenes)",
+       "rgb.txt) (TUM), calib.txt with numbered frames (InfiniTAM), "
+       "seq-NN/frame-NNNNNN.depth.png or frame-NNNNNN.depth.png (7-Scenes), a depth/ folder "
+       "(Open3D with camera_intrinsic.json, else an image folder) and 16-bit depth PNGs",
        dir.string());
 }
 
@@ -202,9 +206,20 @@ std::unique_ptr<DatasetReader> open_dataset(const std::string& spec, const Datas
     case DatasetLayout::InfiniTam:
       dataset = detail::open_infinitam(dir, params);
       break;
+    case DatasetLayout::Open3d:
+    case DatasetLayout::ImageFolder:
+      dataset = detail::open_image_folders(dir, params);
+      break;
     case DatasetLayout::Synthetic:
       fail(ErrorCode::Unsupported, "'{}': synthetic scenes are not file datasets", spec);
   }
+  DatasetInfo& info = dataset->mutable_info();
+  if (info.layout_reason.empty())
+    info.layout_reason =
+        info.layout == DatasetLayout::Tum
+            ? (fs::exists(dir / "associations.txt") ? "associations.txt" : "depth.txt")
+        : info.layout == DatasetLayout::InfiniTam ? "calib.txt"
+                                                  : "frame-NNNNNN.depth.png files";
   dataset->truncate(params.max_frames);
   check_depth_scale(*dataset);
   return dataset;
@@ -258,7 +273,9 @@ std::string describe_dataset(DatasetReader& reader) {
     out += fmt::format("{:<16}{}\n", key.empty() ? std::string() : fmt::format("{}:", key), value);
   };
   line("dataset", info.source);
-  line("layout", std::string(to_string(info.layout)));
+  line("layout", info.layout_reason.empty()
+                     ? std::string(to_string(info.layout))
+                     : fmt::format("{} (found: {})", to_string(info.layout), info.layout_reason));
   line("frames", std::to_string(info.frame_count));
   line("resolution",
        fmt::format("{}x{}", info.rig.depth_camera.width, info.rig.depth_camera.height));

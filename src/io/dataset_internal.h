@@ -77,6 +77,9 @@ struct LayoutDefaults {
   bool guess_from_folder_name = false;   ///< TUM: `freiburg1` / `fr1` in the name -> `tum_fr1`
   double depth_scale = 0;                ///< used when nothing above gives a depth scale
   const char* depth_scale_source = "";
+  /// `preset` was read from a file of the folder (named by its `name`), e.g. Open3D's
+  /// camera_intrinsic.json: sources name the file, and its depth scale is the layout's default.
+  bool preset_is_file = false;
 };
 
 /// Picks intrinsics and depth scale by priority: `params` (override file, preset, depth scale),
@@ -102,5 +105,10 @@ std::unique_ptr<FileDataset> open_seven_scenes(const std::filesystem::path& dir,
                                                const DatasetParams& params);
 std::unique_ptr<FileDataset> open_infinitam(const std::filesystem::path& dir,
                                             const DatasetParams& params);
+/// Folders of numbered images (folder_dataset.cpp): `depth/` (or 16-bit PNGs in `dir`), colour in
+/// `color/`, `rgb/` or `image/`; Open3D's layout when `camera_intrinsic.json` is there.
+bool is_image_folder_layout(const std::filesystem::path& dir);
+std::unique_ptr<FileDataset> open_image_folders(const std::filesystem::path& dir,
+                                                const DatasetParams& params);
 
 }  // namespace hivox::detail

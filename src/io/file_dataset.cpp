@@ -195,7 +195,9 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
     take(*f, folder_json.string());
   } else if (defaults.preset) {
     take(*defaults.preset,
-         fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name));
+         defaults.preset_is_file
+             ? (dir / std::string(defaults.preset->name)).string()
+             : fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name));
   } else {
     std::string matched;
     if (defaults.guess_from_folder_name) guessed = guess_preset(dir, &matched);
@@ -223,7 +225,9 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
   } else if (defaults.preset) {
     c.depth_scale = defaults.preset->depth_scale;
     c.depth_scale_source =
-        fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name);
+        defaults.preset_is_file
+            ? fmt::format("{} default", defaults.layout_name)
+            : fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name);
   } else if (guessed) {
     c.depth_scale = guessed->depth_scale;
     c.depth_scale_source = fmt::format("preset {}, guessed from the folder name", guessed->name);

@@ -6,9 +6,11 @@
 #include <filesystem>
 #include <fstream>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "apps/cli_util.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/dataset.h"
 #include "hivox/io/image_io.h"
 #include "hivox/io/ply.h"
@@ -322,6 +324,96 @@ TEST(Synth, ExportReadsBackWithIdenticalPoses) {
     EXPECT_TRUE(a.T_wc_gt->isApprox(*b.T_wc_gt, 1e-7)) << "frame " << i;
     EXPECT_NEAR(a.timestamp_s, b.timestamp_s, 1e-6);
   }
+}
+
+}  // namespace
+}  // namespace hivox
+
+namespace hivox {
+namespace {
+
+/// Renames a folder's files to zero-padded frame numbers, keeping their extensions (as RGB-D
+/// recorders name them).
+void number_files(const fs::path& dir) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (std::size_t i = 0; i < files.size(); ++i)
+    fs::rename(files[i], dir / (fmt::format("{:06d}", i) + files[i].extension().string()));
+}
+
+// Open3D's recorder layout and a bare folder of depth PNGs hold the frames of a TUM sequence
+// written by `hivox synth`: each is detected, says why, and reconstructs to the TUM run's mesh.
+TEST(FolderLayouts, Open3dAndBareDepthFoldersReconstructLikeTheSameFramesAsTum) {
+  test::TempDir dir;
+  ASSERT_EQ(run_hivox("synth --scene box --frames 6 --width 80 --height 60 --noise none --out " +
+                      (dir / "tum").string())
+                .exit_code,
+            0);
+  const std::string settings = " --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet --poses " +
+                               (dir / "tum" / "groundtruth.txt").string();
+  // Open3D: depth/ and color/ numbered, camera_intrinsic.json (column-major K), depth in mm by
+  // default (these are 1/5000 m: --depth-scale says so).
+  fs::create_directories(dir / "o3d");
+  fs::copy(dir / "tum" / "depth", dir / "o3d" / "depth");
+  fs::copy(dir / "tum" / "rgb", dir / "o3d" / "color");
+  number_files(dir / "o3d" / "depth");
+  number_files(dir / "o3d" / "color");
+  test::write_text(dir / "o3d" / "camera_intrinsic.json",
+                   R"({"width": 80, "height": 60, "intrinsic_matrix": )"
+                   R"([65.625, 0, 0, 0, 65.625, 0, 39.5, 29.5, 1]})");
+  auto r = run_hivox("info " + (dir / "o3d").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "Open3D (found: camera_intrinsic.json and 6 depth image"))
+      << r.output;
+  EXPECT_TRUE(test::contains(r.output, "1000 raw units per metre  [Open3D default]")) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "frames:         6")) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "fx=65.625")) << r.output;
+  ASSERT_EQ(run_hivox("reconstruct " + (dir / "tum").string() + settings + " --out " +
+                      (dir / "tum_run").string())
+                .exit_code,
+            0);
+  r = run_hivox("reconstruct " + (dir / "o3d").string() + settings + " --depth-scale 5000 --out " +
+                (dir / "o3d_run").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(read_whole_file(dir / "o3d_run" / "mesh.ply") ==
+              read_whole_file(dir / "tum_run" / "mesh.ply"));
+
+  // A bare folder of depth PNGs: the camera must be given (preset or intrinsics file).
+  fs::create_directories(dir / "bare");
+  for (const auto& e : fs::directory_iterator(dir / "tum" / "depth"))
+    fs::copy(e.path(), dir / "bare" / e.path().filename());
+  r = run_hivox("info " + (dir / "bare").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "--preset")) << r.output;
+  r = run_hivox("info " + (dir / "bare").string() + " --intrinsics " +
+                (dir / "tum" / "intrinsics.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "image folder (found: 6 16-bit depth PNG(s) in the folder"))
+      << r.output;
+  EXPECT_TRUE(test::contains(r.output, "colour:         no")) << r.output;
+  const std::string no_color = " --no-color";
+  ASSERT_EQ(run_hivox("reconstruct " + (dir / "tum").string() + settings + no_color + " --out " +
+                      (dir / "tum_grey").string())
+                .exit_code,
+            0);
+  r = run_hivox("reconstruct " + (dir / "bare").string() + settings + no_color + " --intrinsics " +
+                (dir / "tum" / "intrinsics.json").string() + " --out " +
+                (dir / "bare_run").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(read_whole_file(dir / "bare_run" / "mesh.ply") ==
+              read_whole_file(dir / "tum_grey" / "mesh.ply"));
+
+  // Colour that does not pair up with the depth is refused, naming both folders.
+  fs::remove(dir / "o3d" / "color" / "000005.png");
+  r = run_hivox("info " + (dir / "o3d").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(test::contains(r.output, "5 colour images for 6 depth images")) << r.output;
+  test::write_text(dir / "o3d" / "camera_intrinsic.json", R"({"width": 80})");
+  fs::remove(dir / "o3d" / "depth" / "000005.png");
+  r = run_hivox("info " + (dir / "o3d").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(test::contains(r.output, "camera_intrinsic.json: needs width, height")) << r.output;
 }
 
 }  // namespace

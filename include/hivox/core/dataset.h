@@ -15,12 +15,22 @@
 
 namespace hivox {
 
-enum class DatasetLayout { Tum, SevenScenes, InfiniTam, Synthetic };
+enum class DatasetLayout {
+  Tum,
+  SevenScenes,
+  InfiniTam,
+  Open3d,       ///< Open3D's reconstruction system / RealSense recorder: depth/, color/,
+                ///< camera_intrinsic.json
+  ImageFolder,  ///< a folder of depth PNGs (or depth/), optional colour; camera from a preset or
+                ///< file
+  Synthetic,
+};
 std::string_view to_string(DatasetLayout layout);
 
 struct DatasetInfo {
   std::string source;  ///< directory, or `synthetic:NAME`
   DatasetLayout layout = DatasetLayout::Tum;
+  std::string layout_reason;  ///< what in the folder made it this layout
   std::size_t frame_count = 0;
   /// The cameras, the raw depth units and the depth noise of the sensor that recorded the set.
   CameraRig rig;

@@ -1,0 +1,158 @@
+// Folders of numbered images: Open3D's reconstruction-system / RealSense-recorder layout
+// (`depth/`, `color/`, `camera_intrinsic.json`) and bare folders of depth PNGs (a `depth/`
+// folder, or the PNGs themselves; colour in `color/` or `rgb/` when present), whose camera comes
+// from a preset or an intrinsics file.
+
+#include <algorithm>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "hivox/core/error.h"
+#include "hivox/io/atomic_file.h"
+#include "io/dataset_internal.h"
+
+namespace hivox::detail {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kFrameRateHz = 30.0;  // numbered frames carry no time; recorders run at 30 Hz
+
+/// The image files of `dir` with one of `extensions`, sorted by name (numbered names sort in
+/// frame order when zero-padded, as recorders write them).
+std::vector<fs::path> images_in(const fs::path& dir,
+                                std::initializer_list<const char*> extensions) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (!it->is_regular_file(ec)) continue;
+    std::string ext = it->path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    for (const char* e : extensions)
+      if (ext == e) out.push_back(it->path());
+  }
+  if (ec) fail(ErrorCode::Io, "{}: cannot list the folder ({})", dir.string(), ec.message());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// Where the depth images of a folder layout are: `dir/depth`, or `dir` itself when it holds
+/// 16-bit PNGs. Empty when neither.
+fs::path depth_folder(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir / "depth", ec)) return dir / "depth";
+  for (const fs::path& p : images_in(dir, {".png"}))
+    if (is_depth16_png(p)) return dir;
+  return {};
+}
+
+/// Open3D's `camera_intrinsic.json`: width, height and a column-major 3x3 `intrinsic_matrix`.
+CameraPreset read_open3d_intrinsics(const fs::path& path) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_whole_file(path));
+  } catch (const nlohmann::json::exception& e) {
+    fail(ErrorCode::InvalidData, "{}: not valid JSON ({})", path.string(), e.what());
+  }
+  auto bad = [&](const std::string& why) {
+    fail(ErrorCode::InvalidData,
+         "{}: {} (Open3D's format: width, height, intrinsic_matrix of 9 "
+         "numbers, column-major)",
+         path.string(), why);
+  };
+  if (!j.is_object() || !j.contains("width") || !j.contains("height") ||
+      !j.contains("intrinsic_matrix"))
+    bad("needs width, height and intrinsic_matrix");
+  const nlohmann::json& k = j["intrinsic_matrix"];
+  if (!j["width"].is_number_integer() || !j["height"].is_number_integer() || !k.is_array() ||
+      k.size() != 9 ||
+      !std::all_of(k.begin(), k.end(), [](const auto& v) { return v.is_number(); }))
+    bad("width and height must be integers and intrinsic_matrix 9 numbers");
+  CameraPreset p;
+  p.name = "camera_intrinsic.json";
+  p.camera = {k[0].get<float>(), k[4].get<float>(),     k[6].get<float>(),
+              k[7].get<float>(), j["width"].get<int>(), j["height"].get<int>()};
+  try {
+    p.camera.validate(path.string());
+  } catch (const Error& e) {
+    bad(e.what());
+  }
+  p.depth_scale = 1000.0;  // Open3D's default depth_scale (millimetres)
+  p.description = "Open3D camera_intrinsic.json";
+  return p;
+}
+
+}  // namespace
+
+bool is_image_folder_layout(const fs::path& dir) {
+  return !depth_folder(dir).empty();
+}
+
+std::unique_ptr<FileDataset> open_image_folders(const fs::path& dir, const DatasetParams& params) {
+  const fs::path depth_dir = depth_folder(dir);
+  if (depth_dir.empty())
+    fail(ErrorCode::InvalidData, "{}: no depth/ folder and no 16-bit depth PNGs", dir.string());
+  const std::vector<fs::path> depths = images_in(depth_dir, {".png"});
+  if (depths.empty())
+    fail(ErrorCode::InvalidData, "{}: no depth PNGs in the folder", depth_dir.string());
+  std::error_code ec;
+  fs::path color_dir;
+  for (const char* name : {"color", "rgb", "image"})
+    if (fs::is_directory(dir / name, ec)) {
+      color_dir = dir / name;
+      break;
+    }
+  std::vector<fs::path> colors;
+  if (!color_dir.empty()) {
+    colors = images_in(color_dir, {".jpg", ".jpeg", ".png"});
+    if (colors.size() != depths.size())
+      fail(ErrorCode::InvalidData,
+           "{}: {} colour images for {} depth images in {}: frames are paired by name order, so "
+           "the counts must match",
+           color_dir.string(), colors.size(), depths.size(), depth_dir.string());
+  }
+  std::vector<FrameFiles> frames;
+  for (std::size_t i = 0; i < depths.size(); ++i) {
+    FrameFiles f;
+    f.depth = depths[i];
+    if (!colors.empty()) f.color = colors[i];
+    f.timestamp_s = static_cast<double>(i) / kFrameRateHz;
+    frames.push_back(std::move(f));
+  }
+
+  const fs::path open3d_json = dir / "camera_intrinsic.json";
+  const bool open3d = fs::is_regular_file(open3d_json, ec);
+  std::optional<CameraPreset> open3d_camera;
+  if (open3d && params.preset.empty() && params.intrinsics_path.empty())
+    open3d_camera = read_open3d_intrinsics(open3d_json);
+  const Calibration calibration =
+      resolve_calibration(dir, params,
+                          {.layout_name = open3d ? "Open3D" : "image folder",
+                           .preset = open3d_camera ? &*open3d_camera : nullptr,
+                           .guess_from_folder_name = false,
+                           .depth_scale = 0,
+                           .depth_scale_source = "",
+                           .preset_is_file = true});
+  DatasetInfo info;
+  info.source = dir.string();
+  info.layout = open3d ? DatasetLayout::Open3d : DatasetLayout::ImageFolder;
+  calibration.apply_to(info, params.undistort);
+  info.layout_reason =
+      open3d
+          ? fmt::format(
+                "camera_intrinsic.json and {} depth image(s) in {}{}", depths.size(),
+                depth_dir.filename().string(),
+                colors.empty() ? "" : fmt::format(", colour in {}", color_dir.filename().string()))
+          : fmt::format(
+                "{} 16-bit depth PNG(s) in {}{}; no layout file", depths.size(),
+                depth_dir == dir ? "the folder" : depth_dir.filename().string(),
+                colors.empty() ? "" : fmt::format(", colour in {}", color_dir.filename().string()));
+  return std::make_unique<FileDataset>(std::move(info), std::move(frames),
+                                       DepthDecoding{calibration.depth_scale, 0, 0.0});
+}
+
+}  // namespace hivox::detail
