@@ -1,0 +1,145 @@
+"""The hivox Python module against the library: same results as the C++ run, numpy in and out,
+errors as exceptions. Run by CTest (Python.pytest) with PYTHONPATH at the built module."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import hivox
+
+SCENE = "synthetic:box?frames=6&width=80&height=60&noise=none"
+
+
+def small_params():
+    return hivox.ReconstructionParams(
+        map=hivox.MapParams(voxel_size_m=0.01, levels=1, truncation_m=0.04, max_blocks=1 << 14,
+                            buckets_per_level=1 << 12, excess_per_level=1 << 12))
+
+
+def test_params_take_keywords_print_and_validate():
+    p = hivox.MapParams(voxel_size_m=0.004, levels=2)
+    assert p.voxel_size_m == pytest.approx(0.004) and p.levels == 2
+    assert "voxel 4.0/8.0 mm (2 levels)" in repr(p)
+    with pytest.raises(TypeError, match="no field 'voxel_size'"):
+        hivox.MapParams(voxel_size=0.004)
+    with pytest.raises(hivox.Error, match="levels"):
+        hivox.MapParams(levels=9).validate()
+    assert isinstance(hivox.__version__, str) and hivox.__version__.count(".") == 2
+
+
+def test_frames_fused_from_python_equal_the_library_run(tmp_path):
+    data = hivox.open_dataset(SCENE)
+    assert len(data) == 6 and data.layout == "synthetic" and data.has_ground_truth
+    rec = hivox.Reconstruction(small_params(), data.camera, noise_free=True)
+    for i in range(len(data)):
+        f = data.read(i)
+        assert f["depth"].dtype == np.float32 and f["depth"].shape == (60, 80)
+        assert f["color"].dtype == np.uint8 and f["color"].shape == (60, 80, 3)
+        s = rec.integrate(f["depth"], f["color"], f["T_wc_gt"])
+        assert s["fused"] and s["blocks_total"] > 0
+    mesh = rec.extract_mesh()
+    assert mesh["vertices"].shape[1] == 3 and mesh["triangles"].dtype == np.int32
+    assert mesh["triangles"].max() < len(mesh["vertices"])
+    assert mesh["colors"].shape == mesh["vertices"].shape
+
+    run_params = hivox.RunParams(poses="gt", reconstruction=small_params(),
+                                 out_dir=str(tmp_path / "run"))
+    same, summary = hivox.run(data, run_params)
+    assert summary["frames_fused"] == 6 and summary["end"] == "completed"
+    other = same.extract_mesh()
+    assert np.array_equal(mesh["vertices"], other["vertices"])
+    assert np.array_equal(mesh["triangles"], other["triangles"])
+    assert (tmp_path / "run" / "mesh.ply").exists()
+
+    # Renders as arrays: depth where the model is seen, levels -1 elsewhere.
+    _, T_last = rec.trajectory[-1]
+    r = rec.render(data.camera, T_last)
+    assert r["depth"].shape == (60, 80) and r["normals"].shape == (60, 80, 3)
+    hit = r["depth"] > 0
+    assert hit.mean() > 0.05
+    assert (r["levels"][~hit] == -1).all() and (r["levels"][hit] == 0).all()
+    assert np.allclose(np.linalg.norm(r["normals"][hit], axis=1), 1.0, atol=1e-3)
+
+
+def test_uint16_depth_with_its_scale_equals_metres():
+    data = hivox.open_dataset(SCENE)
+    a = hivox.Reconstruction(small_params(), data.camera, noise_free=True)
+    b = hivox.Reconstruction(small_params(), data.camera, depth_scale=5000.0, noise_free=True)
+    for i in range(3):
+        f = data.read(i)
+        raw = np.round(f["depth"] * 5000.0).astype(np.uint16)
+        a.integrate(raw.astype(np.float32) / 5000.0, None, f["T_wc_gt"])
+        b.integrate(raw, None, f["T_wc_gt"])
+    assert np.array_equal(a.extract_mesh()["vertices"], b.extract_mesh()["vertices"])
+
+
+def test_bad_input_raises_with_a_clear_message():
+    data = hivox.open_dataset(SCENE)
+    rec = hivox.Reconstruction(small_params(), data.camera)
+    f = data.read(0)
+    with pytest.raises(ValueError, match=r"color must be a uint8 array of shape \(60, 80, 3\)"):
+        rec.integrate(f["depth"], np.zeros((10, 10, 3), np.uint8), f["T_wc_gt"])
+    with pytest.raises(ValueError, match="2-D"):
+        rec.integrate(np.zeros((2, 60, 80), np.float32), None, f["T_wc_gt"])
+    with pytest.raises(ValueError, match="depth_scale"):
+        rec.integrate(np.zeros((60, 80), np.uint16), None, f["T_wc_gt"])
+    bad = small_params()
+    bad.map.voxel_size_m = -1.0
+    with pytest.raises(hivox.Error, match="voxel_size"):
+        hivox.Reconstruction(bad, data.camera)
+    with pytest.raises(hivox.Error, match="does not exist"):
+        hivox.open_dataset("/nonexistent/folder")
+    with pytest.raises(IndexError):
+        data.read(99)
+
+
+def test_maps_save_load_and_continue(tmp_path):
+    data = hivox.open_dataset(SCENE)
+    whole = hivox.Reconstruction(small_params(), data.camera, noise_free=True)
+    half = hivox.Reconstruction(small_params(), data.camera, noise_free=True)
+    for i in range(6):
+        f = data.read(i)
+        whole.integrate(f["depth"], f["color"], f["T_wc_gt"])
+        if i < 3:
+            half.integrate(f["depth"], f["color"], f["T_wc_gt"])
+    half.save_map(tmp_path / "half.hvx")
+    rest = hivox.load_map(tmp_path / "half.hvx")
+    for i in range(3, 6):
+        f = data.read(i)
+        rest.integrate(f["depth"], f["color"], f["T_wc_gt"])
+    whole.save_map(tmp_path / "whole.hvx")
+    rest.save_map(tmp_path / "rest.hvx")
+    assert (tmp_path / "whole.hvx").read_bytes() == (tmp_path / "rest.hvx").read_bytes()
+    with pytest.raises(hivox.Error, match="not a hivox map file"):
+        (tmp_path / "x.hvx").write_text("nothing")
+        hivox.load_map(tmp_path / "x.hvx")
+
+
+def test_tracking_follows_the_camera():
+    # 300 frames along the scene's path, the first 8 of them (max_frames=8 would spread the path
+    # over 8 frames: a synthetic scene's frame count sets its path's steps).
+    data = hivox.open_dataset("synthetic:desk?frames=300&width=160&height=120&noise=none")
+    p = hivox.ReconstructionParams(map=hivox.MapParams(voxel_size_m=0.008, truncation_m=0.064))
+    rec = hivox.Reconstruction(p, data.camera, noise_free=True)
+    first = data.read(0)
+    rec.track_and_integrate(first["depth"], first["color"], first["T_wc_gt"])
+    for i in range(1, 8):
+        f = data.read(i)
+        s = rec.track_and_integrate(f["depth"], f["color"])
+        assert s["tracking"] != "lost"
+        assert np.linalg.norm(s["T_wc"][:3, 3] - f["T_wc_gt"][:3, 3]) < 0.01
+    assert rec.stats["tracking"]["lost"] == 0
+
+
+@pytest.mark.skipif(not os.path.isdir(os.path.join(os.environ.get("HIVOX_DATA_DIR", ""),
+                                                   "tum_fr1_rpy")),
+                    reason="real data set tum_fr1_rpy not found (../shared/data)")
+def test_the_example_reconstructs_a_real_sequence(tmp_path):
+    script = os.path.join(os.environ.get("HIVOX_SOURCE_DIR", "."), "examples", "reconstruct.py")
+    data = os.path.join(os.environ["HIVOX_DATA_DIR"], "tum_fr1_rpy")
+    out = subprocess.run([sys.executable, script, data, str(tmp_path / "mesh.ply"), "--frames",
+                          "20"], capture_output=True, text=True, check=True).stdout
+    assert "20 frames" in out
+    assert (tmp_path / "mesh.ply").stat().st_size > 100000
