@@ -14,6 +14,8 @@ std::string_view to_string(DatasetLayout layout) {
       return "Open3D";
     case DatasetLayout::ImageFolder:
       return "image folder";
+    case DatasetLayout::Replica:
+      return "Replica";
     case DatasetLayout::Synthetic:
       return "synthetic";
   }

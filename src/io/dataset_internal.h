@@ -77,7 +77,7 @@ struct LayoutDefaults {
   bool guess_from_folder_name = false;   ///< TUM: `freiburg1` / `fr1` in the name -> `tum_fr1`
   double depth_scale = 0;                ///< used when nothing above gives a depth scale
   const char* depth_scale_source = "";
-  /// `preset` was read from a file of the folder (named by its `name`), e.g. Open3D's
+  /// `preset` was read from a file (its `name` is the file's path), e.g. Open3D's
   /// camera_intrinsic.json: sources name the file, and its depth scale is the layout's default.
   bool preset_is_file = false;
 };
@@ -91,6 +91,9 @@ Calibration resolve_calibration(const std::filesystem::path& dir, const DatasetP
 /// Reads a 4x4 row-major camera-to-world matrix (7-Scenes `frame-NNNNNN.pose.txt`). Errors
 /// name the file (and line for a non-number); the rotation is re-orthonormalised.
 Pose read_pose_matrix(const std::filesystem::path& path);
+/// A camera-to-world pose from 16 numbers (4x4, row-major), checked as read_pose_matrix checks
+/// a file; errors start with `where` (a file and line).
+Pose pose_from_row_major(const std::vector<double>& v, const std::string& where);
 
 /// True when `path` is a PNG with one 16-bit grey channel (reads the header only).
 bool is_depth16_png(const std::filesystem::path& path);
@@ -108,6 +111,12 @@ std::unique_ptr<FileDataset> open_infinitam(const std::filesystem::path& dir,
 /// Folders of numbered images (folder_dataset.cpp): `depth/` (or 16-bit PNGs in `dir`), colour in
 /// `color/`, `rgb/` or `image/`; Open3D's layout when `camera_intrinsic.json` is there.
 bool is_image_folder_layout(const std::filesystem::path& dir);
+/// The Replica layout of NICE-SLAM-style tools: `results/frameNNNNNN.jpg` and
+/// `results/depthNNNNNN.png`, `traj.txt` (a 4x4 camera-to-world matrix per line, row-major),
+/// `cam_params.json` in the folder or the one above it.
+bool is_replica_layout(const std::filesystem::path& dir);
+std::unique_ptr<FileDataset> open_replica(const std::filesystem::path& dir,
+                                          const DatasetParams& params);
 std::unique_ptr<FileDataset> open_image_folders(const std::filesystem::path& dir,
                                                 const DatasetParams& params);
 

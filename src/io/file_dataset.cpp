@@ -196,7 +196,7 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
   } else if (defaults.preset) {
     take(*defaults.preset,
          defaults.preset_is_file
-             ? (dir / std::string(defaults.preset->name)).string()
+             ? std::string(defaults.preset->name)
              : fmt::format("preset {} ({} default)", defaults.preset->name, defaults.layout_name));
   } else {
     std::string matched;
@@ -259,18 +259,22 @@ Pose read_pose_matrix(const fs::path& path) {
     fail(ErrorCode::InvalidData,
          "{}: expected a 4x4 camera-to-world matrix (16 numbers, row-major), found {} numbers",
          path.string(), v.size());
+  return pose_from_row_major(v, path.string());
+}
+
+Pose pose_from_row_major(const std::vector<double>& v, const std::string& where) {
   const Eigen::Matrix4d m =
       Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(v.data());
   if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6)
     fail(ErrorCode::InvalidData, "{}: last matrix row must be '0 0 0 1', found '{} {} {} {}'",
-         path.string(), m(3, 0), m(3, 1), m(3, 2), m(3, 3));
+         where, m(3, 0), m(3, 1), m(3, 2), m(3, 3));
   const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
   // Stored poses are rounded; anything further than this from a rotation is not a pose.
   const double error = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   if (error > 1e-3 || R.determinant() < 0)
     fail(ErrorCode::InvalidData,
-         "{}: the 3x3 block is not a rotation (|R^T R - I| = {:.2g}, det = {:.3f})", path.string(),
-         error, R.determinant());
+         "{}: the 3x3 block is not a rotation (|R^T R - I| = {:.2g}, det = {:.3f})", where, error,
+         R.determinant());
   Pose T = Pose::Identity();
   T.linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
   T.translation() = m.topRightCorner<3, 1>();

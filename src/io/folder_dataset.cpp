@@ -1,7 +1,8 @@
 // Folders of numbered images: Open3D's reconstruction-system / RealSense-recorder layout
-// (`depth/`, `color/`, `camera_intrinsic.json`) and bare folders of depth PNGs (a `depth/`
-// folder, or the PNGs themselves; colour in `color/` or `rgb/` when present), whose camera comes
-// from a preset or an intrinsics file.
+// (`depth/`, `color/`, `camera_intrinsic.json`), bare folders of depth PNGs (a `depth/` folder,
+// or the PNGs themselves; colour in `color/` or `rgb/` when present), whose camera comes from a
+// preset or an intrinsics file, and the Replica renders of NICE-SLAM-style tools (`results/`,
+// `traj.txt`, `cam_params.json`).
 
 #include <algorithm>
 #include <fstream>
@@ -11,6 +12,7 @@
 
 #include "hivox/core/error.h"
 #include "hivox/io/atomic_file.h"
+#include "hivox/io/text_lines.h"
 #include "io/dataset_internal.h"
 
 namespace hivox::detail {
@@ -127,8 +129,11 @@ std::unique_ptr<FileDataset> open_image_folders(const fs::path& dir, const Datas
   const fs::path open3d_json = dir / "camera_intrinsic.json";
   const bool open3d = fs::is_regular_file(open3d_json, ec);
   std::optional<CameraPreset> open3d_camera;
-  if (open3d && params.preset.empty() && params.intrinsics_path.empty())
+  const std::string open3d_name = open3d_json.string();  // outlives the preset's name view
+  if (open3d && params.preset.empty() && params.intrinsics_path.empty()) {
     open3d_camera = read_open3d_intrinsics(open3d_json);
+    open3d_camera->name = open3d_name;
+  }
   const Calibration calibration =
       resolve_calibration(dir, params,
                           {.layout_name = open3d ? "Open3D" : "image folder",
@@ -151,6 +156,145 @@ std::unique_ptr<FileDataset> open_image_folders(const fs::path& dir, const Datas
                 "{} 16-bit depth PNG(s) in {}{}; no layout file", depths.size(),
                 depth_dir == dir ? "the folder" : depth_dir.filename().string(),
                 colors.empty() ? "" : fmt::format(", colour in {}", color_dir.filename().string()));
+  return std::make_unique<FileDataset>(std::move(info), std::move(frames),
+                                       DepthDecoding{calibration.depth_scale, 0, 0.0});
+}
+
+namespace {
+
+/// The frame number of a file named PREFIX + digits + extension, or -1.
+long frame_number(const fs::path& p, std::string_view prefix) {
+  const std::string stem = p.stem().string();
+  if (!stem.starts_with(prefix) || stem.size() == prefix.size() || stem.size() > prefix.size() + 9)
+    return -1;
+  const std::string digits = stem.substr(prefix.size());
+  if (!std::all_of(digits.begin(), digits.end(),
+                   [](char c) { return std::isdigit(static_cast<unsigned char>(c)); }))
+    return -1;
+  return std::stol(digits);
+}
+
+/// `results/` files named PREFIX + number, by number.
+std::vector<std::pair<long, fs::path>> numbered(const fs::path& dir, std::string_view prefix,
+                                                std::initializer_list<const char*> extensions) {
+  std::vector<std::pair<long, fs::path>> out;
+  for (const fs::path& p : images_in(dir, extensions))
+    if (const long n = frame_number(p, prefix); n >= 0) out.emplace_back(n, p);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// NICE-SLAM's `cam_params.json` ({"camera": {w, h, fx, fy, cx, cy, scale}}), its principal
+/// point moved by -0.5 px: NICE-SLAM's renderer puts pixel centres at +0.5, hivox at integers
+/// (on Replica office0, depth back-projected with the file's cx, cy lies a median 1.28 mm from
+/// the true mesh, with them moved 0.17 mm).
+CameraPreset read_replica_camera(const fs::path& path) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_whole_file(path));
+  } catch (const nlohmann::json::exception& e) {
+    fail(ErrorCode::InvalidData, "{}: not valid JSON ({})", path.string(), e.what());
+  }
+  const nlohmann::json* c = j.is_object() && j.contains("camera") ? &j["camera"] : nullptr;
+  for (const char* k : {"w", "h", "fx", "fy", "cx", "cy", "scale"})
+    if (c == nullptr || !c->is_object() || !c->contains(k) || !(*c)[k].is_number())
+      fail(ErrorCode::InvalidData,
+           "{}: needs \"camera\" with numbers w, h, fx, fy, cx, cy and scale (NICE-SLAM's format)",
+           path.string());
+  CameraPreset p;
+  p.name = "cam_params.json";
+  p.camera = {(*c)["fx"].get<float>(),        (*c)["fy"].get<float>(),
+              (*c)["cx"].get<float>() - 0.5f, (*c)["cy"].get<float>() - 0.5f,
+              (*c)["w"].get<int>(),           (*c)["h"].get<int>()};
+  try {
+    p.camera.validate(path.string());
+  } catch (const Error& e) {
+    fail(ErrorCode::InvalidData, "{}", e.what());
+  }
+  p.depth_scale = (*c)["scale"].get<double>();
+  if (!(p.depth_scale > 0))
+    fail(ErrorCode::InvalidData, "{}: scale must be > 0 (raw depth units per metre)",
+         path.string());
+  p.description = "NICE-SLAM cam_params.json";
+  return p;
+}
+
+fs::path replica_camera_file(const fs::path& dir) {
+  std::error_code ec;
+  for (const fs::path& p : {dir / "cam_params.json", dir.parent_path() / "cam_params.json"})
+    if (fs::is_regular_file(p, ec)) return p;
+  return {};
+}
+
+}  // namespace
+
+bool is_replica_layout(const fs::path& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir / "results", ec) && fs::is_regular_file(dir / "traj.txt", ec);
+}
+
+std::unique_ptr<FileDataset> open_replica(const fs::path& dir, const DatasetParams& params) {
+  const fs::path results = dir / "results";
+  const auto depths = numbered(results, "depth", {".png"});
+  if (depths.empty())
+    fail(ErrorCode::InvalidData, "{}: no depthNNNNNN.png files", results.string());
+  const auto colors = numbered(results, "frame", {".jpg", ".jpeg", ".png"});
+  // The trajectory: one 4x4 camera-to-world matrix per line, frame n on line n.
+  const fs::path traj = dir / "traj.txt";
+  std::vector<Pose> poses;
+  for (const TextLine& line : read_text_lines(traj)) {
+    if (line.fields.size() != 16)
+      fail(ErrorCode::InvalidData, "{}:{}: {} numbers, expected 16 (a 4x4 matrix, row-major)",
+           traj.string(), line.number, line.fields.size());
+    std::vector<double> v;
+    for (std::size_t i = 0; i < 16; ++i) v.push_back(parse_double(traj, line, i, "matrix entry"));
+    poses.push_back(pose_from_row_major(v, fmt::format("{}:{}", traj.string(), line.number)));
+  }
+  std::vector<FrameFiles> frames;
+  std::size_t ci = 0;
+  for (const auto& [n, depth] : depths) {
+    FrameFiles f;
+    f.depth = depth;
+    while (ci < colors.size() && colors[ci].first < n) ++ci;
+    if (!colors.empty()) {
+      if (ci == colors.size() || colors[ci].first != n)
+        fail(ErrorCode::InvalidData, "{}: no frame{:06d} colour image for {}", results.string(), n,
+             depth.filename().string());
+      f.color = colors[ci].second;
+    }
+    if (static_cast<std::size_t>(n) >= poses.size())
+      fail(ErrorCode::InvalidData, "{}: {} poses, none for {}", traj.string(), poses.size(),
+           depth.filename().string());
+    f.T_wc_gt = poses[static_cast<std::size_t>(n)];
+    f.timestamp_s = static_cast<double>(n) / kFrameRateHz;
+    frames.push_back(std::move(f));
+  }
+  const fs::path camera_file = replica_camera_file(dir);
+  std::optional<CameraPreset> camera;
+  const std::string camera_name = camera_file.string();  // outlives the preset's name view
+  if (!camera_file.empty() && params.preset.empty() && params.intrinsics_path.empty()) {
+    camera = read_replica_camera(camera_file);
+    camera->name = camera_name;
+  }
+  const Calibration calibration = resolve_calibration(dir, params,
+                                                      {.layout_name = "Replica",
+                                                       .preset = camera ? &*camera : nullptr,
+                                                       .guess_from_folder_name = false,
+                                                       .depth_scale = 0,
+                                                       .depth_scale_source = "",
+                                                       .preset_is_file = true});
+  DatasetInfo info;
+  info.source = dir.string();
+  info.layout = DatasetLayout::Replica;
+  calibration.apply_to(info, params.undistort);
+  info.has_ground_truth = true;
+  info.rig.depth_noise = SensorNoise::none();  // rendered depth
+  info.layout_reason =
+      fmt::format("results/ with {} depthNNNNNN.png{}, traj.txt with {} poses{}", depths.size(),
+                  colors.empty() ? "" : " and frameNNNNNN colour images", poses.size(),
+                  camera_file.empty() ? "" : fmt::format(", camera from {}", camera_file.string()));
+  if (!camera_file.empty() && camera)
+    info.intrinsics_source += " (principal point -0.5 px: NICE-SLAM's pixel centres)";
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),
                                        DepthDecoding{calibration.depth_scale, 0, 0.0});
 }

@@ -418,3 +418,73 @@ TEST(FolderLayouts, Open3dAndBareDepthFoldersReconstructLikeTheSameFramesAsTum) 
 
 }  // namespace
 }  // namespace hivox
+
+namespace hivox {
+namespace {
+
+// The Replica layout of NICE-SLAM-style tools (results/frameNNNNNN + depthNNNNNN, traj.txt of
+// 4x4 matrices, cam_params.json with pixel centres at +0.5), written from a synthetic TUM
+// sequence: the same camera, depth scale, poses and (to rounding) mesh as the TUM run.
+TEST(FolderLayouts, ReplicaRendersReadLikeTheSameFramesAsTum) {
+  test::TempDir dir;
+  ASSERT_EQ(run_hivox("synth --scene box --frames 6 --width 80 --height 60 --noise none --out " +
+                      (dir / "tum").string())
+                .exit_code,
+            0);
+  fs::create_directories(dir / "replica" / "scene" / "results");
+  const fs::path results = dir / "replica" / "scene" / "results";
+  std::vector<fs::path> depth, rgb;
+  for (const auto& e : fs::directory_iterator(dir / "tum" / "depth")) depth.push_back(e.path());
+  for (const auto& e : fs::directory_iterator(dir / "tum" / "rgb")) rgb.push_back(e.path());
+  std::sort(depth.begin(), depth.end());
+  std::sort(rgb.begin(), rgb.end());
+  ASSERT_EQ(depth.size(), 6u);
+  std::string traj;
+  const auto poses = read_tum_trajectory(dir / "tum" / "groundtruth.txt");
+  for (std::size_t i = 0; i < depth.size(); ++i) {
+    fs::copy(depth[i], results / fmt::format("depth{:06d}.png", i));
+    fs::copy(rgb[i], results / fmt::format("frame{:06d}.png", i));
+    const Eigen::Matrix4d m = poses[i].T_wc.matrix();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        traj += fmt::format("{:.17g}{}", m(r, c), r * c == 9 ? "\n" : " ");
+  }
+  test::write_text(dir / "replica" / "scene" / "traj.txt", traj);
+  test::write_text(dir / "replica" / "cam_params.json",
+                   R"({"camera": {"w": 80, "h": 60, "fx": 65.625, "fy": 65.625, "cx": 40.0, )"
+                   R"("cy": 30.0, "scale": 5000.0}})");
+  const fs::path scene = dir / "replica" / "scene";
+  auto r = run_hivox("info " + scene.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* part : {"Replica (found: results/ with 6 depthNNNNNN.png", "cx=39.500 cy=29.500",
+                           "5000 raw units per metre", "ground truth:   yes, 6 of 6"})
+    EXPECT_TRUE(test::contains(r.output, part)) << part << " not in\n" << r.output;
+  const std::string settings = " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet";
+  ASSERT_EQ(run_hivox("reconstruct " + (dir / "tum").string() + settings + " --out " +
+                      (dir / "tum_run").string())
+                .exit_code,
+            0);
+  r = run_hivox("reconstruct " + scene.string() + settings + " --out " +
+                (dir / "rep_run").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto a = read_tum_trajectory(dir / "tum_run" / "trajectory.txt");
+  const auto b = read_tum_trajectory(dir / "rep_run" / "trajectory.txt");
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i)
+    EXPECT_LT((a[i].T_wc.matrix() - b[i].T_wc.matrix()).cwiseAbs().maxCoeff(), 1e-8);
+  const int64_t ta = read_ply(dir / "tum_run" / "mesh.ply").triangle_count();
+  const int64_t tb = read_ply(dir / "rep_run" / "mesh.ply").triangle_count();
+  EXPECT_GT(ta, 500);
+  EXPECT_NEAR(static_cast<double>(tb), static_cast<double>(ta), 0.01 * static_cast<double>(ta));
+
+  // A trajectory shorter than the frames, or a malformed line, is named.
+  test::write_text(scene / "traj.txt", traj.substr(0, traj.find('\n') + 1));
+  r = run_hivox("info " + scene.string());
+  EXPECT_TRUE(test::contains(r.output, "1 poses, none for depth000001.png")) << r.output;
+  test::write_text(scene / "traj.txt", "1 2 3\n");
+  r = run_hivox("info " + scene.string());
+  EXPECT_TRUE(test::contains(r.output, "traj.txt:1: 3 numbers, expected 16")) << r.output;
+}
+
+}  // namespace
+}  // namespace hivox

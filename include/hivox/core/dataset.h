@@ -23,6 +23,7 @@ enum class DatasetLayout {
                 ///< camera_intrinsic.json
   ImageFolder,  ///< a folder of depth PNGs (or depth/), optional colour; camera from a preset or
                 ///< file
+  Replica,      ///< NICE-SLAM-style Replica renders: results/, traj.txt, cam_params.json
   Synthetic,
 };
 std::string_view to_string(DatasetLayout layout);
