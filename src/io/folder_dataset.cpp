@@ -88,6 +88,26 @@ CameraPreset read_open3d_intrinsics(const fs::path& path) {
   return p;
 }
 
+/// The calibration of a layout whose camera file `file` (read by `read`; none when empty)
+/// applies unless the user gives a preset or an intrinsics file.
+template <typename Read>
+Calibration calibrate(const fs::path& dir, const DatasetParams& params, const char* layout,
+                      const fs::path& file, Read read) {
+  std::optional<CameraPreset> camera;
+  const std::string name = file.string();  // outlives the preset's name view
+  if (!file.empty() && params.preset.empty() && params.intrinsics_path.empty()) {
+    camera = read(file);
+    camera->name = name;
+  }
+  return resolve_calibration(dir, params,
+                             {.layout_name = layout,
+                              .preset = camera ? &*camera : nullptr,
+                              .guess_from_folder_name = false,
+                              .depth_scale = 0,
+                              .depth_scale_source = "",
+                              .preset_is_file = true});
+}
+
 }  // namespace
 
 bool is_image_folder_layout(const fs::path& dir) {
@@ -128,20 +148,9 @@ std::unique_ptr<FileDataset> open_image_folders(const fs::path& dir, const Datas
 
   const fs::path open3d_json = dir / "camera_intrinsic.json";
   const bool open3d = fs::is_regular_file(open3d_json, ec);
-  std::optional<CameraPreset> open3d_camera;
-  const std::string open3d_name = open3d_json.string();  // outlives the preset's name view
-  if (open3d && params.preset.empty() && params.intrinsics_path.empty()) {
-    open3d_camera = read_open3d_intrinsics(open3d_json);
-    open3d_camera->name = open3d_name;
-  }
   const Calibration calibration =
-      resolve_calibration(dir, params,
-                          {.layout_name = open3d ? "Open3D" : "image folder",
-                           .preset = open3d_camera ? &*open3d_camera : nullptr,
-                           .guess_from_folder_name = false,
-                           .depth_scale = 0,
-                           .depth_scale_source = "",
-                           .preset_is_file = true});
+      calibrate(dir, params, open3d ? "Open3D" : "image folder", open3d ? open3d_json : fs::path(),
+                read_open3d_intrinsics);
   DatasetInfo info;
   info.source = dir.string();
   info.layout = open3d ? DatasetLayout::Open3d : DatasetLayout::ImageFolder;
@@ -270,19 +279,8 @@ std::unique_ptr<FileDataset> open_replica(const fs::path& dir, const DatasetPara
     frames.push_back(std::move(f));
   }
   const fs::path camera_file = replica_camera_file(dir);
-  std::optional<CameraPreset> camera;
-  const std::string camera_name = camera_file.string();  // outlives the preset's name view
-  if (!camera_file.empty() && params.preset.empty() && params.intrinsics_path.empty()) {
-    camera = read_replica_camera(camera_file);
-    camera->name = camera_name;
-  }
-  const Calibration calibration = resolve_calibration(dir, params,
-                                                      {.layout_name = "Replica",
-                                                       .preset = camera ? &*camera : nullptr,
-                                                       .guess_from_folder_name = false,
-                                                       .depth_scale = 0,
-                                                       .depth_scale_source = "",
-                                                       .preset_is_file = true});
+  const Calibration calibration =
+      calibrate(dir, params, "Replica", camera_file, read_replica_camera);
   DatasetInfo info;
   info.source = dir.string();
   info.layout = DatasetLayout::Replica;
@@ -293,7 +291,7 @@ std::unique_ptr<FileDataset> open_replica(const fs::path& dir, const DatasetPara
       fmt::format("results/ with {} depthNNNNNN.png{}, traj.txt with {} poses{}", depths.size(),
                   colors.empty() ? "" : " and frameNNNNNN colour images", poses.size(),
                   camera_file.empty() ? "" : fmt::format(", camera from {}", camera_file.string()));
-  if (!camera_file.empty() && camera)
+  if (info.intrinsics_source == camera_file.string())
     info.intrinsics_source += " (principal point -0.5 px: NICE-SLAM's pixel centres)";
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),
                                        DepthDecoding{calibration.depth_scale, 0, 0.0});
