@@ -16,6 +16,8 @@ std::string_view to_string(DatasetLayout layout) {
       return "image folder";
     case DatasetLayout::Replica:
       return "Replica";
+    case DatasetLayout::ScanNet:
+      return "ScanNet";
     case DatasetLayout::Synthetic:
       return "synthetic";
   }

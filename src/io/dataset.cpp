@@ -170,6 +170,7 @@ DatasetLayout detect_layout(const fs::path& dir) {
   if (fs::is_regular_file(dir / "calib.txt", ec)) return DatasetLayout::InfiniTam;
   if (!detail::seven_scenes_sequences(dir).empty()) return DatasetLayout::SevenScenes;
   if (detail::is_replica_layout(dir)) return DatasetLayout::Replica;
+  if (detail::is_scannet_layout(dir)) return DatasetLayout::ScanNet;
   if (detail::is_image_folder_layout(dir))
     return fs::is_regular_file(dir / "camera_intrinsic.json", ec) ? DatasetLayout::Open3d
                                                                   : DatasetLayout::ImageFolder;
@@ -177,8 +178,8 @@ DatasetLayout detect_layout(const fs::path& dir) {
        "{}: not a dataset layout hivox knows; looked for associations.txt or depth.txt (+ "
        "rgb.txt) (TUM), calib.txt with numbered frames (InfiniTAM), "
        "seq-NN/frame-NNNNNN.depth.png or frame-NNNNNN.depth.png (7-Scenes), a depth/ folder "
-       "(Open3D with camera_intrinsic.json, else an image folder), 16-bit depth PNGs, and results/ "
-       "with traj.txt (Replica)",
+       "(Open3D with camera_intrinsic.json, else an image folder), 16-bit depth PNGs, results/ "
+       "with traj.txt (Replica), and depth/ with pose/ and intrinsic/ (ScanNet)",
        dir.string());
 }
 
@@ -214,6 +215,9 @@ std::unique_ptr<DatasetReader> open_dataset(const std::string& spec, const Datas
       break;
     case DatasetLayout::Replica:
       dataset = detail::open_replica(dir, params);
+      break;
+    case DatasetLayout::ScanNet:
+      dataset = detail::open_scannet(dir, params);
       break;
     case DatasetLayout::Synthetic:
       fail(ErrorCode::Unsupported, "'{}': synthetic scenes are not file datasets", spec);

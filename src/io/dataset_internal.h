@@ -117,6 +117,11 @@ bool is_image_folder_layout(const std::filesystem::path& dir);
 bool is_replica_layout(const std::filesystem::path& dir);
 std::unique_ptr<FileDataset> open_replica(const std::filesystem::path& dir,
                                           const DatasetParams& params);
+/// ScanNet's exported frames: `depth/N.png` (mm), `color/N.jpg` (own camera and size),
+/// `pose/N.txt` (4x4 camera-to-world; -inf for frames without one), `intrinsic/intrinsic_*.txt`.
+bool is_scannet_layout(const std::filesystem::path& dir);
+std::unique_ptr<FileDataset> open_scannet(const std::filesystem::path& dir,
+                                          const DatasetParams& params);
 std::unique_ptr<FileDataset> open_image_folders(const std::filesystem::path& dir,
                                                 const DatasetParams& params);
 

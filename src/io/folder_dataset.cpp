@@ -1,8 +1,9 @@
 // Folders of numbered images: Open3D's reconstruction-system / RealSense-recorder layout
 // (`depth/`, `color/`, `camera_intrinsic.json`), bare folders of depth PNGs (a `depth/` folder,
 // or the PNGs themselves; colour in `color/` or `rgb/` when present), whose camera comes from a
-// preset or an intrinsics file, and the Replica renders of NICE-SLAM-style tools (`results/`,
-// `traj.txt`, `cam_params.json`).
+// preset or an intrinsics file, the Replica renders of NICE-SLAM-style tools (`results/`,
+// `traj.txt`, `cam_params.json`) and ScanNet's exported frames (`color/`, `depth/`, `pose/`,
+// `intrinsic/`).
 
 #include <algorithm>
 #include <fstream>
@@ -12,6 +13,7 @@
 
 #include "hivox/core/error.h"
 #include "hivox/io/atomic_file.h"
+#include "hivox/io/image_io.h"
 #include "hivox/io/text_lines.h"
 #include "io/dataset_internal.h"
 
@@ -293,6 +295,117 @@ std::unique_ptr<FileDataset> open_replica(const fs::path& dir, const DatasetPara
                   camera_file.empty() ? "" : fmt::format(", camera from {}", camera_file.string()));
   if (info.intrinsics_source == camera_file.string())
     info.intrinsics_source += " (principal point -0.5 px: NICE-SLAM's pixel centres)";
+  return std::make_unique<FileDataset>(std::move(info), std::move(frames),
+                                       DepthDecoding{calibration.depth_scale, 0, 0.0});
+}
+
+namespace {
+
+/// Numbers of a text file (whitespace-separated), checked to be `count` finite values; `nullopt`
+/// when `allow_infinite` and any is infinite (ScanNet marks frames without a pose with -inf).
+std::optional<std::vector<double>> read_numbers(const fs::path& path, std::size_t count,
+                                                bool allow_infinite) {
+  std::vector<double> v;
+  bool infinite = false;
+  for (const TextLine& line : read_text_lines(path))
+    for (std::size_t i = 0; i < line.fields.size(); ++i) {
+      const std::string& f = line.fields[i];
+      if (allow_infinite && (f == "-inf" || f == "inf" || f == "nan")) {
+        infinite = true;
+        v.push_back(0.0);
+        continue;
+      }
+      v.push_back(parse_double(path, line, i, "number"));
+    }
+  if (v.size() != count)
+    fail(ErrorCode::InvalidData, "{}: {} numbers, expected {}", path.string(), v.size(), count);
+  if (infinite) return std::nullopt;
+  return v;
+}
+
+/// A camera from ScanNet's 4x4 `intrinsic_*.txt` and the size of the images it takes.
+PinholeCamera scannet_camera(const fs::path& path, int width, int height) {
+  const std::vector<double> k = *read_numbers(path, 16, false);
+  PinholeCamera c{static_cast<float>(k[0]),
+                  static_cast<float>(k[5]),
+                  static_cast<float>(k[2]),
+                  static_cast<float>(k[6]),
+                  width,
+                  height};
+  c.validate(path.string());
+  return c;
+}
+
+}  // namespace
+
+bool is_scannet_layout(const fs::path& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir / "depth", ec) && fs::is_directory(dir / "pose", ec) &&
+         fs::is_regular_file(dir / "intrinsic" / "intrinsic_depth.txt", ec);
+}
+
+std::unique_ptr<FileDataset> open_scannet(const fs::path& dir, const DatasetParams& params) {
+  const auto depths = numbered(dir / "depth", "", {".png"});
+  if (depths.empty())
+    fail(ErrorCode::InvalidData, "{}: no numbered depth PNGs (N.png)", (dir / "depth").string());
+  std::error_code ec;
+  const bool has_color = fs::is_directory(dir / "color", ec);
+  const auto colors = has_color ? numbered(dir / "color", "", {".jpg", ".jpeg", ".png"})
+                                : std::vector<std::pair<long, fs::path>>{};
+  std::vector<FrameFiles> frames;
+  std::size_t without_pose = 0;
+  std::size_t ci = 0;
+  for (const auto& [n, depth] : depths) {
+    FrameFiles f;
+    f.depth = depth;
+    while (ci < colors.size() && colors[ci].first < n) ++ci;
+    if (has_color) {
+      if (ci == colors.size() || colors[ci].first != n)
+        fail(ErrorCode::InvalidData, "{}: no colour image {}.jpg for {}", (dir / "color").string(),
+             n, depth.filename().string());
+      f.color = colors[ci].second;
+    }
+    const fs::path pose = dir / "pose" / (std::to_string(n) + ".txt");
+    if (fs::is_regular_file(pose, ec)) {
+      if (const auto v = read_numbers(pose, 16, true))
+        f.T_wc_gt = pose_from_row_major(*v, pose.string());
+    }
+    without_pose += !f.T_wc_gt;
+    f.timestamp_s = static_cast<double>(n) / kFrameRateHz;
+    frames.push_back(std::move(f));
+  }
+  // Image sizes from the first frame; the intrinsics files carry none.
+  const Image<uint16_t> first_depth = read_depth16(frames.front().depth);
+  Calibration calibration;
+  if (params.preset.empty() && params.intrinsics_path.empty()) {
+    calibration.camera = scannet_camera(dir / "intrinsic" / "intrinsic_depth.txt",
+                                        first_depth.width(), first_depth.height());
+    calibration.intrinsics_source = (dir / "intrinsic" / "intrinsic_depth.txt").string();
+    calibration.depth_scale = params.depth_scale > 0 ? params.depth_scale : 1000.0;
+    calibration.depth_scale_source = params.depth_scale > 0 ? "given" : "ScanNet default (mm)";
+  } else {
+    calibration = resolve_calibration(dir, params,
+                                      {.layout_name = "ScanNet",
+                                       .preset = nullptr,
+                                       .guess_from_folder_name = false,
+                                       .depth_scale = 1000.0,
+                                       .depth_scale_source = "ScanNet default (mm)"});
+  }
+  DatasetInfo info;
+  info.source = dir.string();
+  info.layout = DatasetLayout::ScanNet;
+  calibration.apply_to(info, params.undistort);
+  // Colour has its own camera (ScanNet: 1296x968 beside 640x480 depth), same viewpoint.
+  const fs::path color_k = dir / "intrinsic" / "intrinsic_color.txt";
+  if (has_color && fs::is_regular_file(color_k, ec)) {
+    const ColorImage first_color = read_color(frames.front().color);
+    info.rig.color_camera = scannet_camera(color_k, first_color.width(), first_color.height());
+  }
+  info.has_ground_truth = without_pose < frames.size();
+  info.layout_reason =
+      fmt::format("depth/, pose/ and intrinsic/intrinsic_depth.txt with {} frames{}{}",
+                  frames.size(), has_color ? ", colour in color/" : "",
+                  without_pose > 0 ? fmt::format(" ({} without a valid pose)", without_pose) : "");
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),
                                        DepthDecoding{calibration.depth_scale, 0, 0.0});
 }

@@ -488,3 +488,87 @@ TEST(FolderLayouts, ReplicaRendersReadLikeTheSameFramesAsTum) {
 
 }  // namespace
 }  // namespace hivox
+
+namespace hivox {
+namespace {
+
+// ScanNet's exported frames (depth/N.png, color/N.jpg with its own camera and size,
+// pose/N.txt with -inf for a lost pose, intrinsic/*.txt), written from a synthetic TUM sequence
+// with colour at twice the depth's resolution: detected, the frame without a pose skipped, the
+// geometry the TUM run's, the colours close to it.
+TEST(FolderLayouts, ScanNetFramesWithTheirOwnColourCamera) {
+  test::TempDir dir;
+  ASSERT_EQ(run_hivox("synth --scene box --frames 6 --width 80 --height 60 --noise none --out " +
+                      (dir / "tum").string())
+                .exit_code,
+            0);
+  const fs::path sn = dir / "scannet";
+  for (const char* sub : {"depth", "color", "pose", "intrinsic"}) fs::create_directories(sn / sub);
+  std::vector<fs::path> depth, rgb;
+  for (const auto& e : fs::directory_iterator(dir / "tum" / "depth")) depth.push_back(e.path());
+  for (const auto& e : fs::directory_iterator(dir / "tum" / "rgb")) rgb.push_back(e.path());
+  std::sort(depth.begin(), depth.end());
+  std::sort(rgb.begin(), rgb.end());
+  const auto poses = read_tum_trajectory(dir / "tum" / "groundtruth.txt");
+  for (std::size_t i = 0; i < depth.size(); ++i) {
+    fs::copy(depth[i], sn / "depth" / fmt::format("{}.png", i));
+    const ColorImage small = read_color(rgb[i]);  // colour at 2x: its own camera
+    ColorImage big(2 * small.width(), 2 * small.height());
+    for (int y = 0; y < big.height(); ++y)
+      for (int x = 0; x < big.width(); ++x) big(x, y) = small(x / 2, y / 2);
+    write_png(sn / "color" / fmt::format("{}.png", i), big);
+    std::string m;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        m += i == 2 ? "-inf "
+                    : fmt::format("{:.17g}{}", poses[i].T_wc.matrix()(r, c), c == 3 ? "\n" : " ");
+    test::write_text(sn / "pose" / fmt::format("{}.txt", i), m);
+  }
+  test::write_text(sn / "intrinsic" / "intrinsic_depth.txt",
+                   "65.625 0 39.5 0\n0 65.625 29.5 0\n0 0 1 0\n0 0 0 1\n");
+  test::write_text(sn / "intrinsic" / "intrinsic_color.txt",
+                   "131.25 0 79.5 0\n0 131.25 59.5 0\n0 0 1 0\n0 0 0 1\n");
+  auto r = run_hivox("info " + sn.string() + " --depth-scale 5000");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* part :
+       {"ScanNet (found: depth/, pose/ and intrinsic/intrinsic_depth.txt with 6 "
+        "frames, colour in color/ (1 without a valid pose))",
+        "fx=65.625", "ground truth:   yes, 5 of 6", "colour:         yes, 160x120"})
+    EXPECT_TRUE(test::contains(r.output, part)) << part << " not in\n" << r.output;
+  const std::string settings = " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet";
+  r = run_hivox("reconstruct " + sn.string() + settings + " --depth-scale 5000 --out " +
+                (dir / "sn_run").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(read_tum_trajectory(dir / "sn_run" / "trajectory.txt").size(), 5u);
+  // The TUM run of the same 5 posed frames: the same surface, colours within rounding.
+  std::string tum5;
+  for (std::size_t i = 0; i < poses.size(); ++i)
+    if (i != 2) {
+      const auto t = to_tum(poses[i].T_wc);
+      tum5 += fmt::format("{:.6f} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n",
+                          poses[i].timestamp_s, t[0], t[1], t[2], t[3], t[4], t[5], t[6]);
+    }
+  test::write_text(dir / "tum5.txt", tum5);
+  ASSERT_EQ(run_hivox("reconstruct " + (dir / "tum").string() +
+                      " --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet --poses " +
+                      (dir / "tum5.txt").string() + " --out " + (dir / "tum_run").string())
+                .exit_code,
+            0);
+  const TriangleMesh a = read_ply(dir / "tum_run" / "mesh.ply");
+  const TriangleMesh b = read_ply(dir / "sn_run" / "mesh.ply");
+  ASSERT_GT(a.triangle_count(), 500);
+  EXPECT_NEAR(static_cast<double>(b.triangle_count()), static_cast<double>(a.triangle_count()),
+              0.01 * static_cast<double>(a.triangle_count()));
+  ASSERT_EQ(a.colors.size(), a.positions_w.size());
+  ASSERT_EQ(b.colors.size(), b.positions_w.size());
+  double mean_a = 0, mean_b = 0;
+  for (const Rgb8& c : a.colors) mean_a += c.r + c.g + c.b;
+  for (const Rgb8& c : b.colors) mean_b += c.r + c.g + c.b;
+  mean_a /= 3.0 * static_cast<double>(a.colors.size());
+  mean_b /= 3.0 * static_cast<double>(b.colors.size());
+  EXPECT_GT(mean_a, 20.0);
+  EXPECT_NEAR(mean_b, mean_a, 3.0) << "colour through the colour camera";
+}
+
+}  // namespace
+}  // namespace hivox

@@ -24,6 +24,7 @@ enum class DatasetLayout {
   ImageFolder,  ///< a folder of depth PNGs (or depth/), optional colour; camera from a preset or
                 ///< file
   Replica,      ///< NICE-SLAM-style Replica renders: results/, traj.txt, cam_params.json
+  ScanNet,      ///< ScanNet's exported frames: color/, depth/, pose/, intrinsic/
   Synthetic,
 };
 std::string_view to_string(DatasetLayout layout);
