@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "apps/cli_util.h"
@@ -85,7 +86,7 @@ TEST(ConfigFile, BadConfigFilesGetOneClearLine) {
       {R"({"options": {"--voxel-size": -1}})", "voxel_size"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
-    const fs::path file = dir / ("c" + std::to_string(i) + ".json");
+    const fs::path file = dir / fmt::format("c{}.json", i);
     test::write_text(file, cases[i].content);
     const auto r = run_hivox("reconstruct " + kScene + " --quiet --config " + file.string() +
                              " --out " + (dir / "out").string());

@@ -78,7 +78,9 @@ TEST_F(MapCli, MeshAsObjWithLevelColoursBoundsAndPieces) {
   ASSERT_EQ(levels.colors.size(), levels.levels.size());
   for (std::size_t i = 0; i < levels.colors.size(); i += 97)
     for (std::size_t j = 0; j < levels.colors.size(); j += 89)
-      if (levels.levels[i] == levels.levels[j]) EXPECT_TRUE(levels.colors[i] == levels.colors[j]);
+      if (levels.levels[i] == levels.levels[j]) {
+        EXPECT_TRUE(levels.colors[i] == levels.colors[j]);
+      }
 
   // Bounds: every vertex inside; fewer triangles than the whole.
   ASSERT_EQ(run_hivox("mesh " + map().string() +
