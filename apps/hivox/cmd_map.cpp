@@ -160,19 +160,13 @@ void run_mesh(const MeshOptions& o) {
   params.validate();
   const LoadedMap loaded = load(o.map, o.quiet);
   Stopwatch watch;
-  // Small pieces are removed here rather than inside extract_mesh, to say how many went.
-  MeshParams whole = params;
-  whole.min_piece_triangles = 0;
-  TriangleMesh mesh = extract_mesh(*loaded.map, whole);
-  std::string pieces;
-  if (params.min_piece_triangles > 0) {
-    int64_t removed = 0;
-    const int64_t before = mesh.triangle_count();
-    mesh = remove_small_pieces(mesh, params.min_piece_triangles, loaded.map->params().voxel_size_m,
-                               &removed);
-    pieces = fmt::format("; removed {} pieces of fewer than {} triangles ({} triangles)", removed,
-                         params.min_piece_triangles, before - mesh.triangle_count());
-  }
+  RemovedPieces removed;
+  TriangleMesh mesh = extract_mesh(*loaded.map, params, &removed);
+  const std::string pieces =
+      params.min_piece_triangles > 0
+          ? fmt::format("; removed {} pieces of fewer than {} triangles ({} triangles)",
+                        removed.pieces, params.min_piece_triangles, removed.triangles)
+          : std::string();
   const double extract_s = watch.lap_ms() / 1e3;
   if (o.level_colors) {
     mesh.colors.resize(mesh.positions_w.size());

@@ -48,6 +48,12 @@ void write_file_atomically(const fs::path& path, std::span<const std::span<const
   file.commit();
 }
 
+void write_file_atomically(const fs::path& path, std::string_view content) {
+  const std::span<const uint8_t> part(reinterpret_cast<const uint8_t*>(content.data()),
+                                      content.size());
+  write_file_atomically(path, std::span<const std::span<const uint8_t>>(&part, 1));
+}
+
 std::string read_whole_file(const fs::path& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) fail(ErrorCode::Io, "{}: file does not exist", path.string());

@@ -6,7 +6,9 @@
 #include <array>
 #include <atomic>
 #include <bit>
+#include <cstdio>
 #include <cstring>
+#include <memory>
 #include <span>
 #include <string_view>
 
@@ -196,9 +198,8 @@ struct Header {
   std::vector<LevelCounts> counts;
 };
 
-/// Checks what can be checked without the header's fields: size, magic, version, end marker and
-/// checksum. Returns the version.
-uint32_t check_envelope(std::span<const uint8_t> bytes, const std::string& what) {
+/// Checks the start of a file: magic and format version.
+void check_start(std::span<const uint8_t> bytes, const std::string& what) {
   if (bytes.size() < kMagic.size() + 4 ||
       std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) != 0)
     fail(ErrorCode::InvalidData, "{}: not a hivox map file (no HIVOXMAP magic at its start)", what);
@@ -210,6 +211,10 @@ uint32_t check_envelope(std::span<const uint8_t> bytes, const std::string& what)
          library_version(), kMapFileVersion,
          version > kMapFileVersion ? " (written by a newer hivox? update it to read this file)"
                                    : "");
+}
+
+/// Checks the end of a whole file: end marker (truncation) and checksum (any changed byte).
+void check_end(std::span<const uint8_t> bytes, const std::string& what) {
   if (bytes.size() < kMagic.size() + 4 + kTrailerBytes ||
       std::memcmp(bytes.data() + bytes.size() - kEndMagic.size(), kEndMagic.data(),
                   kEndMagic.size()) != 0)
@@ -222,7 +227,6 @@ uint32_t check_envelope(std::span<const uint8_t> bytes, const std::string& what)
     fail(ErrorCode::InvalidData,
          "{}: checksum mismatch: the file is corrupted (some byte differs from what was written)",
          what);
-  return version;
 }
 
 Header parse_header(Reader& r, const std::string& what, int64_t file_bytes) {
@@ -450,7 +454,8 @@ OpenedFile open_map_file(const fs::path& path) {
   f.bytes = read_whole_file(path);
   const std::span<const uint8_t> all(reinterpret_cast<const uint8_t*>(f.bytes.data()),
                                      f.bytes.size());
-  check_envelope(all, what);
+  check_start(all, what);
+  check_end(all, what);
   Reader r(all.first(all.size() - kTrailerBytes), what);
   f.header = parse_header(r, what, static_cast<int64_t>(all.size()));
   f.table_at = r.at();
@@ -466,7 +471,18 @@ bool is_map_file(const fs::path& path) {
 }
 
 MapFileInfo read_map_file_info(const fs::path& path) {
-  return open_map_file(path).header.info;
+  // The header only: it is a few hundred bytes at the start, and the whole file is checked when
+  // the map is loaded.
+  const std::string what = path.string();
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) fail(ErrorCode::Io, "{}: file does not exist", what);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) fail(ErrorCode::Io, "{}: cannot open for reading", what);
+  std::vector<uint8_t> head(1 << 16);
+  head.resize(std::fread(head.data(), 1, head.size(), f.get()));
+  check_start(head, what);
+  Reader r(head, what);
+  return parse_header(r, what, static_cast<int64_t>(fs::file_size(path, ec))).info;
 }
 
 LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& capacities) {
@@ -595,11 +611,9 @@ LoadedMap read_map_file(const fs::path& path, const std::optional<MapParams>& ca
           read_voxel_chunk(cache.raw.data(), c.group_blocks(g), j % kGroupBlocks, color, tsdf, rgb);
       },
       what);
-  if (damaged) {
-    map->clear();
+  if (damaged)
     fail(ErrorCode::InvalidData, "{}: a voxel chunk does not decompress to its size (corrupted)",
          what);
-  }
   return {std::move(map), h.info};
 }
 

@@ -1,7 +1,6 @@
 #include "hivox/io/obj.h"
 
 #include <cstdint>
-#include <span>
 #include <string>
 #include <vector>
 
@@ -38,8 +37,7 @@ void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh) {
     else
       fmt::format_to(std::back_inserter(out), "f {} {} {}\n", a, b, c);
   }
-  const std::span<const uint8_t> part(reinterpret_cast<const uint8_t*>(out.data()), out.size());
-  write_file_atomically(path, std::span<const std::span<const uint8_t>>(&part, 1));
+  write_file_atomically(path, std::string_view(out.data(), out.size()));
 }
 
 }  // namespace hivox

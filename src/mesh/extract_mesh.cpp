@@ -283,13 +283,20 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
 
 }  // namespace
 
-TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params) {
+TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params,
+                          RemovedPieces* removed) {
   params.validate();
   TriangleMesh mesh =
       dispatch(map.device(), "mesh extraction", [&] { return extract_mesh_cpu(map, params); });
   if (params.bounds) mesh = crop_mesh(mesh, *params.bounds);
-  if (params.min_piece_triangles > 0)
-    mesh = remove_small_pieces(mesh, params.min_piece_triangles, map.params().voxel_size_m);
+  RemovedPieces r;
+  if (params.min_piece_triangles > 0) {
+    const int64_t before = mesh.triangle_count();
+    mesh =
+        remove_small_pieces(mesh, params.min_piece_triangles, map.params().voxel_size_m, &r.pieces);
+    r.triangles = before - mesh.triangle_count();
+  }
+  if (removed != nullptr) *removed = r;
   return mesh;
 }
 

@@ -320,10 +320,7 @@ class Run {
       run.depth_scale = info_.rig.depth_scale;
       run.config_json = params_.config_json;
       if (!params_.config_json.empty()) {
-        const std::string& c = params_.config_json;
-        const std::span<const uint8_t> part(reinterpret_cast<const uint8_t*>(c.data()), c.size());
-        write_file_atomically(out / "config.json",
-                              std::span<const std::span<const uint8_t>>(&part, 1));
+        write_file_atomically(out / "config.json", params_.config_json);
         summary_.files.push_back(out / "config.json");
       }
       write_stats_json(out / "stats.json", *rec_, run);

@@ -250,6 +250,25 @@ std::string with_checksum(std::string bytes) {
   return bytes;
 }
 
+// The header alone is read from the start of the file (cheap for any map): a damaged body does
+// not stop it, loading the map does.
+TEST(MapFile, TheHeaderIsReadAloneTheBodyWhenLoading) {
+  test::TempDir dir;
+  const fs::path good = tiny_map_file(dir);
+  std::string bytes = bytes_of(good);
+  bytes[bytes.size() - 20] = static_cast<char>(bytes[bytes.size() - 20] ^ 1);  // in a chunk
+  const fs::path bad = dir / "bad.hvx";
+  write_bytes(bad, bytes);
+  const MapFileInfo info = read_map_file_info(bad);
+  EXPECT_EQ(info.blocks_per_level, read_map_file_info(good).blocks_per_level);
+  EXPECT_EQ(info.session.frames_fused, 12);
+  EXPECT_EQ(info.file_bytes, static_cast<int64_t>(bytes.size()));
+  EXPECT_TRUE(test::contains(load_error(bad).what(), "checksum mismatch"));
+  write_bytes(bad, bytes.substr(0, 40));
+  EXPECT_TRUE(test::contains(test::error_of([&] { read_map_file_info(bad); }).what(),
+                             "the header ends inside"));
+}
+
 TEST(MapFile, ContentBehindAValidChecksumIsCheckedToo) {
   test::TempDir dir;
   const std::string bytes = bytes_of(tiny_map_file(dir));

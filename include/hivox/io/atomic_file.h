@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 
 namespace hivox {
 
@@ -36,6 +37,8 @@ class AtomicFile {
 /// cannot be written is `Error(Io)` naming `path`.
 void write_file_atomically(const std::filesystem::path& path,
                            std::span<const std::span<const uint8_t>> parts);
+/// The same with one part: `content`.
+void write_file_atomically(const std::filesystem::path& path, std::string_view content);
 
 /// The whole content of the file `path`. A missing file, or one that cannot be read, is
 /// `Error(Io)` naming it.

@@ -48,7 +48,9 @@ struct MapFileInfo {
 void write_map_file(const std::filesystem::path& path, const VoxelBlockMap& map,
                     const FusionParams& fusion, const MapSession& session);
 
-/// The file's header, after checking the whole file (magic, version, end marker, checksum).
+/// The file's header (magic, version and every field checked), read from the start of the file
+/// alone: cheap for any size of map. The checksum over the whole file is checked when the map is
+/// loaded (read_map_file).
 MapFileInfo read_map_file_info(const std::filesystem::path& path);
 
 /// Whether the file at `path` starts like a map file (its magic), without reading further.

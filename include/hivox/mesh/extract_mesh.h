@@ -2,6 +2,8 @@
 /// @file
 /// Marching cubes over the voxel block map (DESIGN §7).
 
+#include <cstdint>
+
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/params.h"
 #include "hivox/mesh/triangle_mesh.h"
@@ -38,6 +40,13 @@ namespace hivox {
 /// Runs in parallel over blocks; the output (order included) depends only on the map's content,
 /// not on the thread count or on where blocks sit in the pool. Throws `Error(InvalidArgument)`
 /// for bad `params`.
-TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params = {});
+/// What `MeshParams::min_piece_triangles` removed.
+struct RemovedPieces {
+  int64_t pieces = 0;
+  int64_t triangles = 0;
+};
+/// `removed` (optional) receives what the small-piece removal took away.
+TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params = {},
+                          RemovedPieces* removed = nullptr);
 
 }  // namespace hivox

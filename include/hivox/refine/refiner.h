@@ -43,8 +43,6 @@ class Refiner {
   /// surface to judge).
   float complexity(const VoxelBlockMap& map, int32_t ptr, float* mean_weight = nullptr) const;
 
-  /// Calls so far (frames offered); passes run on calls 0, n, 2n, ...
-  int64_t calls() const { return calls_; }
   /// Continues a cadence begun elsewhere (a map saved after `calls` frames and loaded again), so
   /// that the next passes fall on the same frames as without the interruption.
   void resume_after(int64_t calls) { calls_ = calls; }
