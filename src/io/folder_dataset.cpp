@@ -91,10 +91,12 @@ CameraPreset read_open3d_intrinsics(const fs::path& path) {
 }
 
 /// The calibration of a layout whose camera file `file` (read by `read`; none when empty)
-/// applies unless the user gives a preset or an intrinsics file.
+/// applies unless the user gives a preset or an intrinsics file; `depth_scale` is the layout's
+/// own when nothing else gives one (0: none).
 template <typename Read>
 Calibration calibrate(const fs::path& dir, const DatasetParams& params, const char* layout,
-                      const fs::path& file, Read read) {
+                      const fs::path& file, Read read, double depth_scale = 0,
+                      const char* depth_scale_source = "") {
   std::optional<CameraPreset> camera;
   const std::string name = file.string();  // outlives the preset's name view
   if (!file.empty() && params.preset.empty() && params.intrinsics_path.empty()) {
@@ -105,8 +107,8 @@ Calibration calibrate(const fs::path& dir, const DatasetParams& params, const ch
                              {.layout_name = layout,
                               .preset = camera ? &*camera : nullptr,
                               .guess_from_folder_name = false,
-                              .depth_scale = 0,
-                              .depth_scale_source = "",
+                              .depth_scale = depth_scale,
+                              .depth_scale_source = depth_scale_source,
                               .preset_is_file = true});
 }
 
@@ -376,21 +378,16 @@ std::unique_ptr<FileDataset> open_scannet(const fs::path& dir, const DatasetPara
   }
   // Image sizes from the first frame; the intrinsics files carry none.
   const Image<uint16_t> first_depth = read_depth16(frames.front().depth);
-  Calibration calibration;
-  if (params.preset.empty() && params.intrinsics_path.empty()) {
-    calibration.camera = scannet_camera(dir / "intrinsic" / "intrinsic_depth.txt",
-                                        first_depth.width(), first_depth.height());
-    calibration.intrinsics_source = (dir / "intrinsic" / "intrinsic_depth.txt").string();
-    calibration.depth_scale = params.depth_scale > 0 ? params.depth_scale : 1000.0;
-    calibration.depth_scale_source = params.depth_scale > 0 ? "given" : "ScanNet default (mm)";
-  } else {
-    calibration = resolve_calibration(dir, params,
-                                      {.layout_name = "ScanNet",
-                                       .preset = nullptr,
-                                       .guess_from_folder_name = false,
-                                       .depth_scale = 1000.0,
-                                       .depth_scale_source = "ScanNet default (mm)"});
-  }
+  const Calibration calibration = calibrate(
+      dir, params, "ScanNet", dir / "intrinsic" / "intrinsic_depth.txt",
+      [&](const fs::path& k) {
+        CameraPreset p;
+        p.camera = scannet_camera(k, first_depth.width(), first_depth.height());
+        p.depth_scale = 1000.0;  // millimetres
+        p.description = "ScanNet intrinsic_depth.txt";
+        return p;
+      },
+      1000.0, "ScanNet default (mm)");
   DatasetInfo info;
   info.source = dir.string();
   info.layout = DatasetLayout::ScanNet;
