@@ -238,7 +238,8 @@ void run_render(const RenderOptions& o) {
   Stopwatch watch;
   for (std::size_t i = 0; i < poses.size(); ++i) {
     const RaycastResult& r = raycaster.raycast(*loaded.map, camera, poses[i].T_wc, range);
-    write_renders(r, o.out, poses.size() > 1 ? fmt::format("frame{:06d}_", i) : std::string());
+    write_renders(r, loaded.map->params(), o.out,
+                  poses.size() > 1 ? fmt::format("frame{:06d}_", i) : std::string());
     if (!o.quiet && (poses.size() < 20 || (i + 1) % 50 == 0 || i + 1 == poses.size()))
       fmt::print("rendered {}/{}\n", i + 1, poses.size());
   }

@@ -26,6 +26,7 @@
 #include "hivox/core/timer.h"
 #include "hivox/io/map_file.h"
 #include "hivox/run/runner.h"
+#include "hivox/view/live_view.h"
 
 namespace hivox::cli {
 
@@ -56,6 +57,11 @@ struct ReconstructOptions {
   /// The options that shape a map: with --map, those not given take the file's values.
   CLI::Option *levels_option = nullptr, *voxel_size_option = nullptr, *truncation_option = nullptr,
               *max_weight_option = nullptr, *no_color_option = nullptr;
+  /// --view: serve the live page (the option's value: where); --view-fps, --view-linger.
+  CLI::Option* view_option = nullptr;
+  std::string view;
+  double view_fps = LiveViewParams{}.render_hz;
+  double view_linger_s = 0;
   int threads = 0;
   int render_every = 0;
   bool no_color = false;
@@ -189,17 +195,58 @@ void print_summary(const RunResult& result, const RunParams& run) {
     fmt::print("map saved to {} in {:.2f} s\n", run.map_out.string(), s.map_save_s);
 }
 
+/// Tells the live page how the run ended, keeps serving it for --view-linger seconds (an
+/// interrupt ends that early) and reports what the view cost the frame loop.
+void finish_live_view(LiveView& live, const RunResult& result, const RunParams& run,
+                      const ReconstructOptions& options) {
+  const RunSummary& s = result.summary;
+  const LiveState state = s.end == RunEnd::Completed  ? LiveState::Finished
+                          : s.end == RunEnd::BadFrame ? LiveState::Failed
+                                                      : LiveState::Stopped;
+  live.finish(*result.reconstruction, state,
+              run.out_dir.empty() ? std::string()
+                                  : fmt::format("results in {} (hivox view {})",
+                                                run.out_dir.string(), run.out_dir.string()));
+  if (!options.quiet)
+    fmt::print("live view: {} renders, {:.2f} s of the frame loop ({:.1f}% of its processing)\n",
+               live.renders(), live.frame_loop_ms() / 1e3,
+               s.processing_s > 0 ? 100.0 * live.frame_loop_ms() / 1e3 / s.processing_s : 0.0);
+  if (options.view_linger_s > 0 && s.end != RunEnd::StopRequested) {
+    fmt::print("live view: the page stays at {} for {:g} s (Ctrl-C ends it)\n", live.url(),
+               options.view_linger_s);
+    std::fflush(stdout);
+    const StopOnSignals stop_on_signals;
+    Stopwatch linger;
+    while (g_stop_signal == 0 && linger.elapsed_ms() < options.view_linger_s * 1e3) usleep(50'000);
+    g_stop_signal = 0;
+  }
+}
+
 void run_reconstruct(const ReconstructOptions& options) {
   if (options.threads > 0) set_thread_count(options.threads);
   const RunParams run = run_params(options);
   const std::unique_ptr<DatasetReader> reader = open_dataset(options.data);
   const DatasetInfo& info = reader->info();
   const bool tty = isatty(fileno(stdout)) != 0;
+  std::unique_ptr<LiveView> live;
+  if (options.view_option != nullptr && options.view_option->count() > 0) {
+    LiveViewParams lp;
+    lp.server = ViewServerParams::parse(options.view);
+    lp.render_hz = options.view_fps;
+    live = std::make_unique<LiveView>(lp);
+    // Printed even with --quiet: the address is what --view asked for.
+    fmt::print("live view: {}{}\n", live->url(),
+               lp.server.loopback()
+                   ? ""
+                   : "  (listening beyond this machine: --view " + options.view + ")");
+    std::fflush(stdout);
+  }
   Stopwatch wall;
   std::size_t total = 0;
   RunCallbacks callbacks;
   callbacks.on_start = [&](const Reconstruction& rec, std::size_t frames) {
     total = frames;
+    if (live) live->start(info.source, rec, frames);
     if (options.quiet) return;
     fmt::print("hivox reconstruct {}\n", info.source);
     fmt::print("frames: {} of {}{} ({}x{}), poses: {}, threads: {}\n", frames, reader->size(),
@@ -213,7 +260,9 @@ void run_reconstruct(const ReconstructOptions& options) {
     fmt::print("{}\noutput: {}\n", rec.describe(), run.out_dir.string());
   };
   // The progress line.
-  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec) {
+  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec,
+                           const RgbdFrame& frame) {
+    if (live) live->frame(i, s, rec, frame);
     const std::size_t done = i + 1 - run.first_frame;
     if (options.quiet || !(tty || done % 50 == 0 || done == total)) return;
     const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
@@ -236,6 +285,7 @@ void run_reconstruct(const ReconstructOptions& options) {
     if (tty) fmt::print("\n");
     print_summary(result, run);
   }
+  if (live) finish_live_view(*live, result, run, options);
   // How the run ended decides the exit status (README, "Exit status").
   const std::size_t processed = result.reconstruction->frame_stats().size();
   switch (s.end) {
@@ -368,6 +418,24 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "the CUDA backend)")
       ->capture_default_str();
   cmd->add_flag("--quiet", o.quiet, "print nothing but warnings and errors");
+  o.view_option =
+      cmd->add_option("--view", o.view,
+                      "watch the run in a browser: serves a live page (the model's raycast, the "
+                      "depth frame, trajectory, blocks and stage times, tracking) at "
+                      "http://127.0.0.1:PORT/, printed at the start. Optional value: PORT, ADDRESS "
+                      "or ADDRESS:PORT (default 127.0.0.1 and a free port; 0.0.0.0 serves other "
+                      "machines too)")
+          ->expected(0, 1)
+          ->type_name("[ADDR:PORT]");
+  cmd->add_option("--view-fps", o.view_fps,
+                  "renders of the model per second for --view at most (each a raycast at 320 px "
+                  "wide on the run's thread)")
+      ->check(CLI::Range(0.0, 120.0))
+      ->capture_default_str();
+  cmd->add_option("--view-linger", o.view_linger_s,
+                  "keep serving the --view page this many seconds after the run ends")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
   cmd->add_option("--config", o.config_file,
                   "read settings from a config.json that a run wrote into its output folder; "
                   "options given here override it (repeats a run: hivox reconstruct DATASET "

@@ -37,6 +37,8 @@ void add_map_commands(CLI::App& app);
 /// `hivox info FILE` for a map file: prints what it holds and returns true; false when `path` is
 /// not a map file (cmd_map.cpp).
 bool print_map_file_info(const std::string& path);
+/// `hivox view PATH`: the interactive viewer of a run's folder, a mesh or a map (cmd_view.cpp).
+void add_view_command(CLI::App& app);
 /// `hivox eval ate --gt FILE --est FILE`: trajectory accuracy against ground truth (cmd_eval.cpp).
 void add_eval_command(CLI::App& app);
 

@@ -264,9 +264,17 @@ std::string describe_png(const PngRaw& raw) {
 
 // ---- writing ---------------------------------------------------------------------------------
 
+void append_to_vector(png_structp png, png_bytep data, png_size_t length) {
+  auto* out = static_cast<std::vector<uint8_t>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + length);
+}
+void flush_nothing(png_structp) {}
+
+/// Writes the PNG into `f`, or appended to `memory` when `f` is null.
 std::string write_png_file(std::FILE* f, int width, int height, int bit_depth, int color_type,
                            const uint8_t* pixels, std::size_t row_bytes,
-                           std::vector<png_bytep>* rows) {
+                           std::vector<png_bytep>* rows, std::vector<uint8_t>* memory = nullptr,
+                           int compression_level = 3) {
   PngErrorState state;
   png_structp png =
       png_create_write_struct(PNG_LIBPNG_VER_STRING, &state, png_error_fn, png_warning_fn);
@@ -280,8 +288,11 @@ std::string write_png_file(std::FILE* f, int width, int height, int bit_depth, i
     png_destroy_write_struct(&png, &info);
     return state.message[0] ? state.message : "libpng write error";
   }
-  png_init_io(png, f);
-  png_set_compression_level(png, 3);
+  if (f != nullptr)
+    png_init_io(png, f);
+  else
+    png_set_write_fn(png, memory, append_to_vector, flush_nothing);
+  png_set_compression_level(png, compression_level);
   png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height),
                bit_depth, color_type, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
                PNG_FILTER_TYPE_DEFAULT);
@@ -432,6 +443,22 @@ void write_png(const fs::path& path, const Image<uint16_t>& image) {
 void write_png(const fs::path& path, const Image<uint8_t>& image) {
   write_png_any(path, image.width(), image.height(), 8, PNG_COLOR_TYPE_GRAY, image.data(),
                 static_cast<std::size_t>(image.width()));
+}
+
+std::vector<uint8_t> encode_png(const ColorImage& image, int compression_level) {
+  if (image.width() <= 0 || image.height() <= 0)
+    fail(ErrorCode::InvalidArgument, "cannot encode an empty image as PNG");
+  if (compression_level < 0 || compression_level > 9)
+    fail(ErrorCode::InvalidArgument, "PNG compression level must be in 0..9, got {}",
+         compression_level);
+  std::vector<uint8_t> out;
+  std::vector<png_bytep> rows;
+  const std::string problem =
+      write_png_file(nullptr, image.width(), image.height(), 8, PNG_COLOR_TYPE_RGB,
+                     reinterpret_cast<const uint8_t*>(image.data()),
+                     static_cast<std::size_t>(image.width()) * 3, &rows, &out, compression_level);
+  if (!problem.empty()) fail(ErrorCode::Io, "PNG encoding failed ({})", problem);
+  return out;
 }
 
 void write_png(const fs::path& path, const ColorImage& image) {

@@ -40,35 +40,45 @@ ColorImage shade_hits(const RaycastResult& r, Shade&& shade) {
 
 }  // namespace
 
-ColorImage render_depth(const DepthImage& depth_m, float min_m, float max_m) {
-  if (min_m <= 0.0f || max_m <= min_m) {
-    float lo = INFINITY, hi = 0.0f;
-    for (std::size_t i = 0; i < depth_m.size(); ++i) {
-      const float d = depth_m.data()[i];
-      if (d > 0.0f) {
-        lo = std::min(lo, d);
-        hi = std::max(hi, d);
-      }
+DepthExtent depth_extent(const DepthImage& depth_m) {
+  float lo = INFINITY, hi = 0.0f;
+  for (std::size_t i = 0; i < depth_m.size(); ++i) {
+    const float d = depth_m.data()[i];
+    if (d > 0.0f) {
+      lo = std::min(lo, d);
+      hi = std::max(hi, d);
     }
-    min_m = std::isfinite(lo) ? lo : 0.0f;
-    max_m = hi > min_m ? hi : min_m + 1.0f;
   }
+  if (!std::isfinite(lo)) return {};
+  return {lo, std::max(hi, lo + 1e-3f)};
+}
+
+Rgb8 depth_ramp_color(float t) {
   // A ramp through dark blue, cyan, green, yellow and red.
   static const float kStops[5][3] = {{0.10f, 0.10f, 0.45f},
                                      {0.10f, 0.65f, 0.90f},
                                      {0.25f, 0.80f, 0.30f},
                                      {0.95f, 0.85f, 0.20f},
                                      {0.85f, 0.15f, 0.10f}};
+  t = std::clamp(t, 0.0f, 1.0f) * 4.0f;
+  const int k = std::min(3, static_cast<int>(t));
+  const float f = t - static_cast<float>(k);
+  return {to_byte(kStops[k][0] + (kStops[k + 1][0] - kStops[k][0]) * f),
+          to_byte(kStops[k][1] + (kStops[k + 1][1] - kStops[k][1]) * f),
+          to_byte(kStops[k][2] + (kStops[k + 1][2] - kStops[k][2]) * f)};
+}
+
+ColorImage render_depth(const DepthImage& depth_m, float min_m, float max_m) {
+  if (min_m <= 0.0f || max_m <= min_m) {
+    const DepthExtent e = depth_extent(depth_m);
+    min_m = e.min_m;
+    max_m = e.max_m;
+  }
   ColorImage out(depth_m.width(), depth_m.height());
   for (std::size_t i = 0; i < depth_m.size(); ++i) {
     const float d = depth_m.data()[i];
     if (!(d > 0.0f)) continue;
-    const float t = std::clamp((d - min_m) / (max_m - min_m), 0.0f, 1.0f) * 4.0f;
-    const int k = std::min(3, static_cast<int>(t));
-    const float f = t - static_cast<float>(k);
-    out.data()[i] = {to_byte(kStops[k][0] + (kStops[k + 1][0] - kStops[k][0]) * f),
-                     to_byte(kStops[k][1] + (kStops[k + 1][1] - kStops[k][1]) * f),
-                     to_byte(kStops[k][2] + (kStops[k + 1][2] - kStops[k][2]) * f)};
+    out.data()[i] = depth_ramp_color((d - min_m) / (max_m - min_m));
   }
   return out;
 }

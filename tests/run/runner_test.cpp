@@ -129,7 +129,8 @@ TEST(Runner, StopRequestEndsTheRunWithTheFramesSoFar) {
   p.out_dir = dir.path();
   std::size_t seen = 0;
   RunCallbacks callbacks;
-  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec) {
+  callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec,
+                           const RgbdFrame&) {
     EXPECT_EQ(i, seen);
     EXPECT_EQ(s.index, i);
     EXPECT_EQ(rec.frame_stats().size(), i + 1);

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <vector>
 
 #include "hivox/core/image.h"
 
@@ -28,5 +29,7 @@ Image<uint16_t> depth_to_raw(const DepthImage& depth_m, double depth_scale);
 void write_png(const std::filesystem::path& path, const Image<uint16_t>& image);
 void write_png(const std::filesystem::path& path, const Image<uint8_t>& image);
 void write_png(const std::filesystem::path& path, const ColorImage& image);
+/// The PNG file's bytes for `image` (e.g. to serve it); `compression_level` 0..9 (zlib's).
+std::vector<uint8_t> encode_png(const ColorImage& image, int compression_level = 3);
 
 }  // namespace hivox

@@ -8,9 +8,20 @@
 
 namespace hivox {
 
+/// The nearest and farthest valid depth of an image (0 and 1 m when it has none; a range of at
+/// least 1 mm), as `render_depth` maps them.
+struct DepthExtent {
+  float min_m = 0, max_m = 1;
+};
+DepthExtent depth_extent(const DepthImage& depth_m);
+
 /// Depth colour-mapped from near (dark blue) to far (red); no hit is black.
-/// `min_m`/`max_m` <= 0 pick the range of the image's valid depths.
+/// `min_m`/`max_m` <= 0 pick the range of the image's valid depths (depth_extent).
 ColorImage render_depth(const DepthImage& depth_m, float min_m = 0.0f, float max_m = 0.0f);
+
+/// The colour of `render_depth` at `t` in [0, 1] between its nearest and farthest depth (for
+/// scale bars).
+Rgb8 depth_ramp_color(float t);
 
 /// Camera-frame normals as RGB ((n + 1) / 2); no hit is black.
 ColorImage render_normals(const RaycastResult& result);

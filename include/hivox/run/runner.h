@@ -134,9 +134,10 @@ struct RunCallbacks {
   /// Before the first frame: the reconstruction (its settings, `describe()`) and the number of
   /// frames to come.
   std::function<void(const Reconstruction&, std::size_t frames_total)> on_start;
-  /// After each processed frame: its position in the run (from 0), its statistics, and the
-  /// reconstruction so far.
-  std::function<void(std::size_t i, const FrameStats&, const Reconstruction&)> on_frame;
+  /// After each processed frame: its index in the dataset, its statistics, the reconstruction so
+  /// far and the frame itself (e.g. for a live view of the depth).
+  std::function<void(std::size_t i, const FrameStats&, const Reconstruction&, const RgbdFrame&)>
+      on_frame;
   /// Polled before each frame: true ends the run there; the frames so far are kept and their
   /// results written.
   std::function<bool()> stop_requested;
