@@ -44,7 +44,9 @@ const hv = {
   },
 
   // Line chart on a canvas: series [{name, color, values}] over x = 0..n-1 (or xs).
-  chart(canvas, series, { xs = null, yLabel = '', stacked = false } = {}) {
+  // robust: the scale ignores the top 2 % of the values (a spike when the machine was busy would
+  // flatten everything else); what exceeds it is drawn at the top.
+  chart(canvas, series, { xs = null, yLabel = '', stacked = false, robust = false } = {}) {
     const dpr = window.devicePixelRatio || 1;
     const w = canvas.clientWidth || 400, h = canvas.clientHeight || 220;
     canvas.width = w * dpr; canvas.height = h * dpr;
@@ -54,10 +56,15 @@ const hv = {
     const n = Math.max(0, ...series.map(s => s.values.length));
     const left = 52, right = 8, top = 22, bottom = 22;
     const totals = stacked ? Array.from({ length: n }, (_, i) => series.reduce((a, s) => a + (s.values[i] || 0), 0)) : null;
-    let ymax = stacked ? Math.max(1e-9, ...totals) : Math.max(1e-9, ...series.flatMap(s => s.values));
+    const all = stacked ? totals : series.flatMap(s => s.values);
+    let ymax = Math.max(1e-9, ...all);
+    if (robust && all.length > 50) {
+      const sorted = [...all].sort((a, b) => a - b);
+      ymax = Math.max(1e-9, Math.min(ymax, 1.3 * sorted[Math.floor(0.98 * (sorted.length - 1))]));
+    }
     ymax *= 1.05;
     const X = i => left + (n <= 1 ? 0 : (i / (n - 1)) * (w - left - right));
-    const Y = v => h - bottom - (v / ymax) * (h - top - bottom);
+    const Y = v => h - bottom - (Math.min(v, ymax) / ymax) * (h - top - bottom);
     g.strokeStyle = '#2e333b'; g.fillStyle = '#9aa1ab'; g.font = '11px system-ui'; g.lineWidth = 1;
     for (let k = 0; k <= 4; ++k) {
       const v = (ymax / 1.05) * k / 4, y = Y(v);

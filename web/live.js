@@ -84,7 +84,7 @@ function drawCharts() {
                                         values: f.map(x => x.blocks[l] || 0) })), { xs });
   hv.chart(document.getElementById('times'),
     Object.entries(stageColors).map(([name, color]) => ({ name, color, values: f.map(x => x.ms[name]) })),
-    { xs, yLabel: 'ms', stacked: true });
+    { xs, yLabel: 'ms', stacked: true, robust: true });
   const v = document.getElementById('verdicts'), g = v.getContext('2d');
   v.width = v.clientWidth || 400; v.height = v.clientHeight || 36;
   g.clearRect(0, 0, v.width, v.height);

@@ -159,7 +159,7 @@ HomeView home_view(const ViewerContent& c, const Eigen::Vector3d& lo, const Eige
   up = (up - up.dot(forward) * forward);
   up = up.norm() > 1e-6 ? up.normalized() : Eigen::Vector3d::UnitY();
   h.up = up;
-  h.eye = h.target - forward * (2.2 * radius) + up * (0.6 * radius);
+  h.eye = h.target - forward * (1.7 * radius) + up * (0.5 * radius);
   return h;
 }
 
@@ -167,13 +167,14 @@ HomeView home_view(const ViewerContent& c, const Eigen::Vector3d& lo, const Eige
 
 TriangleMesh decimate_for_display(const TriangleMesh& mesh, int64_t max_triangles) {
   if (mesh.triangle_count() <= max_triangles) return mesh;
-  // A regular mesh has about two triangles per cell of its grid's size on the surface.
-  double cell_m = std::sqrt(2.0 * surface_area(mesh) / static_cast<double>(max_triangles));
+  // A regular mesh has about two triangles per grid cell on the surface; reconstructed meshes
+  // fold and overlap, so start finer than that and coarsen until the mesh fits.
+  double cell_m = 0.6 * std::sqrt(2.0 * surface_area(mesh) / static_cast<double>(max_triangles));
   if (!(cell_m > 0)) cell_m = 1e-3;
   for (;;) {
     TriangleMesh out = cluster_vertices(mesh, cell_m);
     if (out.triangle_count() <= max_triangles) return out;
-    cell_m *= 1.25;
+    cell_m *= 1.15;
   }
 }
 
