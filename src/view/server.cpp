@@ -25,7 +25,8 @@ ViewServerParams ViewServerParams::parse(std::string_view text) {
     if (digits.empty() || ec != std::errc() || end != digits.data() + digits.size())
       fail(ErrorCode::InvalidArgument,
            "view address '{}': expected PORT, ADDRESS or ADDRESS:PORT (e.g. 8080, "
-           "0.0.0.0:8080)",
+           "0.0.0.0:8080; write --view=ADDR:PORT, or --view after the dataset, so that the "
+           "dataset is not taken for it)",
            text);
     return port;
   };

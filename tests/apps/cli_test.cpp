@@ -77,5 +77,37 @@ TEST(Cli, BadInputIsOneLineAndExitCodeOne) {
       std::string::npos);
 }
 
+TEST(Cli, ViewAndLiveViewServeAndTheirErrorsAreOneLine) {
+  test::TempDir dir;
+  const std::string out = (dir / "run").string();
+  // A short run with the live page: the address is printed even with --quiet.
+  const CliRun demo = run_hivox(
+      "reconstruct 'synthetic:desk?frames=3&width=80&height=60' --poses gt --view "
+      "--quiet --out " +
+      out);
+  EXPECT_EQ(demo.exit_code, 0) << demo.output;
+  EXPECT_NE(demo.output.find("live view: http://127.0.0.1:"), std::string::npos) << demo.output;
+  // The viewer on that run, for a second.
+  const CliRun view = run_hivox("view " + out + " --seconds 0.5");
+  EXPECT_EQ(view.exit_code, 0) << view.output;
+  EXPECT_NE(view.output.find("viewer: http://127.0.0.1:"), std::string::npos) << view.output;
+  EXPECT_NE(view.output.find("served 0 requests"), std::string::npos) << view.output;
+  const std::string missing = (dir / "missing").string();
+  for (const auto& [args, words] : std::vector<std::pair<std::string, std::string>>{
+           {"view " + missing, missing},
+           {"view " + dir.path().string(), "no mesh.ply"},
+           {"view " + out + " --address 70000", "70000"},
+           {"view " + out + " --address host:port", "host:port"},
+           {"view " + out + "/stats.json", "expected a run's output folder"},
+           {"reconstruct 'synthetic:desk?frames=2&width=80&height=60' --view=nowhere:x --out " +
+                (dir / "x").string(),
+            "nowhere:x"}}) {
+    const CliRun r = run_hivox(args);
+    EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.output;
+    EXPECT_EQ(line_count(r.output), 1u) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(words), std::string::npos) << args << "\n" << r.output;
+  }
+}
+
 }  // namespace
 }  // namespace hivox
