@@ -64,17 +64,23 @@ struct FrameSample {
 
 /// The renders of one moment, handed from the run's thread to the server's as a whole; each
 /// PNG is encoded once, on the first request for it.
+/// The pictures of a snapshot, in the order of their names in the routes.
+enum class Picture { Shaded, Color, Normals, Levels, Depth, Count };
+constexpr std::array<std::string_view, static_cast<std::size_t>(Picture::Count)> kPictureNames = {
+    "shaded", "color", "normals", "levels", "depth"};
+
 struct Snapshot {
+  static constexpr std::size_t kCount = static_cast<std::size_t>(Picture::Count);
   int64_t version = 0;
   std::size_t frame = 0;
   float depth_min_m = 0, depth_max_m = 0;  ///< the depth image's colour scale
-  static constexpr std::array<std::string_view, 5> kKinds = {"shaded", "color", "normals", "levels",
-                                                             "depth"};
-  std::array<ColorImage, 5> images;
-  std::array<std::once_flag, 5> encoded_once;
-  std::array<std::string, 5> png;
+  std::array<ColorImage, kCount> images;
+  std::array<std::once_flag, kCount> encoded_once;
+  std::array<std::string, kCount> png;
 
-  const std::string& encoded(std::size_t k) {
+  ColorImage& image(Picture p) { return images[static_cast<std::size_t>(p)]; }
+  const std::string& encoded(Picture p) {
+    const auto k = static_cast<std::size_t>(p);
     std::call_once(encoded_once[k], [&] {
       const std::vector<uint8_t> bytes = encode_png(images[k]);
       png[k].assign(bytes.begin(), bytes.end());
@@ -121,10 +127,10 @@ struct LiveView::State {
     const RaycastResult& r = *cast;
     auto snap = std::make_shared<Snapshot>();
     snap->frame = frame;
-    snap->images[0] = render_shaded(r);
-    snap->images[1] = render_colors(r);
-    snap->images[2] = render_normals(r);
-    snap->images[3] = render_levels(r);
+    snap->image(Picture::Shaded) = render_shaded(r);
+    snap->image(Picture::Color) = render_colors(r);
+    snap->image(Picture::Normals) = render_normals(r);
+    snap->image(Picture::Levels) = render_levels(r);
     if (depth != nullptr && !depth->empty()) {
       const DepthExtent extent = depth_extent(*depth);
       snap->depth_min_m = extent.min_m;
@@ -134,12 +140,12 @@ struct LiveView::State {
       DepthImage small(depth->width() / step, depth->height() / step);
       for (int y = 0; y < small.height(); ++y)
         for (int x = 0; x < small.width(); ++x) small(x, y) = (*depth)(x * step, y * step);
-      snap->images[4] = render_depth(small, extent.min_m, extent.max_m);
+      snap->image(Picture::Depth) = render_depth(small, extent.min_m, extent.max_m);
     } else {
       const DepthExtent extent = depth_extent(r.depth_m);
       snap->depth_min_m = extent.min_m;
       snap->depth_max_m = extent.max_m;
-      snap->images[4] = render_depth(r.depth_m, extent.min_m, extent.max_m);
+      snap->image(Picture::Depth) = render_depth(r.depth_m, extent.min_m, extent.max_m);
     }
     ++renders;
     since_render.restart();
@@ -223,17 +229,18 @@ LiveView::LiveView(const LiveViewParams& params)
     const std::size_t from = view::parse_count(q.param("from", "0"), "from");
     return HttpReply::json(st.frames_json(from).dump());
   });
-  for (std::size_t k = 0; k < Snapshot::kKinds.size(); ++k) {
-    server_.route(fmt::format("/api/render/{}.png", Snapshot::kKinds[k]),
-                  [&st, k](const HttpQuery&) {
+  for (std::size_t k = 0; k < kPictureNames.size(); ++k) {
+    const auto picture = static_cast<Picture>(k);
+    server_.route(fmt::format("/api/render/{}.png", kPictureNames[k]),
+                  [&st, picture](const HttpQuery&) {
                     std::shared_ptr<Snapshot> snap;
                     {
                       const std::lock_guard lock(st.mutex);
                       snap = st.snapshot;
                     }
-                    if (!snap || snap->images[k].empty())
+                    if (!snap || snap->image(picture).empty())
                       return HttpReply::error(404, "no render yet");
-                    return HttpReply{200, "image/png", snap->encoded(k)};
+                    return HttpReply{200, "image/png", snap->encoded(picture)};
                   });
   }
   server_.start();

@@ -155,12 +155,13 @@ void ViewServer::start() {
   s.server.set_pre_routing_handler([this, loopback](const httplib::Request& req,
                                                     httplib::Response& res) {
     ++requests_;
-    auto reply = [&](const HttpReply& r) {
+    // The page's built-in files may be cached; data and the run's files change: never.
+    auto reply = [&](const HttpReply& r, bool cacheable = false) {
       res.status = r.status;
       res.set_content(r.body, r.content_type);
       res.set_header("X-Content-Type-Options", "nosniff");
       res.set_header("Referrer-Policy", "no-referrer");
-      res.set_header("Cache-Control", "no-store");
+      res.set_header("Cache-Control", cacheable ? "max-age=3600" : "no-store");
       if (r.status >= 400) ++refused_;
       return httplib::Server::HandlerResponse::Handled;
     };
@@ -182,12 +183,8 @@ void ViewServer::start() {
       constexpr std::string_view kStatic = "/static/";
       if (q.path.rfind(kStatic, 0) == 0) {
         const std::string name = q.path.substr(kStatic.size());
-        if (const auto asset = view::static_asset(name); asset && plain_file_name(name)) {
-          HttpReply r{200, std::string(content_type_for(name)), std::string(*asset)};
-          reply(r);
-          res.set_header("Cache-Control", "max-age=3600");
-          return httplib::Server::HandlerResponse::Handled;
-        }
+        if (const auto asset = view::static_asset(name); asset && plain_file_name(name))
+          return reply({200, std::string(content_type_for(name)), std::string(*asset)}, true);
         return reply(HttpReply::error(404, "no such file"));
       }
       const std::string& prefix = impl_->folder_prefix;

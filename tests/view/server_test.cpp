@@ -89,6 +89,10 @@ TEST_F(ServerTest, AnswersItsRoutesWithTheirTypes) {
   EXPECT_EQ(r.header("Content-Type"), "text/javascript; charset=utf-8");
   EXPECT_GT(r.body.size(), 100000u);
   EXPECT_TRUE(test::contains(r.body, "WebGLRenderer"));
+  // Built-in files may be cached, data never; one Cache-Control each.
+  EXPECT_EQ(r.header("Cache-Control"), "max-age=3600");
+  EXPECT_EQ(r.head.find("Cache-Control"), r.head.rfind("Cache-Control"));
+  EXPECT_EQ(get(port_, "/api/echo.json").header("Cache-Control"), "no-store");
   for (const char* asset : {"live.html", "live.js", "viewer.html", "viewer.js", "common.js",
                             "hivox.css", "OrbitControls.js"})
     EXPECT_EQ(get(port_, std::string("/static/") + asset).status, 200) << asset;
