@@ -14,7 +14,10 @@
 #include "commands.h"
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
+#include "hivox/core/timer.h"
+#include "hivox/eval/mesh_eval.h"
 #include "hivox/eval/trajectory_eval.h"
+#include "hivox/io/mesh_file.h"
 #include "hivox/io/trajectory_io.h"
 
 namespace hivox::cli {
@@ -84,6 +87,64 @@ void run_ate(const AteOptions& o) {
   row("max", r.max_m);
 }
 
+struct MeshOptions {
+  std::string reference, mesh;
+  MeshEvalParams params;
+  bool json = false;
+};
+
+void run_mesh_eval(const MeshOptions& o) {
+  o.params.validate();
+  Stopwatch watch;
+  const TriangleMesh reference = read_mesh(o.reference);
+  const TriangleMesh mesh = read_mesh(o.mesh);
+  MeshEvalResult r;
+  try {
+    r = evaluate_mesh(mesh, reference, o.params);
+  } catch (const Error& e) {
+    fail(e.code(), "{} against {}: {}", o.mesh, o.reference, e.what());
+  }
+  const double seconds = watch.elapsed_ms() / 1e3;
+  const auto stats = [](const DistanceStats& d) {
+    return nlohmann::json{
+        {"mean_m", d.mean_m}, {"median_m", d.median_m}, {"rmse_m", d.rmse_m}, {"max_m", d.max_m}};
+  };
+  if (o.json) {
+    nlohmann::json f = nlohmann::json::array();
+    for (const FScore& s : r.fscores)
+      f.push_back({{"threshold_m", s.threshold_m},
+                   {"precision", s.precision},
+                   {"recall", s.recall},
+                   {"fscore", s.fscore}});
+    const nlohmann::json j = {{"mesh", o.mesh},
+                              {"reference", o.reference},
+                              {"accuracy", stats(r.accuracy)},
+                              {"completeness", stats(r.completeness)},
+                              {"chamfer_m", r.chamfer_m},
+                              {"fscores", f},
+                              {"samples", r.mesh_samples},
+                              {"seed", o.params.seed},
+                              {"seconds", seconds}};
+    fmt::print("{}\n", j.dump(2));
+    return;
+  }
+  fmt::print("hivox eval mesh: {} against the reference {}\n", o.mesh, o.reference);
+  fmt::print("meshes:  {} triangles against {}; {} points sampled on each (seed {})\n",
+             mesh.triangle_count(), reference.triangle_count(), r.mesh_samples, o.params.seed);
+  const auto mm = [](double m) { return fmt::format("{:8.3f} mm", m * 1e3); };
+  fmt::print("{:<28} {:>11} {:>11} {:>11} {:>11}\n", "distance to the other surface", "mean",
+             "median", "rmse", "max");
+  for (const auto& [name, d] : {std::pair{"accuracy (mesh -> ref)", r.accuracy},
+                                std::pair{"completeness (ref -> mesh)", r.completeness}})
+    fmt::print("{:<28} {:>11} {:>11} {:>11} {:>11}\n", name, mm(d.mean_m), mm(d.median_m),
+               mm(d.rmse_m), mm(d.max_m));
+  fmt::print("chamfer (mean of the two means): {}\n", mm(r.chamfer_m));
+  for (const FScore& s : r.fscores)
+    fmt::print("within {:g} mm: precision {:.1f} %, recall {:.1f} %, F-score {:.1f} %\n",
+               s.threshold_m * 1e3, 100 * s.precision, 100 * s.recall, 100 * s.fscore);
+  fmt::print("({:.1f} s)\n", seconds);
+}
+
 }  // namespace
 
 void add_eval_command(CLI::App& app) {
@@ -118,6 +179,32 @@ void add_eval_command(CLI::App& app) {
                 "Print one JSON object (rmse_m, mean_m, median_m, std_m, min_m, max_m, matched, "
                 "...) instead of the table");
   ate->callback([o] { run_ate(*o); });
+
+  auto m = std::make_shared<MeshOptions>();
+  CLI::App* mesh = eval->add_subcommand(
+      "mesh",
+      "A mesh against a reference mesh: points sampled uniformly by area on each, and each "
+      "point's distance to the other mesh's nearest triangle. Accuracy: the mesh's points to the "
+      "reference; completeness: the reference's points to the mesh; Chamfer: the mean of the two "
+      "means; precision, recall and F-score: the points within each threshold.");
+  mesh->add_option("--reference", m->reference,
+                   "the reference (ground-truth) mesh: .ply, .obj, .off")
+      ->required();
+  mesh->add_option("--mesh", m->mesh, "the mesh to evaluate: .ply, .obj, .off")->required();
+  mesh->add_option("--samples", m->params.samples, "points sampled on each mesh")
+      ->capture_default_str();
+  mesh->add_option("--thresholds", m->params.thresholds_m,
+                   "distances for precision, recall and F-score, metres")
+      ->delimiter(',')
+      ->capture_default_str();
+  mesh->add_option("--seed", m->params.seed, "seed of the sampling")->capture_default_str();
+  mesh->add_flag("--json", m->json, "print one JSON object instead of the table");
+  mesh->footer(
+      "Examples:\n"
+      "  hivox eval mesh --reference ../shared/data/replica_office0/mesh.ply --mesh "
+      "out/office/mesh.ply\n"
+      "  hivox eval mesh --reference ref.obj --mesh mesh.ply --thresholds 0.002,0.005,0.01 --json");
+  mesh->callback([m] { run_mesh_eval(*m); });
 }
 
 }  // namespace hivox::cli

@@ -11,7 +11,7 @@
 
 #include "hivox/core/error.h"
 #include "hivox/io/map_file.h"
-#include "hivox/io/off.h"
+#include "hivox/io/mesh_file.h"
 #include "hivox/io/ply.h"
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
@@ -32,18 +32,6 @@ void ViewerParams::validate() const {
 }
 
 namespace {
-
-TriangleMesh read_mesh_file(const fs::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
-  if (ext == ".ply") return read_ply(path);
-  if (ext == ".off") return read_off(path);
-  fail(ErrorCode::Unsupported,
-       "{}: cannot view this file: expected a run's output folder, a mesh (.ply, .off) or a map "
-       "(.hvx)",
-       path.string());
-}
 
 std::string read_text(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -239,8 +227,18 @@ ViewerContent load_viewer_content(const fs::path& path, const ViewerParams& para
     if (loaded.info.session.last_pose) c.trajectory.push_back(*loaded.info.session.last_pose);
   } else {
     c.kind = ViewerContent::Kind::MeshFile;
-    c.mesh = read_mesh_file(path);
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+    if (ext != ".ply" && ext != ".obj" && ext != ".off")
+      fail(ErrorCode::Unsupported,
+           "{}: cannot view this file: expected a run's output folder, a mesh (.ply, .obj, .off) "
+           "or a map (.hvx)",
+           path.string());
+    c.mesh = read_mesh(path);
   }
+  if (c.mesh.triangles.empty())
+    fail(ErrorCode::InvalidData, "{}: nothing to show: the mesh has no triangles", path.string());
   if (c.levels == 0 && !c.mesh.levels.empty())
     c.levels = 1 + *std::max_element(c.mesh.levels.begin(), c.mesh.levels.end());
   c.source_vertices = c.mesh.vertex_count();

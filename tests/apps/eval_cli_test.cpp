@@ -11,6 +11,8 @@
 
 #include "apps/cli_util.h"
 #include "eval/trajectory_test_util.h"
+#include "hivox/io/obj.h"
+#include "hivox/io/ply.h"
 #include "hivox/io/trajectory_io.h"
 #include "test_util.h"
 
@@ -104,6 +106,51 @@ TEST(EvalCli, AteBadInputIsOneLineNamingTheProblem) {
     EXPECT_TRUE(contains(r.output, c.says)) << c.says << " missing in:\n" << r.output;
   }
   EXPECT_NE(run_hivox("eval ate --est " + f.est).exit_code, 0);  // --gt is required
+}
+
+/// A 1 m square of two triangles at height z.
+TriangleMesh square(float z) {
+  TriangleMesh m;
+  m.positions_w = {{0, 0, z}, {1, 0, z}, {1, 1, z}, {0, 1, z}};
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+TEST(EvalCli, MeshComparesAnyTwoFormatsAndReportsTheShift) {
+  test::TempDir dir;
+  write_ply(dir / "ref.ply", square(0.0f));
+  write_obj(dir / "shifted.obj", square(0.004f));
+  const CliRun r = run_hivox("eval mesh --reference " + (dir / "ref.ply").string() + " --mesh " +
+                             (dir / "shifted.obj").string() + " --samples 5000 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output);
+  EXPECT_NEAR(j["accuracy"]["mean_m"].get<double>(), 0.004, 1e-6);
+  EXPECT_NEAR(j["completeness"]["max_m"].get<double>(), 0.004, 1e-6);
+  EXPECT_NEAR(j["chamfer_m"].get<double>(), 0.004, 1e-6);
+  ASSERT_EQ(j["fscores"].size(), 2u);  // 5 mm and 1 cm
+  EXPECT_EQ(j["fscores"][0]["fscore"].get<double>(), 1.0);
+  const CliRun table =
+      run_hivox("eval mesh --reference " + (dir / "ref.ply").string() + " --mesh " +
+                (dir / "shifted.obj").string() + " --samples 5000 --thresholds 0.001,0.005");
+  EXPECT_EQ(table.exit_code, 0) << table.output;
+  EXPECT_TRUE(contains(table.output, "within 1 mm: precision 0.0 %")) << table.output;
+  EXPECT_TRUE(contains(table.output, "within 5 mm: precision 100.0 %")) << table.output;
+  // Bad input: one line naming it.
+  for (const auto& [args, words] : std::vector<std::pair<std::string, std::string>>{
+           {"eval mesh --reference " + (dir / "none.ply").string() + " --mesh " +
+                (dir / "ref.ply").string(),
+            "none.ply"},
+           {"eval mesh --reference " + (dir / "ref.ply").string() + " --mesh " +
+                (dir / "ref.stl").string(),
+            ".ply, .obj, .off"},
+           {"eval mesh --reference " + (dir / "ref.ply").string() + " --mesh " +
+                (dir / "ref.ply").string() + " --samples 0",
+            "samples"}}) {
+    const CliRun bad = run_hivox(args);
+    EXPECT_EQ(bad.exit_code, 1) << args << "\n" << bad.output;
+    EXPECT_EQ(std::count(bad.output.begin(), bad.output.end(), '\n'), 1) << bad.output;
+    EXPECT_TRUE(contains(bad.output, words)) << bad.output;
+  }
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "mesh_test_util.h"
 #include "test_util.h"
 #include "view/http_client.h"
 
@@ -27,19 +28,12 @@ using json = nlohmann::json;
 /// A w x h grid of unit squares (two triangles each) in the z = 0 plane, `cell` metres apart,
 /// with colours, normals and the level of the row's parity.
 TriangleMesh grid(int w, int h, float cell) {
-  TriangleMesh m;
+  TriangleMesh m = test::plane_mesh(w, h, cell);
   for (int y = 0; y <= h; ++y)
     for (int x = 0; x <= w; ++x) {
-      m.positions_w.push_back({x * cell, y * cell, 0.0f});
       m.normals_w.push_back({0, 0, 1});
       m.colors.push_back({static_cast<uint8_t>(x), static_cast<uint8_t>(y), 7});
       m.levels.push_back(static_cast<uint8_t>(y % 2));
-    }
-  auto at = [&](int x, int y) { return static_cast<int32_t>(y * (w + 1) + x); };
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      m.triangles.push_back({at(x, y), at(x + 1, y), at(x + 1, y + 1)});
-      m.triangles.push_back({at(x, y), at(x + 1, y + 1), at(x, y + 1)});
     }
   return m;
 }
@@ -178,6 +172,8 @@ TEST(Viewer, ErrorsNameThePath) {
   expect_error(dir / "empty", ErrorCode::Io, "no mesh.ply");
   test::write_text(dir / "notes.txt", "hello");
   expect_error(dir / "notes.txt", ErrorCode::Unsupported, "expected a run's output folder");
+  test::write_text(dir / "points.obj", "v 0 0 0\nv 1 0 0\n");
+  expect_error(dir / "points.obj", ErrorCode::InvalidData, "no triangles");
   test::write_text(dir / "bad.ply", "ply\nformat nonsense\n");
   expect_error(dir / "bad.ply", ErrorCode::InvalidData, "");
   ViewerParams p;
