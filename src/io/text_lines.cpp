@@ -26,6 +26,7 @@ std::vector<TextLine> read_text_lines(const std::filesystem::path& path) {
     line.number = number;
     std::istringstream fields(text);
     for (std::string f; fields >> f;) line.fields.push_back(f);
+    if (line.fields.empty()) continue;  // other whitespace only (a vertical tab, a form feed)
     lines.push_back(std::move(line));
   }
   if (in.bad()) fail(ErrorCode::Io, "{}: read error", path.string());
