@@ -21,9 +21,9 @@ namespace {
 using nlohmann::json;
 
 const std::set<std::string>& excluded() {
-  static const std::set<std::string> names = {"--out",      "--overwrite", "--quiet", "--config",
-                                              "--save-map", "--map",       "--help",
-                                              "--view",     "--view-fps",  "--view-linger"};
+  static const std::set<std::string> names = {"--out",      "--overwrite",  "--quiet", "--config",
+                                              "--save-map", "--map",        "--help",  "--view",
+                                              "--view-fps", "--view-linger"};
   return names;
 }
 

@@ -49,16 +49,9 @@ std::string_view to_string(LiveState state) {
 
 namespace {
 
-/// One frame as the page plots it.
+/// One frame as the page plots it: its statistics and where the camera was.
 struct FrameSample {
-  std::size_t index = 0;
-  double timestamp_s = 0;
-  double read_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0,
-         raycast_ms = 0, total_ms = 0;
-  std::vector<int64_t> blocks_per_level;
-  int64_t dropped_blocks = 0;
-  TrackingQuality tracking = TrackingQuality::Good;
-  bool fused = true;
+  FrameStats stats;
   Vec3f position_w;
 };
 
@@ -194,7 +187,8 @@ struct LiveView::State {
         copy.assign(samples.begin() + static_cast<std::ptrdiff_t>(from), samples.end());
     }
     json list = json::array();
-    for (const FrameSample& s : copy) {
+    for (const FrameSample& sample : copy) {
+      const FrameStats& s = sample.stats;
       list.push_back({{"i", s.index},
                       {"t", s.timestamp_s},
                       {"ms",
@@ -209,7 +203,7 @@ struct LiveView::State {
                       {"dropped", s.dropped_blocks},
                       {"tracking", to_string(s.tracking)},
                       {"fused", s.fused},
-                      {"p", {s.position_w.x, s.position_w.y, s.position_w.z}}});
+                      {"p", {sample.position_w.x, sample.position_w.y, sample.position_w.z}}});
     }
     return json{{"from", from}, {"frames", list}};
   }
@@ -268,20 +262,7 @@ void LiveView::frame(std::size_t i, const FrameStats& s, const Reconstruction& r
   State& st = *state_;
   Stopwatch watch;
   const Pose& T_wc = rec.trajectory().back().T_wc;
-  FrameSample sample;
-  sample.index = i;
-  sample.timestamp_s = s.timestamp_s;
-  sample.read_ms = s.read_ms;
-  sample.track_ms = s.track_ms;
-  sample.allocate_ms = s.allocate_ms;
-  sample.integrate_ms = s.integrate_ms;
-  sample.refine_ms = s.refine_ms;
-  sample.raycast_ms = s.raycast_ms;
-  sample.total_ms = s.total_ms;
-  sample.blocks_per_level = s.blocks_per_level;
-  sample.dropped_blocks = s.dropped_blocks;
-  sample.tracking = s.tracking;
-  sample.fused = s.fused;
+  FrameSample sample{s, {}};
   const Eigen::Vector3d t = T_wc.translation();
   sample.position_w = {static_cast<float>(t.x()), static_cast<float>(t.y()),
                        static_cast<float>(t.z())};

@@ -227,15 +227,13 @@ ViewerContent load_viewer_content(const fs::path& path, const ViewerParams& para
     if (loaded.info.session.last_pose) c.trajectory.push_back(*loaded.info.session.last_pose);
   } else {
     c.kind = ViewerContent::Kind::MeshFile;
-    std::string ext = path.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-    if (ext != ".ply" && ext != ".obj" && ext != ".off")
+    try {
+      c.mesh = read_mesh(path);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::Unsupported) throw;
       fail(ErrorCode::Unsupported,
-           "{}: cannot view this file: expected a run's output folder, a mesh (.ply, .obj, .off) "
-           "or a map (.hvx)",
-           path.string());
-    c.mesh = read_mesh(path);
+           "{}; the viewer also takes a run's output folder or a map (.hvx)", e.what());
+    }
   }
   if (c.mesh.triangles.empty())
     fail(ErrorCode::InvalidData, "{}: nothing to show: the mesh has no triangles", path.string());

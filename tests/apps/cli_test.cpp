@@ -98,7 +98,7 @@ TEST(Cli, ViewAndLiveViewServeAndTheirErrorsAreOneLine) {
            {"view " + dir.path().string(), "no mesh.ply"},
            {"view " + out + " --address 70000", "70000"},
            {"view " + out + " --address host:port", "host:port"},
-           {"view " + out + "/stats.json", "expected a run's output folder"},
+           {"view " + out + "/stats.json", "also takes a run's output folder"},
            {"reconstruct 'synthetic:desk?frames=2&width=80&height=60' --view=nowhere:x --out " +
                 (dir / "x").string(),
             "nowhere:x"}}) {

@@ -16,25 +16,16 @@
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "run/small_run.h"
 #include "test_util.h"
 
 namespace hivox {
 namespace {
 
-SyntheticDataset desk(int frames, const std::string& noise = "none") {
-  return SyntheticDataset(parse_synthetic_spec("synthetic:desk?frames=" + std::to_string(frames) +
-                                               "&noise=" + noise + "&width=160&height=120"));
-}
+using test::small_run;
 
-RunParams small_run() {
-  RunParams p;
-  p.reconstruction.map.levels = 2;
-  p.reconstruction.map.voxel_size_m = 0.01f;
-  p.reconstruction.map.truncation_m = 0.04f;
-  p.reconstruction.map.max_blocks = 1 << 16;
-  p.reconstruction.map.buckets_per_level = 1 << 14;
-  p.reconstruction.map.excess_per_level = 1 << 14;
-  return p;
+SyntheticDataset desk(int frames) {
+  return test::small_desk(frames);
 }
 
 /// What a run is compared by: the trajectory and the map's blocks per level.

@@ -18,6 +18,7 @@
 #include "hivox/raycast/render.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "run/small_run.h"
 #include "test_util.h"
 #include "view/http_client.h"
 
@@ -27,20 +28,13 @@ namespace {
 using json = nlohmann::json;
 
 RunParams small_run() {
-  RunParams p;
-  p.reconstruction.map.levels = 2;
-  p.reconstruction.map.voxel_size_m = 0.01f;
-  p.reconstruction.map.truncation_m = 0.04f;
-  p.reconstruction.map.max_blocks = 1 << 16;
-  p.reconstruction.map.buckets_per_level = 1 << 14;
-  p.reconstruction.map.excess_per_level = 1 << 14;
+  RunParams p = test::small_run();
   p.max_frames = 30;
   return p;
 }
 
 SyntheticDataset desk() {
-  return SyntheticDataset(
-      parse_synthetic_spec("synthetic:desk?frames=300&noise=none&width=160&height=120"));
+  return test::small_desk(300);
 }
 
 ColorImage decode(const std::string& png) {

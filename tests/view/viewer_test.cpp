@@ -171,7 +171,7 @@ TEST(Viewer, ErrorsNameThePath) {
   std::filesystem::create_directories(dir / "empty");
   expect_error(dir / "empty", ErrorCode::Io, "no mesh.ply");
   test::write_text(dir / "notes.txt", "hello");
-  expect_error(dir / "notes.txt", ErrorCode::Unsupported, "expected a run's output folder");
+  expect_error(dir / "notes.txt", ErrorCode::Unsupported, "also takes a run's output folder");
   test::write_text(dir / "points.obj", "v 0 0 0\nv 1 0 0\n");
   expect_error(dir / "points.obj", ErrorCode::InvalidData, "no triangles");
   test::write_text(dir / "bad.ply", "ply\nformat nonsense\n");
