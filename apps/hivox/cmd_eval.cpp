@@ -205,6 +205,8 @@ void add_eval_command(CLI::App& app) {
       "out/office/mesh.ply\n"
       "  hivox eval mesh --reference ref.obj --mesh mesh.ply --thresholds 0.002,0.005,0.01 --json");
   mesh->callback([m] { run_mesh_eval(*m); });
+
+  add_sdf_error_command(eval);
 }
 
 }  // namespace hivox::cli

@@ -27,46 +27,11 @@
 #include "hivox/io/map_file.h"
 #include "hivox/run/runner.h"
 #include "hivox/view/live_view.h"
+#include "reconstruct_options.h"
 
 namespace hivox::cli {
 
-namespace {
-
 namespace fs = std::filesystem;
-
-struct ReconstructOptions {
-  DatasetOptions data;
-  std::string refine_criterion = "detail";
-  std::string sensor_noise = "dataset";
-  // Unset: the criterion's own defaults (detail: RefineParams{}, det-cov: the paper's 1e-4).
-  std::optional<float> split_threshold, merge_threshold;
-  std::string depth_sampling{to_string(FusionParams{}.depth_sampling)};
-  std::string icp_loss = "huber";
-  std::string poses = "icp";
-  std::string device = "cpu";
-  std::string on_bad_frame = "stop";
-  std::string out;
-  bool overwrite = false;
-  ReconstructionParams params;
-  MeshParams mesh;
-  std::size_t frames = 0;
-  std::size_t first_frame = 0;
-  std::string map_in, map_out;
-  std::string config_file;  ///< read before parsing (config_file.h); kept for --help
-  std::string config_json;  ///< the effective settings, written as config.json
-  /// The options that shape a map: with --map, those not given take the file's values.
-  CLI::Option *levels_option = nullptr, *voxel_size_option = nullptr, *truncation_option = nullptr,
-              *max_weight_option = nullptr, *no_color_option = nullptr;
-  /// --view: serve the live page (the option's value: where); --view-fps, --view-linger.
-  CLI::Option* view_option = nullptr;
-  std::string view;
-  double view_fps = LiveViewParams{}.render_hz;
-  double view_linger_s = 0;
-  int threads = 0;
-  int render_every = 0;
-  bool no_color = false;
-  bool quiet = false;
-};
 
 std::string default_out_dir(const std::string& dataset) {
   std::string name = fs::path(dataset).filename().string();
@@ -128,6 +93,8 @@ RunParams run_params(ReconstructOptions options) {
   return run;
 }
 
+namespace {
+
 /// The signal that asked the run to stop (SIGINT, SIGTERM), or 0. Set by the handler, read
 /// between frames.
 volatile std::sig_atomic_t g_stop_signal = 0;
@@ -137,24 +104,22 @@ extern "C" void request_stop(int signal) {
   std::signal(signal, SIG_DFL);  // a second interrupt ends the process at once
 }
 
-/// Interrupts stop the run at the next frame, which then writes what it has; restores the
-/// previous handlers when the run is over.
-class StopOnSignals {
- public:
-  StopOnSignals()
-      : previous_int_(std::signal(SIGINT, request_stop)),
-        previous_term_(std::signal(SIGTERM, request_stop)) {}
-  ~StopOnSignals() {
-    std::signal(SIGINT, previous_int_);
-    std::signal(SIGTERM, previous_term_);
-  }
-  StopOnSignals(const StopOnSignals&) = delete;
-  StopOnSignals& operator=(const StopOnSignals&) = delete;
+}  // namespace
 
- private:
-  using Handler = void (*)(int);
-  Handler previous_int_, previous_term_;
-};
+StopOnSignals::StopOnSignals()
+    : previous_int_(std::signal(SIGINT, request_stop)),
+      previous_term_(std::signal(SIGTERM, request_stop)) {}
+
+StopOnSignals::~StopOnSignals() {
+  std::signal(SIGINT, previous_int_);
+  std::signal(SIGTERM, previous_term_);
+}
+
+int stop_signal() {
+  return g_stop_signal;
+}
+
+namespace {
 
 /// Centimetres, or millimetres below one (a synthetic or short run's error would read 0.00 cm).
 std::string length(double m) {
@@ -311,6 +276,8 @@ void run_reconstruct(const ReconstructOptions& options) {
   }
 }
 
+}  // namespace
+
 void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   auto& p = o.params;
   cmd->add_option("--poses", o.poses,
@@ -417,6 +384,9 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "where the map lives and the stages run: cpu, or cuda[:N] (needs a build with "
                   "the CUDA backend)")
       ->capture_default_str();
+}
+
+void add_session_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_flag("--quiet", o.quiet, "print nothing but warnings and errors");
   o.view_option =
       cmd->add_option("--view", o.view,
@@ -442,6 +412,8 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "--config OUT/config.json --out NEW)")
       ->type_name("FILE");
 }
+
+namespace {
 
 struct DemoOptions {
   ReconstructOptions run;
@@ -472,6 +444,7 @@ void add_demo_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out", options->run.out, "output folder")->capture_default_str();
   add_fusion_options(cmd, options->run);
+  add_session_options(cmd, options->run);
   cmd->footer(
       "Examples:\n"
       "  hivox demo\n"
@@ -488,14 +461,11 @@ void add_demo_command(CLI::App& app) {
   });
 }
 
-void add_reconstruct_command(CLI::App& app) {
-  auto options = std::make_shared<ReconstructOptions>();
-  CLI::App* cmd = app.add_subcommand(
-      "reconstruct",
-      "Fuse an RGB-D sequence into a TSDF map and write the mesh (mesh.ply), the trajectory "
-      "(trajectory.txt, TUM format), statistics (stats.json) and renders of the model (PNG).");
+void add_reconstruct_options(CLI::App* cmd, ReconstructOptions& o) {
+  ReconstructOptions* options = &o;
   add_dataset_options(cmd, options->data);
   add_fusion_options(cmd, *options);
+  add_session_options(cmd, *options);
   cmd->add_option("--frames", options->frames, "process N frames (0 = all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
@@ -526,6 +496,15 @@ void add_reconstruct_command(CLI::App& app) {
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --frames 300 --save-map rpy.hvx\n"
               "  hivox reconstruct ../shared/data/tum_fr1_rpy --first-frame 300 --map rpy.hvx "
               "--save-map rpy_all.hvx\n");
+}
+
+void add_reconstruct_command(CLI::App& app) {
+  auto options = std::make_shared<ReconstructOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "reconstruct",
+      "Fuse an RGB-D sequence into a TSDF map and write the mesh (mesh.ply), the trajectory "
+      "(trajectory.txt, TUM format), statistics (stats.json) and renders of the model (PNG).");
+  add_reconstruct_options(cmd, *options);
   cmd->callback([options, cmd] {
     options->config_json = effective_config_json(*cmd);
     run_reconstruct(*options);

@@ -41,5 +41,9 @@ bool print_map_file_info(const std::string& path);
 void add_view_command(CLI::App& app);
 /// `hivox eval ate --gt FILE --est FILE`: trajectory accuracy against ground truth (cmd_eval.cpp).
 void add_eval_command(CLI::App& app);
+/// `hivox eval sdf-error`: the paper's Table I score (cmd_experiment.cpp); under `eval`.
+void add_sdf_error_command(CLI::App* eval);
+/// `hivox experiment DATASET`: the paper's experiments with a report (cmd_experiment.cpp).
+void add_experiment_command(CLI::App& app);
 
 }  // namespace hivox::cli

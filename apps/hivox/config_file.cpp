@@ -68,6 +68,8 @@ std::vector<std::string> expand_config_args(const std::vector<std::string>& args
     if (args[i].rfind("--config=", 0) == 0) file = args[i].substr(9);
   }
   if (file.empty() || command == args.size()) return args;
+  // `hivox experiment --config FILE` names configurations to compare, not its own settings.
+  if (args[command] == "experiment") return args;
   json config;
   try {
     config = json::parse(read_whole_file(file));

@@ -11,6 +11,7 @@
 
 namespace hivox::cli {
 
+/// `hivox experiment` is left alone: its --config names configurations to compare.
 /// The command line with the settings of a `--config FILE` (or `--config=FILE`) inserted after
 /// the command's name, except those the command line gives itself. Throws `Error` naming the file
 /// for a missing or malformed file, one written for another command, an option `app`'s command

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   hivox::cli::add_eval_command(app);
   hivox::cli::add_map_commands(app);
   hivox::cli::add_view_command(app);
+  hivox::cli::add_experiment_command(app);
   try {
     // Settings of a --config file become arguments before the command line's own.
     std::vector<std::string> args = hivox::cli::expand_config_args({argv, argv + argc}, app);
