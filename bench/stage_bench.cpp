@@ -16,12 +16,17 @@
 
 #include "hivox/fusion/integrator.h"
 #include "hivox/io/dataset.h"
+#include "hivox/io/intrinsics_io.h"
+#include "hivox/io/mesh_file.h"
+#include "hivox/io/trajectory_io.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
+#include "hivox/synth_mesh/mesh_render.h"
 #include "hivox/track/tracker.h"
+#include "synth_mesh/mesh_render_modes.h"
 
 namespace hivox {
 namespace {
@@ -181,6 +186,30 @@ void BM_ExtractMesh(benchmark::State& state) {
   state.counters["triangles"] = static_cast<double>(mesh.triangle_count());
 }
 
+/// Rendering a mesh (`hivox synth --mesh`): Replica office0's 50k-triangle mesh at its 1200x680
+/// camera, cycling through the first 100 poses of its trajectory. Skipped without the data.
+/// Argument: 0 ray packets (`render`), 1 one ray per pixel.
+void BM_MeshRender(benchmark::State& state) {
+  const std::filesystem::path dir = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "replica_office0";
+  if (!std::filesystem::is_directory(dir)) {
+    state.SkipWithError("../shared/data/replica_office0 not found");
+    return;
+  }
+  static const MeshScene scene(read_mesh(dir / "office0_mesh_decimated50k.ply"));
+  static const std::vector<StampedPose> poses = read_tum_trajectory(dir / "groundtruth.txt");
+  static const PinholeCamera camera = read_intrinsics_json(dir / "intrinsics.json").camera;
+  const MeshRayMode mode = state.range(0) == 0 ? MeshRayMode::Packets : MeshRayMode::Single;
+  std::size_t i = 0, hits = 0;
+  for (auto _ : state) {
+    const RenderedFrame f = render_mesh(scene, camera, poses[i++ % 100].T_wc, 10.0, mode);
+    benchmark::DoNotOptimize(f.depth_m.data());
+    hits = 0;
+    for (std::size_t k = 0; k < f.depth_m.size(); ++k) hits += f.depth_m.data()[k] > 0.0f;
+  }
+  state.counters["hits"] = static_cast<double>(hits);
+  state.SetLabel(mode == MeshRayMode::Packets ? "4x4 packets" : "ray by ray");
+}
+
 BENCHMARK(BM_Allocate)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Integrate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
@@ -189,6 +218,7 @@ BENCHMARK(BM_RaycastPipeline)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_WarpRaycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Track)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_MeshRender)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace hivox

@@ -3,7 +3,7 @@
 #   find_package(hivox REQUIRED)
 #   target_link_libraries(app PRIVATE hivox::hivox)
 # The modules are static libraries; what they use privately (OpenMP, spdlog, libpng, libjpeg,
-# zstd, libzip, nlohmann-json, cpp-httplib, threads) is linked into the user's program but adds no compile flag and no
+# zstd, libzip, nlohmann-json, cpp-httplib, threads, Embree) is linked into the user's program but adds no compile flag and no
 # header to it: hivoxConfig.cmake finds those packages only to link them.
 include(CMakePackageConfigHelpers)
 
