@@ -337,6 +337,11 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "observations after which a block's fused noise counts as settled; young blocks "
                   "split only on detail well above their noise (lower: more blocks stay fine)")
       ->capture_default_str();
+  cmd->add_option("--refine-split-weight-scale", p.refine.split_weight_scale,
+                  "a split block's children start with the parent's interpolated weight times "
+                  "this, (0, 1]: lower lets new fine observations outweigh the coarse values "
+                  "sooner")
+      ->capture_default_str();
   cmd->add_option("--sensor-noise", o.sensor_noise,
                   "depth noise model the refinement compares detail with: 'dataset' (the "
                   "dataset's own: Kinect-class for recorded sets, none for noise-free synthetic "

@@ -241,8 +241,15 @@ MeshEvalResult evaluate_mesh(const TriangleMesh& mesh, const TriangleMesh& refer
   params.validate();
   MeshEvalResult r;
   const std::vector<Vec3f> on_mesh = sample_surface(mesh, params.samples, params.seed);
-  const std::vector<Vec3f> on_reference =
-      sample_surface(reference, params.samples, params.seed + 1);
+  std::vector<Vec3f> on_reference = sample_surface(reference, params.samples, params.seed + 1);
+  if (params.reference_filter) {
+    const std::size_t all = on_reference.size();
+    std::erase_if(on_reference, [&](const Vec3f& p) { return !params.reference_filter(p); });
+    r.reference_kept = static_cast<double>(on_reference.size()) / static_cast<double>(all);
+    if (on_reference.empty())
+      fail(ErrorCode::InvalidArgument,
+           "mesh evaluation: the reference filter kept none of the {} reference points", all);
+  }
   const double exact_within_m =
       10.0 * *std::max_element(params.thresholds_m.begin(), params.thresholds_m.end());
   const SurfaceDistance to_reference(reference, exact_within_m), to_mesh(mesh, exact_within_m);

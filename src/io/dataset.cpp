@@ -306,6 +306,13 @@ std::string describe_dataset(DatasetReader& reader) {
                           ? fmt::format("{:g} raw units per metre  [{}]", info.rig.depth_scale,
                                         info.depth_scale_source)
                           : "none (depth is metric)");
+  const SensorNoise& n = info.rig.depth_noise;
+  line("depth noise",
+       n.sigma_m(3.0f) == 0.0f
+           ? std::string("none (rendered depth: the refinement splits on any detail)")
+           : fmt::format("sigma {:.1f} mm at 1 m, {:.1f} mm at 3 m (Kinect-class "
+                         "unless intrinsics.json's depth_noise says otherwise)",
+                         1e3 * n.sigma_m(1.0f), 1e3 * n.sigma_m(3.0f)));
 
   const auto indices = spread_indices(reader.size(), 5);
   std::vector<float> values;

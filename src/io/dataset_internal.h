@@ -64,9 +64,11 @@ struct Calibration {
   std::string intrinsics_source;
   double depth_scale = 0;
   std::string depth_scale_source;
+  std::optional<SensorNoise> depth_noise;  ///< from the intrinsics file, when it says
 
   /// Fills `info`'s camera fields (depth and registered colour camera, distortion, depth scale,
-  /// with their sources); the distortion is removed from frames when `undistort` and it has any.
+  /// with their sources, the depth noise when known); the distortion is removed from frames when
+  /// `undistort` and it has any.
   void apply_to(DatasetInfo& info, bool undistort) const;
 };
 

@@ -158,6 +158,7 @@ void Calibration::apply_to(DatasetInfo& info, bool undistort) const {
   info.undistorted = undistort && !distortion.none();
   info.rig.depth_scale = depth_scale;
   info.depth_scale_source = depth_scale_source;
+  if (depth_noise) info.rig.depth_noise = *depth_noise;
 }
 
 Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params,
@@ -208,6 +209,13 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
            dir.string(), preset_names());
     take(*guessed,
          fmt::format("preset {}, guessed from the folder name '{}'", guessed->name, matched));
+  }
+
+  // The depth's noise model comes with the camera when an intrinsics file gave it.
+  if (explicit_file) {
+    c.depth_noise = explicit_file->depth_noise;
+  } else if (!explicit_preset) {
+    if (const IntrinsicsFile* f = load_folder_file()) c.depth_noise = f->depth_noise;
   }
 
   if (params.depth_scale > 0) {

@@ -73,6 +73,25 @@ IntrinsicsFile read_intrinsics_json(const std::filesystem::path& path) {
                       d.size() == 5 ? d[4].get<float>() : 0.0f};
     out.distortion.validate(path.string());
   }
+  if (j.contains("depth_noise")) {
+    const auto& n = j.at("depth_noise");
+    if (n == "kinect") {
+      out.depth_noise = SensorNoise::kinect();
+    } else if (n == "none") {
+      out.depth_noise = SensorNoise::none();
+    } else if (n.is_object() && n.size() == 3 && n.contains("sigma_min_m") &&
+               n.contains("quadratic_per_m") && n.contains("z0_m") &&
+               std::all_of(n.begin(), n.end(),
+                           [](const nlohmann::json& v) { return v.is_number() && v >= 0; })) {
+      out.depth_noise = SensorNoise{n["sigma_min_m"].get<float>(),
+                                    n["quadratic_per_m"].get<float>(), n["z0_m"].get<float>()};
+    } else {
+      fail(ErrorCode::InvalidData,
+           "{}: field 'depth_noise' must be \"kinect\", \"none\" or {{\"sigma_min_m\", "
+           "\"quadratic_per_m\", \"z0_m\"}} (numbers >= 0), found {}",
+           path.string(), n.dump());
+    }
+  }
   return out;
 }
 
@@ -86,6 +105,19 @@ void write_intrinsics_json(const std::filesystem::path& path, const IntrinsicsFi
   j["height"] = intrinsics.camera.height;
   if (intrinsics.depth_scale > 0) j["depth_scale"] = intrinsics.depth_scale;
   if (!intrinsics.note.empty()) j["note"] = intrinsics.note;
+  if (const auto& n = intrinsics.depth_noise) {
+    const SensorNoise kinect = SensorNoise::kinect();
+    if (n->sigma_min_m == 0 && n->quadratic_per_m == 0) {
+      j["depth_noise"] = "none";
+    } else if (n->sigma_min_m == kinect.sigma_min_m &&
+               n->quadratic_per_m == kinect.quadratic_per_m && n->z0_m == kinect.z0_m) {
+      j["depth_noise"] = "kinect";
+    } else {
+      j["depth_noise"] = {{"sigma_min_m", n->sigma_min_m},
+                          {"quadratic_per_m", n->quadratic_per_m},
+                          {"z0_m", n->z0_m}};
+    }
+  }
   if (!intrinsics.distortion.none()) {
     const LensDistortion& d = intrinsics.distortion;
     j[kDistortionField] = {d.k1, d.k2, d.p1, d.p2, d.k3};

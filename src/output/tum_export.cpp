@@ -116,6 +116,7 @@ void export_tum(DatasetReader& reader, const fs::path& out, double depth_scale, 
   IntrinsicsFile intrinsics;
   intrinsics.camera = info.rig.depth_camera;
   intrinsics.depth_scale = depth_scale;
+  intrinsics.depth_noise = info.rig.depth_noise;  // so that a rendered, noise-free set reads so
   intrinsics.note = origin;
   write_intrinsics_json(dir / "intrinsics.json", intrinsics);
   folder.commit();

@@ -99,6 +99,7 @@ std::string experiment_json(const ExperimentResult& r, const ExperimentParams& p
       j["mesh_eval"] = {{"accuracy", distance_json(c.mesh_eval->accuracy)},
                         {"completeness", distance_json(c.mesh_eval->completeness)},
                         {"chamfer_m", c.mesh_eval->chamfer_m},
+                        {"reference_observed", c.mesh_eval->reference_kept},
                         {"fscores", f}};
     }
     if (c.tracked) {
@@ -120,6 +121,7 @@ std::string experiment_json(const ExperimentResult& r, const ExperimentParams& p
                     {"sdf_samples", r.sdf_samples},
                     {"sdf_seed", p.sdf.seed},
                     {"reference_mesh", p.reference_mesh.string()},
+                    {"reference_observed_views", r.reference_observed_views},
                     {"stopped", r.stopped},
                     {"wall_s", r.wall_s},
                     {"configs", configs}};
@@ -185,7 +187,13 @@ std::string experiment_markdown(const ExperimentResult& r, const ExperimentParam
     md += fmt::format("\n## Mesh against the reference mesh {}\n\n", p.reference_mesh.string());
     md +=
         "Accuracy: the mesh's points to the reference; completeness: the reference's points to "
-        "the mesh (mm).\n\n";
+        "the mesh (mm)";
+    if (r.reference_observed_views > 0 && !r.configs.empty() && r.configs[0].mesh_eval)
+      md += fmt::format(
+          ", over the part of the reference the sequence observed ({:.1f} % of its area: seen "
+          "unoccluded in the depth of {} frames spread over the run)",
+          100 * r.configs[0].mesh_eval->reference_kept, r.reference_observed_views);
+    md += ".\n\n";
     std::string head =
         "| configuration | accuracy mean | median | completeness mean | median | "
         "Chamfer |";

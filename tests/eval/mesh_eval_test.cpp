@@ -88,6 +88,21 @@ TEST(MeshEval, HalfAPlaneIsAccurateButHalfComplete) {
   EXPECT_NEAR(r.fscores[1].fscore, 2 * p * rc / (p + rc), 1e-12);
 }
 
+TEST(MeshEval, AReferenceFilterLimitsCompletenessToWhatItKeeps) {
+  const TriangleMesh full = plane(40, 20, 0.01f, 0.0f);  // 0.4 x 0.2 m
+  const TriangleMesh half = plane(20, 20, 0.01f, 0.0f);  // x in [0, 0.2]
+  MeshEvalParams p = few(40000);
+  // The part of the reference the "cameras saw": the half the mesh covers.
+  p.reference_filter = [](const Vec3f& q) { return q.x <= 0.2f; };
+  const MeshEvalResult r = evaluate_mesh(half, full, p);
+  EXPECT_NEAR(r.reference_kept, 0.5, 0.01);
+  EXPECT_LT(r.completeness.max_m, 1e-6);
+  EXPECT_EQ(r.fscores[1].recall, 1.0);
+  EXPECT_LT(r.accuracy.max_m, 1e-6);  // unaffected
+  p.reference_filter = [](const Vec3f&) { return false; };
+  EXPECT_THROW(evaluate_mesh(half, full, p), Error);
+}
+
 TEST(MeshEval, CubesOfTwoSizesAreHalfTheirDifferenceApart) {
   // Samples of the inner cube's faces lie 0.1 m inside the outer cube's faces.
   const MeshEvalResult r = evaluate_mesh(cube(1.0f), cube(1.2f), few());

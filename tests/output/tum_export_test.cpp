@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "hivox/core/error.h"
+#include "hivox/io/dataset.h"
 #include "hivox/io/image_io.h"
 #include "hivox/io/intrinsics_io.h"
 #include "hivox/io/text_lines.h"
@@ -16,6 +17,7 @@ namespace hivox {
 namespace {
 
 using test::TempDir;
+namespace fs = std::filesystem;
 
 TEST(TumExport, WritesALayoutThatRoundTrips) {
   TempDir dir;
@@ -71,6 +73,40 @@ TEST(TumExport, WritesALayoutThatRoundTrips) {
   EXPECT_FLOAT_EQ(intr.camera.cy, data.camera().cy);
   EXPECT_EQ(intr.camera.width, 160);
   EXPECT_DOUBLE_EQ(intr.depth_scale, scale);
+}
+
+// A rendered sequence says how noisy its depth is, so that reading it back gives the
+// refinement and tracking the right noise model (noise-free depth is not a Kinect's).
+TEST(TumExport, TheDepthNoiseModelTravelsWithTheSequence) {
+  TempDir dir;
+  for (const char* noise : {"none", "kinect"}) {
+    SyntheticDataset data(
+        parse_synthetic_spec(std::string("synthetic:spheres?frames=2&width=80&noise=") + noise));
+    const fs::path seq = dir / noise;
+    export_tum(data, seq, 5000);
+    const IntrinsicsFile intr = read_intrinsics_json(seq / "intrinsics.json");
+    ASSERT_TRUE(intr.depth_noise.has_value()) << noise;
+    const auto reader = open_dataset(seq.string());
+    const SensorNoise n = reader->info().rig.depth_noise;
+    EXPECT_EQ(n.sigma_m(2.0f), data.info().rig.depth_noise.sigma_m(2.0f)) << noise;
+    EXPECT_EQ(n.sigma_m(2.0f) == 0.0f, std::string(noise) == "none");
+  }
+  // Another model is written as numbers; a bad value names the field.
+  IntrinsicsFile f = read_intrinsics_json(dir / "none" / "intrinsics.json");
+  f.depth_noise = SensorNoise{0.002f, 0.003f, 0.5f};
+  write_intrinsics_json(dir / "other.json", f);
+  const IntrinsicsFile back = read_intrinsics_json(dir / "other.json");
+  ASSERT_TRUE(back.depth_noise.has_value());
+  EXPECT_FLOAT_EQ(back.depth_noise->quadratic_per_m, 0.003f);
+  test::write_text(dir / "bad.json",
+                   R"({"fx": 500, "fy": 500, "cx": 40, "cy": 30, "width": 80, "height": 60, )"
+                   R"("depth_noise": "loud"})");
+  try {
+    read_intrinsics_json(dir / "bad.json");
+    FAIL() << "accepted depth_noise \"loud\"";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("depth_noise"), std::string::npos) << e.what();
+  }
 }
 
 TEST(TumExport, AllFramesByDefaultAndBadScale) {

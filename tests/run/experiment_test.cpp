@@ -47,6 +47,8 @@ TEST(Experiment, HierarchyConfigsAreTheFinestCoarsestAndAdaptive) {
   EXPECT_FLOAT_EQ(c[1].params.map.voxel_size_m, 0.008f);
   EXPECT_EQ(c[2].slug, "adaptive");
   EXPECT_EQ(c[2].params.map.levels, 3);
+  EXPECT_EQ(c[0].params.map.max_blocks, 4 * adaptive.map.max_blocks);
+  EXPECT_EQ(c[2].params.map.max_blocks, adaptive.map.max_blocks);
   // The truncation band is the same metric band for all (paper: one mu for every level).
   for (const ExperimentConfig& x : c)
     EXPECT_FLOAT_EQ(x.params.map.truncation_m, adaptive.map.truncation_m);
@@ -138,6 +140,11 @@ TEST(Experiment, AReferenceMeshGivesAccuracyAndTrackedRunsGiveAte) {
     EXPECT_TRUE(c.tracked->ate.has_value()) << c.config.name;
     EXPECT_EQ(c.tracked->frames_fused + c.tracked->frames_lost, 6u);
   }
+  // Completeness counts the part of the reference the frames saw: here, nearly all of it (the
+  // reference is made of these frames).
+  EXPECT_EQ(r.reference_observed_views, 6u);
+  EXPECT_GT(r.configs[0].mesh_eval->reference_kept, 0.8);
+  EXPECT_LE(r.configs[0].mesh_eval->reference_kept, 1.0);
   EXPECT_LT(r.configs[0].mesh_eval->accuracy.max_m, 1e-5);
   EXPECT_GT(r.configs[1].mesh_eval->accuracy.mean_m, 10 * r.configs[0].mesh_eval->accuracy.mean_m);
   const std::string md = read_whole_file(tmp / "b" / "report.md");

@@ -6,6 +6,7 @@
 /// their Chamfer mean, and precision, recall and F-score at distance thresholds.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -18,6 +19,10 @@ struct MeshEvalParams {
   int64_t samples = 1'000'000;  ///< points sampled on each mesh, uniformly by area
   std::vector<double> thresholds_m = {0.005, 0.01};  ///< for precision, recall, F-score
   uint64_t seed = 1;                                 ///< of the sampling
+  /// Completeness and recall count only the reference points this accepts (e.g. the part of
+  /// the reference the cameras saw: a sequence that shows part of a scene is not incomplete
+  /// where it never looked); all when empty. Accuracy and precision are unaffected.
+  std::function<bool(const Vec3f&)> reference_filter;
 
   /// Throws `Error(InvalidArgument)` naming the bad setting.
   void validate() const;
@@ -42,6 +47,7 @@ struct MeshEvalResult {
   double chamfer_m = 0;         ///< (accuracy.mean_m + completeness.mean_m) / 2
   std::vector<FScore> fscores;  ///< one per threshold, in the params' order
   int64_t mesh_samples = 0, reference_samples = 0;
+  double reference_kept = 1.0;  ///< share of the reference samples `reference_filter` accepted
 };
 
 /// Evaluates `mesh` against `reference`. Throws `Error(InvalidArgument)` when either has no

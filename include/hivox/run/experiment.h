@@ -11,6 +11,9 @@
 /// - sdf-error: the mean |SDF| of every map at points sampled on the first configuration's mesh
 ///   (Table I, `evaluate_sdf_error`);
 /// - mesh accuracy and completeness against a reference mesh (`evaluate_mesh`), when one is given;
+///   completeness over the part of the reference the frames saw (unoccluded in the depth of up
+///   to 60 frames with ground-truth poses), so that a sequence is not incomplete where it never
+///   looked;
 /// - the trajectory error of tracked runs (one per configuration, ICP), when the dataset has
 ///   ground-truth poses.
 ///
@@ -45,7 +48,9 @@ struct ExperimentConfig {
 
 /// The paper's three configurations from the adaptive one: the fixed grid at its finest voxel
 /// size (1 level), the fixed grid at its coarsest (voxel size x 2^(levels-1), 1 level), and
-/// `adaptive` itself. Throws `Error(InvalidArgument)` when `adaptive` has a single level.
+/// `adaptive` itself. The fixed finest grid gets 4x the block pool and hash tables, so that it
+/// does not run out of room where the hierarchy does not. Throws `Error(InvalidArgument)` when
+/// `adaptive` has a single level.
 std::vector<ExperimentConfig> hierarchy_configs(const ReconstructionParams& adaptive);
 
 /// Whether the tracked runs (for ATE and the whole loop's speed) are made.
@@ -106,6 +111,9 @@ struct ExperimentResult {
   std::size_t frames = 0;  ///< frames each same-pose run went through
   std::string poses;       ///< the same-pose runs' pose source, as given
   int64_t sdf_samples = 0;
+  /// Frames (with ground-truth poses) that decided which part of the reference mesh was observed:
+  /// completeness counts that part only; 0 = the whole reference.
+  std::size_t reference_observed_views = 0;
   std::vector<ConfigResult> configs;
   bool stopped = false;  ///< ended early by `stop_requested`; what finished is reported
   double wall_s = 0;
