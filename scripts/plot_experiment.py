@@ -7,6 +7,8 @@
                  map's levels (paper Fig. 4)
   sdf_error.png  the sdf-error points, seen along the scene's axis of least extent, coloured by
                  each map's |SDF| (the error heat map), with their distributions
+  tradeoff.png   every configuration's block saving against its sdf-error (and, with a reference
+                 mesh, its accuracy and completeness): the curve a threshold sweep draws
 
 Usage: plot_experiment.py DIR   (`hivox experiment` runs it itself when matplotlib is there)
 """
@@ -142,6 +144,30 @@ def plot_sdf_error(d, report, out):
     return True
 
 
+def plot_tradeoff(report, out):
+    configs = report["configs"]
+    with_mesh = all("mesh_eval" in c for c in configs)
+    panels = [("sdf-error (mean |SDF|), mm", lambda c: 1000 * c["sdf_error"]["mean_m"])]
+    if with_mesh:
+        panels.append(("accuracy (mean), mm", lambda c: 1000 * c["mesh_eval"]["accuracy"]["mean_m"]))
+        panels.append(("completeness (mean), mm", lambda c: 1000 * c["mesh_eval"]["completeness"]["mean_m"]))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.3), squeeze=False)
+    for ax, (label, value) in zip(axes[0], panels):
+        for c in configs:
+            fixed = c["levels"] == 1
+            ax.scatter(100 * c["block_saving"], value(c), marker="s" if fixed else "o",
+                       color="#444444" if fixed else "#1f77b4", zorder=3)
+            ax.annotate(c["name"], (100 * c["block_saving"], value(c)), fontsize=7,
+                        xytext=(4, 4), textcoords="offset points")
+        ax.set_xlabel(f"blocks saved against {configs[0]['name']}, %")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    fig.suptitle("What each configuration saves and what it costs (squares: fixed grids)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
 def main(argv):
     if len(argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -154,6 +180,7 @@ def main(argv):
     plot_blocks(d, report, os.path.join(figures, "blocks.png"))
     plot_renders(d, report, os.path.join(figures, "renders.png"))
     plot_sdf_error(d, report, os.path.join(figures, "sdf_error.png"))
+    plot_tradeoff(report, os.path.join(figures, "tradeoff.png"))
     print(f"figures written to {figures}")
     return 0
 

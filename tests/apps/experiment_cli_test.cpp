@@ -57,7 +57,8 @@ TEST_F(ExperimentCli, WritesTheReportWithProgressAndFigures) {
     EXPECT_TRUE(contains(run_->output, s)) << s << " not in:\n" << run_->output;
   const std::string md = read_whole_file(out() / "report.md");
   if (have_matplotlib()) {
-    for (const char* f : {"figures/blocks.png", "figures/renders.png", "figures/sdf_error.png"}) {
+    for (const char* f : {"figures/blocks.png", "figures/renders.png", "figures/sdf_error.png",
+                          "figures/tradeoff.png"}) {
       EXPECT_TRUE(fs::exists(out() / f)) << f;
       EXPECT_TRUE(contains(md, std::string("](") + f + ")")) << f << " not shown in report.md";
     }

@@ -136,7 +136,8 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
 /// The figures of a report (made by the plotting script, scripts/plot_experiment.py, from
 /// report.json, blocks.csv, sdf_points.csv and the renders), relative to `out_dir`.
 inline constexpr const char* kExperimentFigures[] = {"figures/blocks.png", "figures/renders.png",
-                                                     "figures/sdf_error.png"};
+                                                     "figures/sdf_error.png",
+                                                     "figures/tradeoff.png"};
 
 /// The report as Markdown (what report.md holds); it shows the figures of `kExperimentFigures`
 /// that exist in `params.out_dir`.
