@@ -87,7 +87,8 @@ def plot_renders(d, report, out):
                 ax.imshow(plt.imread(path))
             if r == 0:
                 ax.set_title(name, fontsize=10)
-    fig.suptitle("The same poses: overview (top) and a close-up from the sequence's middle frame", fontsize=10)
+    fig.suptitle("The same poses: overview (top) and the sequence's view with the most surface detail (bottom)",
+                 fontsize=10)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

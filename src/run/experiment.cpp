@@ -37,6 +37,20 @@ bool valid_slug(const std::string& s) {
 /// The camera of the overview renders (as the run's own overview).
 const PinholeCamera kOverviewCamera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
 
+/// Surface detail in a render: the pixels whose normal turns by more than 30 degrees to the
+/// right or below neighbour (edges, corners, small objects).
+int64_t detail_pixels(const RaycastResult& r) {
+  int64_t n = 0;
+  const float cos30 = 0.866f;
+  for (int y = 0; y + 1 < r.depth_m.height(); ++y)
+    for (int x = 0; x + 1 < r.depth_m.width(); ++x) {
+      if (!r.hit(x, y) || !r.hit(x + 1, y) || !r.hit(x, y + 1)) continue;
+      const Vec3f& c = r.normals_w(x, y);
+      if (dot(c, r.normals_w(x + 1, y)) < cos30 || dot(c, r.normals_w(x, y + 1)) < cos30) ++n;
+    }
+  return n;
+}
+
 /// Which points of a reference surface the sequence observed: those that some frame (of up to
 /// `max_views` spread over the run) sees unoccluded -- projected inside the image onto a valid
 /// depth within 2 cm (or 3 % of the depth) of the point's own. Frames without a ground-truth
@@ -233,7 +247,17 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
       points = sample_surface(mesh, params.sdf.samples, params.sdf.seed);
       result.sdf_samples = static_cast<int64_t>(points.size());
       overview = rec.overview_pose(kOverviewCamera, &overview_depth);
-      close = rec.trajectory()[rec.trajectory().size() / 2].T_wc;
+      // The close-up: of 16 poses spread over the trajectory, the one that sees most detail.
+      int64_t best = -1;
+      const std::vector<StampedPose>& path = rec.trajectory();
+      for (std::size_t k = 0; k < 16; ++k) {
+        const Pose& pose = path[k * path.size() / 16].T_wc;
+        const int64_t d = detail_pixels(run.reconstruction->render(close_camera, pose));
+        if (d > best) {
+          best = d;
+          close = pose;
+        }
+      }
     }
     c.sdf = score_map(rec.map(), points, params.sdf.min_weight, &per_point[i]);
     c.sdf.name = cfg.name;

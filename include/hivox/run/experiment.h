@@ -19,8 +19,9 @@
 ///
 /// Files under `out_dir`: `runs/<slug>/` (each run's own result folder: mesh.ply, map.hvx,
 /// stats.json, renders), `runs/<slug>-tracked/`, `renders/<slug>_{overview,close}_*.png` (every
-/// map from the same two poses), `blocks.csv` (blocks per frame and level), `sdf_points.csv` (a
-/// subsample of the sdf-error points with each map's |SDF|), `report.json` and `report.md`.
+/// map from the same two poses: an overview, and the camera pose that sees the most surface
+/// detail of 16 spread over the run), `blocks.csv` (blocks per frame and level), `sdf_points.csv`
+/// (a subsample of the sdf-error points with each map's |SDF|), `report.json` and `report.md`.
 
 #include <cstddef>
 #include <cstdint>
@@ -135,9 +136,8 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
 
 /// The figures of a report (made by the plotting script, scripts/plot_experiment.py, from
 /// report.json, blocks.csv, sdf_points.csv and the renders), relative to `out_dir`.
-inline constexpr const char* kExperimentFigures[] = {"figures/blocks.png", "figures/renders.png",
-                                                     "figures/sdf_error.png",
-                                                     "figures/tradeoff.png"};
+inline constexpr const char* kExperimentFigures[] = {
+    "figures/blocks.png", "figures/renders.png", "figures/sdf_error.png", "figures/tradeoff.png"};
 
 /// The report as Markdown (what report.md holds); it shows the figures of `kExperimentFigures`
 /// that exist in `params.out_dir`.
