@@ -3,8 +3,8 @@
 
   blocks.png     blocks over the frames per configuration, and the adaptive map's blocks per
                  level (paper Fig. 6)
-  renders.png    every map shaded from the same overview and close-up poses, beside the adaptive
-                 map's levels (paper Fig. 4)
+  renders.png    the first three maps (fixed finest, fixed coarsest, adaptive) shaded from the
+                 same overview and close-up poses, beside the adaptive map's levels (paper Fig. 4)
   sdf_error.png  the sdf-error points, seen along the scene's axis of least extent, coloured by
                  each map's |SDF| (the error heat map), with their distributions
   tradeoff.png   every configuration's block saving against its sdf-error (and, with a reference
@@ -72,7 +72,9 @@ def plot_blocks(d, report, out):
 def plot_renders(d, report, out):
     configs = report["configs"]
     multi = [c for c in configs if c["levels"] > 1]
-    columns = [(c["name"], c["slug"], "shaded") for c in configs]
+    # The paper's three (fixed finest, fixed coarsest, adaptive); further configurations are in
+    # the trade-off figure.
+    columns = [(c["name"], c["slug"], "shaded") for c in configs[:3]]
     if multi:
         columns.append((f"{multi[0]['name']}: levels", multi[0]["slug"], "levels"))
     views = ["overview", "close"]
