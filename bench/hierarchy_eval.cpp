@@ -44,12 +44,6 @@ std::string arg(int argc, char** argv, const char* name, const char* fallback) {
   return given(argc, argv, name).value_or(fallback);
 }
 
-double mean_ms(const Reconstruction& r, double FrameStats::*field) {
-  double s = 0;
-  for (const FrameStats& f : r.frame_stats()) s += f.*field;
-  return r.frame_stats().empty() ? 0.0 : s / static_cast<double>(r.frame_stats().size());
-}
-
 }  // namespace
 
 int main(int argc, char** argv) try {
@@ -158,22 +152,22 @@ int main(int argc, char** argv) try {
   std::printf("| --- | ---: | --- | ---: | ---: | ---: | ---: | --- |\n");
   for (const Run& r : runs) {
     const SurfaceEval e = evaluate_at_points(r.rec->map(), points);
+    const StageTimes t = mean_stage_times(r.rec->frame_stats());
     const auto per = r.rec->map().blocks_per_level();
     std::string per_level;
     for (std::size_t l = 0; l < per.size(); ++l)
       per_level += fmt::format("{}{}", l ? " / " : "", per[l]);
-    std::printf(
-        "| %s | %ld | %s | %ld | %.0f | %.3f | %.3f | %.1f (%.1f, %.1f, %.1f) |\n", r.name.c_str(),
-        static_cast<long>(r.rec->map().blocks_in_use()), per_level.c_str(),
-        static_cast<long>(r.rec->peak_blocks()), r.rec->map().memory_bytes() / 1048576.0,
-        1000.0 * e.mean_distance_m, static_cast<double>(e.found) / static_cast<double>(e.points),
-        mean_ms(*r.rec, &FrameStats::total_ms), mean_ms(*r.rec, &FrameStats::allocate_ms),
-        mean_ms(*r.rec, &FrameStats::integrate_ms), mean_ms(*r.rec, &FrameStats::refine_ms));
+    std::printf("| %s | %ld | %s | %ld | %.0f | %.3f | %.3f | %.1f (%.1f, %.1f, %.1f) |\n",
+                r.name.c_str(), static_cast<long>(r.rec->map().blocks_in_use()), per_level.c_str(),
+                static_cast<long>(r.rec->peak_blocks()), r.rec->map().memory_bytes() / 1048576.0,
+                1000.0 * e.mean_distance_m,
+                static_cast<double>(e.found) / static_cast<double>(e.points), t.total_ms,
+                t.allocate_ms, t.integrate_ms, t.refine_ms);
   }
   const double saving = 1.0 - static_cast<double>(runs[1].rec->map().blocks_in_use()) /
                                   static_cast<double>(runs[0].rec->map().blocks_in_use());
-  const double time_ratio =
-      mean_ms(*runs[1].rec, &FrameStats::total_ms) / mean_ms(*runs[0].rec, &FrameStats::total_ms);
+  const double time_ratio = mean_stage_times(runs[1].rec->frame_stats()).total_ms /
+                            mean_stage_times(runs[0].rec->frame_stats()).total_ms;
   std::printf("\nsaving vs %s: %.1f %% of blocks; adaptive frame time / fixed finest: %.2f\n",
               runs[0].name.c_str(), 100.0 * saving, time_ratio);
   return 0;

@@ -24,6 +24,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/map_file.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/run/experiment.h"
@@ -124,28 +125,46 @@ struct ExperimentOptions {
   CLI::Option* poses_option = nullptr;
 };
 
-/// The same-pose runs' pose source: --poses when given, else the ground truth when the dataset
-/// has it, else tracking.
-PoseSpec experiment_poses(const ExperimentOptions& o, const DatasetReader& reader) {
-  if (o.poses_option != nullptr && o.poses_option->count() > 0) return PoseSpec::parse(o.run.poses);
-  return PoseSpec::parse(reader.info().has_ground_truth ? "gt" : "icp");
+/// The experiment the options describe on `reader`'s dataset: the fixed grids the adaptive
+/// configuration implies, the adaptive one, then each --config; the same-pose runs' poses from
+/// --poses when given, else the ground truth when the dataset has it, else tracking; the output
+/// folder --out or out/<dataset name><default_suffix>.
+ExperimentParams experiment_params(const ExperimentOptions& o, const DatasetReader& reader,
+                                   const std::string& default_suffix) {
+  ReconstructOptions adaptive = o.run;
+  adaptive.out = "unused";  // run_params wants a folder; each run of the experiment has its own
+  const RunParams base = run_params(adaptive);
+  ExperimentParams params;
+  params.configs = hierarchy_configs(base.reconstruction);
+  for (const std::string& file : o.configs)
+    params.configs.push_back(config_from_file(file, o.run.data.dataset));
+  params.poses = o.poses_option != nullptr && o.poses_option->count() > 0
+                     ? PoseSpec::parse(o.run.poses)
+                     : PoseSpec::parse(reader.info().has_ground_truth ? "gt" : "icp");
+  params.tracked = o.tracked == "always"  ? TrackedRuns::Always
+                   : o.tracked == "never" ? TrackedRuns::Never
+                                          : TrackedRuns::Auto;
+  params.first_frame = o.run.first_frame;
+  params.max_frames = o.run.frames;
+  params.reference_mesh = o.reference;
+  params.sdf.samples = o.samples;
+  params.sdf.seed = o.seed;
+  params.mesh_eval.samples = o.mesh_samples;
+  params.mesh_eval.seed = o.seed;
+  params.mesh = o.run.mesh;
+  params.on_bad_frame = base.on_bad_frame;
+  params.out_dir = o.out.empty() ? default_out_dir(o.run.data.dataset) + default_suffix : o.out;
+  params.overwrite = o.overwrite;
+  return params;
 }
 
 void print_table(const ExperimentResult& r) {
   fmt::print("\n{:<26} {:>9} {:>8} {:>10} {:>7} {:>8} {:>9}\n", "configuration", "blocks", "saving",
              "sdf mm", "ratio", "cover", "ms/frame");
-  double coarse = 0;
-  float coarse_voxel = 0;
-  for (const ConfigResult& c : r.configs)
-    if (c.config.params.map.levels == 1 && c.config.params.map.voxel_size_m > coarse_voxel) {
-      coarse_voxel = c.config.params.map.voxel_size_m;
-      coarse = c.sdf.mean_abs_sdf_m;
-    }
   for (const ConfigResult& c : r.configs)
     fmt::print("{:<26} {:>9} {:>7.1f}% {:>10.3f} {:>7.2f} {:>7.1f}% {:>9.1f}\n", c.config.name,
-               c.blocks, 100 * c.block_saving, 1e3 * c.sdf.mean_abs_sdf_m,
-               coarse > 0 ? c.sdf.mean_abs_sdf_m / coarse : 0.0, 100 * c.sdf.coverage,
-               c.times.total_ms);
+               c.blocks, 100 * c.block_saving, 1e3 * c.sdf.mean_abs_sdf_m, c.sdf_ratio,
+               100 * c.sdf.coverage, c.times.total_ms);
   for (const ConfigResult& c : r.configs) {
     if (c.mesh_eval)
       fmt::print("{:<26} mesh vs reference: accuracy {:.2f} mm, completeness {:.2f} mm (means)\n",
@@ -159,29 +178,8 @@ void print_table(const ExperimentResult& r) {
 
 void run_experiment_command(const ExperimentOptions& o) {
   if (o.run.threads > 0) set_thread_count(o.run.threads);
-  ReconstructOptions base_options = o.run;
-  base_options.out = "unused";
-  const RunParams base = run_params(base_options);
   const std::unique_ptr<DatasetReader> reader = open_dataset(o.run.data);
-  ExperimentParams params;
-  params.configs = hierarchy_configs(base.reconstruction);
-  for (const std::string& file : o.configs)
-    params.configs.push_back(config_from_file(file, o.run.data.dataset));
-  params.poses = experiment_poses(o, *reader);
-  params.tracked = o.tracked == "always"  ? TrackedRuns::Always
-                   : o.tracked == "never" ? TrackedRuns::Never
-                                          : TrackedRuns::Auto;
-  params.first_frame = o.run.first_frame;
-  params.max_frames = o.run.frames;
-  params.reference_mesh = o.reference;
-  params.sdf.samples = o.samples;
-  params.sdf.seed = o.seed;
-  params.mesh_eval.samples = o.mesh_samples;
-  params.mesh_eval.seed = o.seed;
-  params.mesh = o.run.mesh;
-  params.on_bad_frame = base.on_bad_frame;
-  params.out_dir = o.out.empty() ? default_out_dir(o.run.data.dataset) + "-experiment" : o.out;
-  params.overwrite = o.overwrite;
+  const ExperimentParams params = experiment_params(o, *reader, "-experiment");
 
   fmt::print("hivox experiment {}: {} configurations, same-pose runs with poses '{}'\n",
              reader->info().source, params.configs.size(), params.poses.to_string());
@@ -220,21 +218,12 @@ void run_experiment_command(const ExperimentOptions& o) {
   if (tty) fmt::print("\n");
   print_table(result);
   const fs::path dir = params.out_dir;
-  if (!o.no_figures && draw_figures(dir)) {
-    // report.md again, now with the figures.
-    ExperimentParams shown = params;
-    shown.out_dir = dir;
-    const std::string md = experiment_markdown(result, shown);
-    std::FILE* f = std::fopen((dir / "report.md").c_str(), "w");
-    if (f != nullptr) {
-      std::fwrite(md.data(), 1, md.size(), f);
-      std::fclose(f);
-    }
-  }
+  if (!o.no_figures && draw_figures(dir))
+    write_file_atomically(dir / "report.md", experiment_markdown(result, params));  // + figures
   fmt::print("\nreport: {}  ({:.0f} s)\n", (dir / "report.md").string(), wall.elapsed_ms() / 1e3);
   if (result.stopped) {
     log::error("the experiment was interrupted; what finished is in {}", dir.string());
-    throw ExitStatus{128 + (stop_signal() != 0 ? stop_signal() : SIGINT)};
+    throw ExitStatus{interrupted_exit_status()};
   }
 }
 
@@ -289,25 +278,8 @@ void run_sdf_error(SdfErrorOptions o) {
            "--adaptive), not both");
     // The three same-pose runs of an experiment, without tracked runs or figures.
     o.experiment.tracked = "never";
-    o.experiment.no_figures = true;
-    o.experiment.mesh_samples = 1;
-    if (o.experiment.out.empty())
-      o.experiment.out = default_out_dir(o.experiment.run.data.dataset) + "-sdf-error";
-    ReconstructOptions base_options = o.experiment.run;
-    base_options.out = "unused";
-    const RunParams base = run_params(base_options);
     const std::unique_ptr<DatasetReader> reader = open_dataset(o.experiment.run.data);
-    ExperimentParams params;
-    params.configs = hierarchy_configs(base.reconstruction);
-    params.poses = experiment_poses(o.experiment, *reader);
-    params.tracked = TrackedRuns::Never;
-    params.first_frame = o.experiment.run.first_frame;
-    params.max_frames = o.experiment.run.frames;
-    params.sdf.samples = o.experiment.samples;
-    params.sdf.seed = o.experiment.seed;
-    params.mesh = o.experiment.run.mesh;
-    params.out_dir = o.experiment.out;
-    params.overwrite = o.experiment.overwrite;
+    const ExperimentParams params = experiment_params(o.experiment, *reader, "-sdf-error");
     if (!o.json)
       fmt::print("reconstructing {} three ways (poses '{}') into {}\n", reader->info().source,
                  params.poses.to_string(), params.out_dir.string());
@@ -324,8 +296,8 @@ void run_sdf_error(SdfErrorOptions o) {
     print_sdf_error(maps, r.sdf_samples,
                     fmt::format("{} (the maps: {}/runs/*.hvx)", r.configs[0].config.name,
                                 params.out_dir.string()),
-                    o.json, 1);
-    if (r.stopped) throw ExitStatus{128 + (stop_signal() != 0 ? stop_signal() : SIGINT)};
+                    o.json, r.coarsest_fixed);
+    if (r.stopped) throw ExitStatus{interrupted_exit_status()};
     return;
   }
   if (o.fine.empty())
@@ -354,9 +326,7 @@ void run_sdf_error(SdfErrorOptions o) {
   p.samples = o.experiment.samples;
   p.seed = o.experiment.seed;
   const SdfErrorResult r = evaluate_sdf_error(reference, named, p);
-  // Named by role for the ratio: "coarse" is the reference of the ratio.
-  std::vector<MapSdfError> maps = r.maps;
-  print_sdf_error(maps, r.samples, o.fine, o.json, o.coarse.empty() ? -1 : 1);
+  print_sdf_error(r.maps, r.samples, o.fine, o.json, o.coarse.empty() ? -1 : 1);
 }
 
 }  // namespace

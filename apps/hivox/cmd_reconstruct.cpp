@@ -119,6 +119,10 @@ int stop_signal() {
   return g_stop_signal;
 }
 
+int interrupted_exit_status() {
+  return 128 + (g_stop_signal != 0 ? static_cast<int>(g_stop_signal) : SIGINT);
+}
+
 namespace {
 
 /// Centimetres, or millimetres below one (a synthetic or short run's error would read 0.00 cm).
@@ -259,7 +263,7 @@ void run_reconstruct(const ReconstructOptions& options) {
           "{}: stopped by {} after {} of {} frames; the results of the frames so far are in {}",
           info.source, g_stop_signal == SIGTERM ? "SIGTERM" : "an interrupt (SIGINT)", processed,
           s.frames_total, run.out_dir.string());
-      throw ExitStatus{128 + (g_stop_signal != 0 ? static_cast<int>(g_stop_signal) : SIGINT)};
+      throw ExitStatus{interrupted_exit_status()};
     case RunEnd::BadFrame:
       log::error(
           "{}; the run stopped there (--on-bad-frame stop) and the results of the {} "

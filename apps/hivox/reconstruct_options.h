@@ -80,5 +80,8 @@ class StopOnSignals {
 
 /// The signal that asked to stop, or 0.
 int stop_signal();
+/// The exit status of a run that an interrupt stopped: 128 + the signal (SIGINT when none was
+/// recorded).
+int interrupted_exit_status();
 
 }  // namespace hivox::cli

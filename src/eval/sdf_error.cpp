@@ -32,7 +32,7 @@ MapSdfError score_map(const VoxelBlockMap& map, std::span<const Vec3f> points_w,
   out.coverage = e.points > 0 ? static_cast<double>(e.found) / static_cast<double>(e.points) : 0.0;
   out.mean_abs_sdf_m = e.mean_distance_m;
   const std::size_t levels = static_cast<std::size_t>(map.levels());
-  out.points_per_level.assign(levels, 0);
+  out.points_per_level = e.points_per_level;
   out.mean_abs_sdf_per_level_m.assign(levels, 0.0);
   std::vector<int64_t> found_per_level(levels, 0);
   std::vector<float> found;
@@ -41,7 +41,6 @@ MapSdfError score_map(const VoxelBlockMap& map, std::span<const Vec3f> points_w,
   if (per_point_m) per_point_m->assign(points_w.size(), -1.0f);
   for (std::size_t i = 0; i < e.per_point.size(); ++i) {
     const PointEval& p = e.per_point[i];
-    if (p.level >= 0) ++out.points_per_level[static_cast<std::size_t>(p.level)];
     if (!p.found) continue;
     found.push_back(p.distance_m);
     sum_sq += static_cast<double>(p.distance_m) * p.distance_m;

@@ -181,10 +181,12 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
     return &*folder_file;
   };
 
-  // The camera and its distortion come together from one source.
+  // The camera, its distortion and (from an intrinsics file) the depth's noise model come
+  // together from one source.
   auto take = [&c](const auto& from, std::string source) {
     c.camera = from.camera;
     c.distortion = from.distortion;
+    if constexpr (requires { from.depth_noise; }) c.depth_noise = from.depth_noise;
     c.intrinsics_source = std::move(source);
   };
   const CameraPreset* guessed = nullptr;
@@ -209,13 +211,6 @@ Calibration resolve_calibration(const fs::path& dir, const DatasetParams& params
            dir.string(), preset_names());
     take(*guessed,
          fmt::format("preset {}, guessed from the folder name '{}'", guessed->name, matched));
-  }
-
-  // The depth's noise model comes with the camera when an intrinsics file gave it.
-  if (explicit_file) {
-    c.depth_noise = explicit_file->depth_noise;
-  } else if (!explicit_preset) {
-    if (const IntrinsicsFile* f = load_folder_file()) c.depth_noise = f->depth_noise;
   }
 
   if (params.depth_scale > 0) {

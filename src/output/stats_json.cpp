@@ -14,17 +14,8 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
                       const RunInfo& run) {
   using nlohmann::json;
   const auto& frames = rec.frame_stats();
-  const double n = frames.empty() ? 1.0 : static_cast<double>(frames.size());
-  double read = 0, track = 0, allocate = 0, integrate = 0, refine = 0, raycast = 0, total = 0;
   json per_frame = json::array();
   for (const FrameStats& f : frames) {
-    read += f.read_ms;
-    track += f.track_ms;
-    allocate += f.allocate_ms;
-    integrate += f.integrate_ms;
-    refine += f.refine_ms;
-    raycast += f.raycast_ms;
-    total += f.total_ms;
     per_frame.push_back({{"index", f.index},
                          {"timestamp", f.timestamp_s},
                          {"blocks_total", f.blocks_total},
@@ -73,12 +64,13 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   j["end"] = run.end;
   j["warnings"] = run.warnings;
   j["unusable"] = run.unusable;
-  j["fps"] = total > 0 ? 1000.0 * n / total : 0.0;
+  const StageTimes t = mean_stage_times(frames);
+  j["fps"] = t.fps();
   j["fps_wall"] = run.wall_s > 0 ? static_cast<double>(frames.size()) / run.wall_s : 0.0;
-  j["timing_ms"] = {{"read", read / n},         {"track", track / n},
-                    {"allocate", allocate / n}, {"integrate", integrate / n},
-                    {"refine", refine / n},     {"raycast", raycast / n},
-                    {"total", total / n}};
+  j["timing_ms"] = {{"read", t.read_ms},         {"track", t.track_ms},
+                    {"allocate", t.allocate_ms}, {"integrate", t.integrate_ms},
+                    {"refine", t.refine_ms},     {"raycast", t.raycast_ms},
+                    {"total", t.total_ms}};
   j["blocks_total"] = map.blocks_in_use();
   j["blocks_per_level"] = map.blocks_per_level();
   j["peak_blocks_total"] = rec.peak_blocks();

@@ -235,4 +235,23 @@ const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const P
   return render_result_;
 }
 
+StageTimes mean_stage_times(std::span<const FrameStats> frames) {
+  StageTimes t;
+  if (frames.empty()) return t;
+  for (const FrameStats& f : frames) {
+    t.read_ms += f.read_ms;
+    t.track_ms += f.track_ms;
+    t.allocate_ms += f.allocate_ms;
+    t.integrate_ms += f.integrate_ms;
+    t.refine_ms += f.refine_ms;
+    t.raycast_ms += f.raycast_ms;
+    t.total_ms += f.total_ms;
+  }
+  const double n = static_cast<double>(frames.size());
+  for (double* v : {&t.read_ms, &t.track_ms, &t.allocate_ms, &t.integrate_ms, &t.refine_ms,
+                    &t.raycast_ms, &t.total_ms})
+    *v /= n;
+  return t;
+}
+
 }  // namespace hivox

@@ -2,11 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <numeric>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
 #include "hivox/core/timer.h"
@@ -18,7 +15,6 @@
 namespace hivox {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 
 namespace {
 
@@ -32,6 +28,34 @@ bool valid_slug(const std::string& s) {
   return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
   });
+}
+
+/// A run of configuration `cfg` with the experiment's frames, mesh settings and bad-frame rule.
+RunParams config_run(const ExperimentParams& params, const ExperimentConfig& cfg,
+                     const PoseSpec& poses, const fs::path& out_dir) {
+  RunParams rp;
+  rp.reconstruction = cfg.params;
+  rp.poses = poses;
+  rp.first_frame = params.first_frame;
+  rp.max_frames = params.max_frames;
+  rp.mesh = params.mesh;
+  rp.on_bad_frame = params.on_bad_frame;
+  rp.out_dir = out_dir;
+  return rp;
+}
+
+/// The coarsest single-level configuration, the reference of the sdf-error ratio (paper Table I
+/// gives the adaptive map's error beside the coarse grid's); -1 when there is none.
+int coarsest_fixed(const std::vector<ConfigResult>& configs) {
+  int best = -1;
+  for (std::size_t i = 0; i < configs.size(); ++i) {
+    const MapParams& m = configs[i].config.params.map;
+    if (m.levels == 1 &&
+        (best < 0 ||
+         m.voxel_size_m > configs[static_cast<std::size_t>(best)].config.params.map.voxel_size_m))
+      best = static_cast<int>(i);
+  }
+  return best;
 }
 
 /// The camera of the overview renders (as the run's own overview).
@@ -149,24 +173,6 @@ void ExperimentParams::validate() const {
     fail(ErrorCode::InvalidArgument, "experiment: csv_points must be >= 0, got {}", csv_points);
 }
 
-StageTimes mean_stage_times(const std::vector<FrameStats>& frames) {
-  StageTimes t;
-  if (frames.empty()) return t;
-  for (const FrameStats& f : frames) {
-    t.track_ms += f.track_ms;
-    t.allocate_ms += f.allocate_ms;
-    t.integrate_ms += f.integrate_ms;
-    t.refine_ms += f.refine_ms;
-    t.raycast_ms += f.raycast_ms;
-    t.total_ms += f.total_ms;
-  }
-  const double n = static_cast<double>(frames.size());
-  for (double* v :
-       {&t.track_ms, &t.allocate_ms, &t.integrate_ms, &t.refine_ms, &t.raycast_ms, &t.total_ms})
-    *v /= n;
-  return t;
-}
-
 ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& params,
                                 const ExperimentCallbacks& callbacks) {
   params.validate();
@@ -185,15 +191,25 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
   result.dataset = reader.info().source;
   result.poses = params.poses.to_string();
   const std::size_t n = params.configs.size();
-  const int steps =
-      static_cast<int>(n * (tracked ? 2 : 1)) + (params.reference_mesh.empty() ? 0 : 1);
+  const int steps = static_cast<int>(n * (tracked ? 2 : 1));
   int step = 0;
   const auto begin_step = [&](const std::string& what) {
     if (callbacks.on_step) callbacks.on_step(what, step, steps);
     ++step;
   };
 
+  // With a reference mesh: completeness over the part of it the frames saw (where the poses
+  // are known).
   std::optional<TriangleMesh> reference;
+  std::optional<ObservedSurface> observed;
+  MeshEvalParams mesh_eval = params.mesh_eval;
+  if (!params.reference_mesh.empty()) {
+    reference = read_mesh(params.reference_mesh);
+    observed.emplace(reader, params.first_frame, params.max_frames);
+    if (!observed->empty())
+      mesh_eval.reference_filter = [&observed](const Vec3f& p) { return (*observed)(p); };
+    result.reference_observed_views = observed->views();
+  }
   std::vector<Vec3f> points;
   std::vector<std::vector<float>> per_point(n);
   std::vector<std::vector<FrameStats>> frames(n);
@@ -203,21 +219,16 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
 
   for (std::size_t i = 0; i < n && !result.stopped; ++i) {
     const ExperimentConfig& cfg = params.configs[i];
-    begin_step(fmt::format("{}: same poses ({})", cfg.name,
+    begin_step(fmt::format("{}: same poses ({}){}", cfg.name,
                            i > 0 && params.poses.source == PoseSource::Icp
                                ? "the first configuration's tracked trajectory"
-                               : params.poses.to_string()));
-    RunParams rp;
-    rp.reconstruction = cfg.params;
-    rp.poses = params.poses;
-    if (i > 0 && params.poses.source == PoseSource::Icp)
-      rp.poses =
-          PoseSpec{PoseSource::File, dir / "runs" / params.configs[0].slug / "trajectory.txt"};
-    rp.first_frame = params.first_frame;
-    rp.max_frames = params.max_frames;
-    rp.mesh = params.mesh;
-    rp.on_bad_frame = params.on_bad_frame;
-    rp.out_dir = dir / "runs" / cfg.slug;
+                               : params.poses.to_string(),
+                           reference ? ", then its mesh against the reference" : ""));
+    const PoseSpec poses =
+        i > 0 && params.poses.source == PoseSource::Icp
+            ? PoseSpec{PoseSource::File, dir / "runs" / params.configs[0].slug / "trajectory.txt"}
+            : params.poses;
+    RunParams rp = config_run(params, cfg, poses, dir / "runs" / cfg.slug);
     rp.map_out = dir / "runs" / (cfg.slug + ".hvx");
     RunResult run = run_reconstruction(reader, rp, callbacks.run);
     if (run.summary.end == RunEnd::StopRequested) result.stopped = true;
@@ -234,11 +245,15 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
     c.peak_blocks = rec.peak_blocks();
     c.blocks_per_level = rec.map().blocks_per_level();
     c.memory_mib = static_cast<double>(rec.map().memory_bytes()) / (1024.0 * 1024.0);
+    c.dropped_blocks = rec.map().dropped_blocks();
     frames[i] = rec.frame_stats();
-    for (const FrameStats& f : frames[i]) c.dropped_blocks += f.dropped_blocks;
+    // The run's mesh, read once: the sdf-error's points (the first configuration) and the
+    // comparison with the reference.
+    const TriangleMesh mesh = read_mesh(dir / "runs" / cfg.slug / "mesh.ply");
+    if (reference && mesh.triangle_count() > 0)
+      c.mesh_eval = evaluate_mesh(mesh, *reference, mesh_eval);
     if (i == 0) {
       result.frames = rec.frame_stats().size();
-      const TriangleMesh mesh = read_mesh(dir / "runs" / cfg.slug / "mesh.ply");
       if (mesh.triangle_count() == 0)
         fail(ErrorCode::InvalidData,
              "experiment: the first configuration ({}) made an empty mesh: no sdf-error "
@@ -271,33 +286,13 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
     result.configs.push_back(std::move(c));
   }
 
-  if (!params.reference_mesh.empty() && !result.configs.empty()) {
-    begin_step(fmt::format("mesh accuracy against {}", params.reference_mesh.string()));
-    reference = read_mesh(params.reference_mesh);
-    // Completeness over the part of the reference the frames saw (where the poses are known).
-    const ObservedSurface observed(reader, params.first_frame, params.max_frames);
-    MeshEvalParams eval = params.mesh_eval;
-    if (!observed.empty())
-      eval.reference_filter = [&observed](const Vec3f& p) { return observed(p); };
-    result.reference_observed_views = observed.views();
-    for (ConfigResult& c : result.configs) {
-      const TriangleMesh mesh = read_mesh(dir / "runs" / c.config.slug / "mesh.ply");
-      if (mesh.triangle_count() > 0) c.mesh_eval = evaluate_mesh(mesh, *reference, eval);
-    }
-  }
-
   for (std::size_t i = 0; tracked && i < result.configs.size() && !result.stopped; ++i) {
     ConfigResult& c = result.configs[i];
     begin_step(fmt::format("{}: tracked (ICP)", c.config.name));
-    RunParams rp;
-    rp.reconstruction = c.config.params;
-    rp.poses = PoseSpec{PoseSource::Icp, {}};
-    rp.first_frame = params.first_frame;
-    rp.max_frames = params.max_frames;
-    rp.mesh = params.mesh;
-    rp.on_bad_frame = params.on_bad_frame;
-    rp.out_dir = dir / "runs" / (c.config.slug + "-tracked");
-    RunResult run = run_reconstruction(reader, rp, callbacks.run);
+    RunResult run = run_reconstruction(reader,
+                                       config_run(params, c.config, PoseSpec{PoseSource::Icp, {}},
+                                                  dir / "runs" / (c.config.slug + "-tracked")),
+                                       callbacks.run);
     if (run.summary.end == RunEnd::StopRequested) result.stopped = true;
     c.tracked = run.summary;
     c.tracked_times = mean_stage_times(run.reconstruction->frame_stats());
@@ -305,8 +300,15 @@ ExperimentResult run_experiment(DatasetReader& reader, const ExperimentParams& p
 
   const double first_blocks =
       result.configs.empty() ? 0.0 : static_cast<double>(result.configs[0].blocks);
-  for (ConfigResult& c : result.configs)
+  result.coarsest_fixed = coarsest_fixed(result.configs);
+  const double coarse_sdf =
+      result.coarsest_fixed >= 0
+          ? result.configs[static_cast<std::size_t>(result.coarsest_fixed)].sdf.mean_abs_sdf_m
+          : 0.0;
+  for (ConfigResult& c : result.configs) {
     c.block_saving = first_blocks > 0 ? 1.0 - static_cast<double>(c.blocks) / first_blocks : 0.0;
+    c.sdf_ratio = coarse_sdf > 0 ? c.sdf.mean_abs_sdf_m / coarse_sdf : 0.0;
+  }
 
   // blocks.csv: one row per frame, per configuration the blocks in all and per level.
   {

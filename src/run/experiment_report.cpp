@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <numeric>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -15,27 +14,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
-
-/// The coarsest single-level configuration: the reference of the sdf-error ratio (paper Table I
-/// reports the adaptive map's error relative to the coarse grid's). -1 when there is none.
-int coarsest_fixed(const ExperimentResult& r) {
-  int best = -1;
-  for (std::size_t i = 0; i < r.configs.size(); ++i) {
-    const MapParams& m = r.configs[i].config.params.map;
-    if (m.levels != 1) continue;
-    if (best < 0 ||
-        m.voxel_size_m > r.configs[static_cast<std::size_t>(best)].config.params.map.voxel_size_m)
-      best = static_cast<int>(i);
-  }
-  return best;
-}
-
-double sdf_ratio(const ExperimentResult& r, std::size_t i) {
-  const int c = coarsest_fixed(r);
-  if (c < 0) return 0.0;
-  const double ref = r.configs[static_cast<std::size_t>(c)].sdf.mean_abs_sdf_m;
-  return ref > 0 ? r.configs[i].sdf.mean_abs_sdf_m / ref : 0.0;
-}
 
 json times_json(const StageTimes& t) {
   return {{"track_ms", t.track_ms},
@@ -59,8 +37,7 @@ std::string mm(double m, int digits = 3) {
 
 std::string experiment_json(const ExperimentResult& r, const ExperimentParams& p) {
   json configs = json::array();
-  for (std::size_t i = 0; i < r.configs.size(); ++i) {
-    const ConfigResult& c = r.configs[i];
+  for (const ConfigResult& c : r.configs) {
     const MapParams& m = c.config.params.map;
     json j = {
         {"name", c.config.name},
@@ -82,7 +59,7 @@ std::string experiment_json(const ExperimentResult& r, const ExperimentParams& p
           {"median_m", c.sdf.median_abs_sdf_m},
           {"rmse_m", c.sdf.rmse_m},
           {"coverage", c.sdf.coverage},
-          {"ratio_to_coarsest_fixed", sdf_ratio(r, i)},
+          {"ratio_to_coarsest_fixed", c.sdf_ratio},
           {"points_per_level", c.sdf.points_per_level},
           {"mean_per_level_m", c.sdf.mean_abs_sdf_per_level_m}}},
         {"mesh_vertices", c.run.mesh_vertices},
@@ -158,7 +135,7 @@ std::string experiment_markdown(const ExperimentResult& r, const ExperimentParam
           "raise --max-blocks for a fair comparison.**\n",
           c.config.name, c.dropped_blocks);
 
-  const int coarse = coarsest_fixed(r);
+  const int coarse = r.coarsest_fixed;
   md += "\n## Accuracy: sdf-error (paper Table I)\n\n";
   md += fmt::format(
       "Mean |SDF| at the points on the {} mesh, mm; ratio: to the coarsest fixed grid ({}).\n\n",
@@ -167,11 +144,10 @@ std::string experiment_markdown(const ExperimentResult& r, const ExperimentParam
   md +=
       "| configuration | mean mm | median mm | rms mm | ratio | coverage |\n"
       "| --- | ---: | ---: | ---: | ---: | ---: |\n";
-  for (std::size_t i = 0; i < r.configs.size(); ++i) {
-    const ConfigResult& c = r.configs[i];
+  for (const ConfigResult& c : r.configs) {
     md += fmt::format("| {} | {} | {} | {} | {:.2f} | {:.1f} % |\n", c.config.name,
                       mm(c.sdf.mean_abs_sdf_m), mm(c.sdf.median_abs_sdf_m), mm(c.sdf.rmse_m),
-                      sdf_ratio(r, i), 100 * c.sdf.coverage);
+                      c.sdf_ratio, 100 * c.sdf.coverage);
   }
   for (const ConfigResult& c : r.configs) {
     if (c.sdf.points_per_level.size() < 2) continue;

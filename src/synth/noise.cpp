@@ -83,6 +83,12 @@ bool NoiseParams::enabled() const {
          edge_dropout_probability > 0.0;
 }
 
+SensorNoise NoiseParams::sensor_noise() const {
+  if (!enabled()) return SensorNoise::none();
+  return {static_cast<float>(axial_sigma_base_m), static_cast<float>(axial_sigma_quadratic_per_m),
+          static_cast<float>(axial_sigma_offset_m)};
+}
+
 void NoiseParams::validate() const {
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   auto probability = [](double v) { return std::isfinite(v) && v >= 0.0 && v <= 1.0; };

@@ -45,9 +45,7 @@ RenderedFrame render(const SyntheticScene& scene, const PinholeCamera& camera, c
       out.depth_m(u, v) = static_cast<float>(z);
       out.normal_w(u, v) = {static_cast<float>(hit->n_w.x()), static_cast<float>(hit->n_w.y()),
                             static_cast<float>(hit->n_w.z())};
-      const float lambert = static_cast<float>(std::max(0.0, hit->n_w.dot(light.to_light_w)));
-      const float shade = light.ambient + (1.0f - light.ambient) * lambert;
-      const Eigen::Vector3f c = hit->color * shade;
+      const Eigen::Vector3f c = hit->color * light.shade(hit->n_w);
       out.color(u, v) = {to_byte(c.x()), to_byte(c.y()), to_byte(c.z())};
     }
   });

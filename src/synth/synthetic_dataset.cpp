@@ -141,12 +141,7 @@ SyntheticDataset::SyntheticDataset(SyntheticParams params) : params_(std::move(p
   info_.has_color = true;
   info_.has_ground_truth = true;
   info_.first_timestamp_s = trajectory_.empty() ? 0.0 : trajectory_.front().timestamp_s;
-  const NoiseParams& n = params_.noise;
-  info_.rig.depth_noise = n.enabled()
-                              ? SensorNoise{static_cast<float>(n.axial_sigma_base_m),
-                                            static_cast<float>(n.axial_sigma_quadratic_per_m),
-                                            static_cast<float>(n.axial_sigma_offset_m)}
-                              : SensorNoise::none();
+  info_.rig.depth_noise = params_.noise.sensor_noise();
 }
 
 RenderedFrame SyntheticDataset::render_clean(std::size_t index) const {

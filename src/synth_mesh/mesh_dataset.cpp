@@ -61,12 +61,7 @@ MeshDataset::MeshDataset(MeshScene scene, const std::vector<StampedPose>& trajec
   info_.has_ground_truth = true;
   info_.ground_truth_count = trajectory_.size();
   info_.first_timestamp_s = trajectory_.front().timestamp_s;
-  const NoiseParams& n = params_.noise;
-  info_.rig.depth_noise = n.enabled()
-                              ? SensorNoise{static_cast<float>(n.axial_sigma_base_m),
-                                            static_cast<float>(n.axial_sigma_quadratic_per_m),
-                                            static_cast<float>(n.axial_sigma_offset_m)}
-                              : SensorNoise::none();
+  info_.rig.depth_noise = params_.noise.sensor_noise();
 }
 
 RenderedFrame MeshDataset::render_clean(std::size_t index) const {

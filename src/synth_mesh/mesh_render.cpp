@@ -252,9 +252,7 @@ RenderedFrame render_mesh(const MeshScene& mesh_scene, const PinholeCamera& came
       };
       out.color(u, v) = {mix(c0.r, c1.r, c2.r), mix(c0.g, c1.g, c2.g), mix(c0.b, c1.b, c2.b)};
     } else {
-      const float lambert = static_cast<float>(std::max(0.0, n_w.dot(light.to_light_w)));
-      const float shade = light.ambient + (1.0f - light.ambient) * lambert;
-      const uint8_t grey = to_byte(kGreyAlbedo * shade);
+      const uint8_t grey = to_byte(kGreyAlbedo * light.shade(n_w));
       out.color(u, v) = {grey, grey, grey};
     }
   };

@@ -13,10 +13,7 @@ namespace hivox {
 namespace {
 
 using Vec3 = Eigen::Vector3d;
-
-PinholeCamera small_camera() {
-  return {131.25f, 131.25f, 79.5f, 59.5f, 160, 120};
-}
+using test::small_camera;
 
 MeshScene unit_cube() {
   return MeshScene(test::box_mesh(Vec3(0, 0, 0.5), Vec3(0.5, 0.5, 0.5)));

@@ -18,20 +18,9 @@ namespace hivox {
 namespace {
 
 using Vec3 = Eigen::Vector3d;
+using test::oblique_pose;
 using test::pixel_ray_c;
-
-PinholeCamera small_camera() {
-  return {131.25f, 131.25f, 79.5f, 59.5f, 160, 120};
-}
-
-// A camera 0.3 m off the origin, rotated about two axes: depths vary over the image.
-Pose oblique_pose() {
-  Pose T = Pose::Identity();
-  T.linear() = (Eigen::AngleAxisd(0.2, Vec3::UnitY()) * Eigen::AngleAxisd(-0.15, Vec3::UnitX()))
-                   .toRotationMatrix();
-  T.translation() = Vec3(0.1, -0.2, 0.3);
-  return T;
-}
+using test::small_camera;
 
 // Barycentric coordinates of the point where the ray o + t d meets the plane of (a, b, c).
 Vec3 barycentric(const Vec3& o, const Vec3& d, const Vec3& a, const Vec3& b, const Vec3& c,

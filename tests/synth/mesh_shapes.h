@@ -12,6 +12,7 @@
 #include "hivox/core/camera.h"
 #include "hivox/core/pose.h"
 #include "hivox/mesh/triangle_mesh.h"
+#include "synth/render_test_util.h"
 
 namespace hivox::test {
 
@@ -70,11 +71,6 @@ inline std::optional<BoxHit> ray_box(const Eigen::Vector3d& o, const Eigen::Vect
   }
   if (axis < 0 || t_in > t_out) return std::nullopt;
   return BoxHit{t_in, axis, sign};
-}
-
-/// Ray through pixel (u, v) with unit z in the camera frame, pixel centres at integers.
-inline Eigen::Vector3d pixel_ray_c(const PinholeCamera& c, int u, int v) {
-  return {(u - static_cast<double>(c.cx)) / c.fx, (v - static_cast<double>(c.cy)) / c.fy, 1.0};
 }
 
 }  // namespace hivox::test

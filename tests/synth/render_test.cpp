@@ -6,29 +6,15 @@
 
 #include "hivox/core/error.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "synth/render_test_util.h"
 
 namespace hivox {
 namespace {
 
 using Vec3 = Eigen::Vector3d;
-
-PinholeCamera small_camera() {
-  return {131.25f, 131.25f, 79.5f, 59.5f, 160, 120};
-}
-
-// A camera 0.3 m off the origin, rotated about two axes: depths vary over the image.
-Pose oblique_pose() {
-  Pose T = Pose::Identity();
-  T.linear() = (Eigen::AngleAxisd(0.2, Vec3::UnitY()) * Eigen::AngleAxisd(-0.15, Vec3::UnitX()))
-                   .toRotationMatrix();
-  T.translation() = Vec3(0.1, -0.2, 0.3);
-  return T;
-}
-
-// Ray through pixel (u, v) with unit z in the camera frame, computed here independently.
-Vec3 pixel_ray_c(const PinholeCamera& c, int u, int v) {
-  return Vec3((u - static_cast<double>(c.cx)) / c.fx, (v - static_cast<double>(c.cy)) / c.fy, 1.0);
-}
+using test::oblique_pose;
+using test::pixel_ray_c;
+using test::small_camera;
 
 TEST(Render, PlaneDepthIsAnalytic) {
   for (const PinholeCamera cam :

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -81,6 +82,15 @@ struct FrameStats {
   double track_condition = 0;
   int track_iterations = 0;
 };
+
+/// Mean milliseconds per frame of each stage over a run (zeros for no frame).
+struct StageTimes {
+  double read_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0,
+         raycast_ms = 0, total_ms = 0;
+  /// Frames per second of processing (reading excluded); 0 for no frame.
+  double fps() const { return total_ms > 0 ? 1000.0 / total_ms : 0.0; }
+};
+StageTimes mean_stage_times(std::span<const FrameStats> frames);
 
 /// Frames by tracking verdict (frames fused with given poses count as good).
 struct TrackingCounts {

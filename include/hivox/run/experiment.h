@@ -85,14 +85,6 @@ struct ExperimentParams {
   void validate() const;
 };
 
-/// Mean milliseconds per frame of each stage over a run.
-struct StageTimes {
-  double track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0, raycast_ms = 0,
-         total_ms = 0;
-  double fps() const { return total_ms > 0 ? 1000.0 / total_ms : 0.0; }
-};
-StageTimes mean_stage_times(const std::vector<FrameStats>& frames);
-
 struct ConfigResult {
   ExperimentConfig config;
   RunSummary run;                     ///< the same-pose run
@@ -100,10 +92,13 @@ struct ConfigResult {
   StageTimes times, tracked_times;
   int64_t blocks = 0, peak_blocks = 0;  ///< at the end, at most during the run
   std::vector<int64_t> blocks_per_level;
-  double memory_mib = 0;                    ///< voxel and hash memory of the map at the end
-  int64_t dropped_blocks = 0;               ///< blocks not allocated for lack of room, all frames
-  double block_saving = 0;                  ///< 1 - blocks / the first configuration's blocks
-  MapSdfError sdf;                          ///< at the points on the first configuration's mesh
+  double memory_mib = 0;       ///< voxel and hash memory of the map at the end
+  int64_t dropped_blocks = 0;  ///< blocks not allocated for lack of room
+  double block_saving = 0;     ///< 1 - blocks / the first configuration's blocks
+  MapSdfError sdf;             ///< at the points on the first configuration's mesh
+  /// sdf.mean_abs_sdf_m over the coarsest fixed grid's (ExperimentResult::coarsest_fixed); 0
+  /// without one.
+  double sdf_ratio = 0;
   std::optional<MeshEvalResult> mesh_eval;  ///< against the reference mesh
 };
 
@@ -116,13 +111,17 @@ struct ExperimentResult {
   /// completeness counts that part only; 0 = the whole reference.
   std::size_t reference_observed_views = 0;
   std::vector<ConfigResult> configs;
+  /// The coarsest single-level configuration, the reference of `ConfigResult::sdf_ratio` (paper
+  /// Table I: the adaptive map's error beside the coarse grid's); -1 when there is none.
+  int coarsest_fixed = -1;
   bool stopped = false;  ///< ended early by `stop_requested`; what finished is reported
   double wall_s = 0;
   std::vector<std::filesystem::path> files;
 };
 
 struct ExperimentCallbacks {
-  /// A step begins ("fixed 2 mm: same poses", "sdf-error", ...): step `index` of `count`.
+  /// A step begins ("fixed 2 mm: same poses", "adaptive: tracked (ICP)"): step `index` of
+  /// `count`.
   std::function<void(std::string_view step, int index, int count)> on_step;
   /// Passed to each run (progress per frame, stop).
   RunCallbacks run;

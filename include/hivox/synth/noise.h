@@ -29,6 +29,7 @@
 
 #include "hivox/core/camera.h"
 #include "hivox/core/image.h"
+#include "hivox/core/sensor_noise.h"
 #include "hivox/synth/render.h"
 
 namespace hivox {
@@ -59,6 +60,9 @@ struct NoiseParams {
   double depth_step_m(double z_m) const;
   /// Whether any effect is on (false for the `none` preset).
   bool enabled() const;
+  /// The axial noise model of a dataset rendered with these settings (what the refinement and
+  /// tracking compare with): sigma(z) without the angle term, or none when nothing is on.
+  SensorNoise sensor_noise() const;
 
   /// Throws `Error(InvalidArgument)` naming the first bad field.
   void validate() const;

@@ -11,6 +11,7 @@
 /// another; where solids overlap or touch (table legs on the floor, keys on the keyboard base,
 /// bumps on the blob) it is a bound: |returned| <= |true distance|, with the right sign.
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -152,6 +153,13 @@ struct Lighting {
   Eigen::Vector3d to_light_w = Eigen::Vector3d(0.3, -0.5, 1.0).normalized();  ///< unit
   float ambient = 0.35f;        ///< fraction of the albedo lit regardless of orientation
   Rgb8 background{40, 40, 48};  ///< colour of pixels whose ray hits nothing
+
+  /// The fraction of an albedo a surface with unit normal `n_w` shows:
+  /// ambient + (1 - ambient) max(0, n . to_light).
+  float shade(const Eigen::Vector3d& n_w) const {
+    const float lambert = static_cast<float>(std::max(0.0, n_w.dot(to_light_w)));
+    return ambient + (1.0f - ambient) * lambert;
+  }
 };
 
 /// A union of primitives with exact SDF, normal and ray queries.
