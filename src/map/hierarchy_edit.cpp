@@ -70,30 +70,41 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
     for (int64_t s = 0; s < n; ++s)
       if (go[static_cast<std::size_t>(s)].level == level) at_level.push_back(s);
     const int64_t m = static_cast<int64_t>(at_level.size());
-    // Pass 1: claim blocks and entries, fill the children. No entry of the parents' level
-    // changes here, so every split reads its neighbours as they were.
+    // Pass 1: the blocks each split reads: its parent and the parent's +x/+y/+z neighbours at
+    // the parent's level, and the children one level down of neighbours split before. Nothing
+    // is written here, so every split reads the map as it was.
+    struct Sources {
+      int32_t parents[kBlockChildren];
+      int32_t neighbour_children[kBlockChildren][kBlockChildren];
+    };
+    std::vector<Sources> sources(static_cast<std::size_t>(m));
+    parallel_for(m, [&](int64_t k) {
+      const BlockRef& p = go[static_cast<std::size_t>(at_level[static_cast<std::size_t>(k)])];
+      const LevelView& lv = view.read.level[p.level];
+      const LevelView& fine = view.read.level[p.level - 1];
+      Sources& src = sources[static_cast<std::size_t>(k)];
+      for (int d = 0; d < kBlockChildren; ++d) {
+        const Vec3i n{p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)};
+        const int32_t ptr = d == 0 ? p.ptr : find_block_ptr(lv, n);
+        src.parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
+        for (int c = 0; c < kBlockChildren; ++c)
+          src.neighbour_children[d][c] =
+              ptr == kPtrSplit ? find_block_ptr(fine, child_block_pos(n, c)) : kPtrEmpty;
+      }
+    });
+    // Pass 2: claim blocks and entries one level down, fill the children.
     parallel_for(m, [&](int64_t k) {
       const int64_t s = at_level[static_cast<std::size_t>(k)];
       const BlockRef& p = go[static_cast<std::size_t>(s)];
-      const LevelView& lv = view.read.level[p.level];
-      int32_t parents[kBlockChildren];
-      for (int d = 0; d < kBlockChildren; ++d) {
-        if (d == 0) {
-          parents[0] = p.ptr;
-          continue;
-        }
-        const int32_t ptr =
-            find_block_ptr(lv, {p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)});
-        parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
-      }
+      const Sources& src = sources[static_cast<std::size_t>(k)];
       for (int c = 0; c < kBlockChildren; ++c) {
         child_entry[s][c] = kernels::reserve_entry(view, p.level - 1, child_block_pos(p.pos, c));
         child_block[s][c] = kernels::take_block(view);
-        child_surface[s][c] =
-            kernels::fill_split_child(view, parents, c, child_block[s][c], weight_scale);
+        child_surface[s][c] = kernels::fill_split_child(view, src.parents, src.neighbour_children,
+                                                        c, child_block[s][c], weight_scale);
       }
     });
-    // Pass 2: publish the children, mark the parents Split.
+    // Pass 3: publish the children, mark the parents Split.
     parallel_for(m, [&](int64_t k) {
       const int64_t s = at_level[static_cast<std::size_t>(k)];
       const BlockRef& p = go[static_cast<std::size_t>(s)];
@@ -107,7 +118,7 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
       atomic_store(&view.level[p.level].entries[p.entry].ptr, kPtrSplit);
     });
   }
-  // Pass 3: the parents' blocks go back to the pool.
+  // Pass 4: the parents' blocks go back to the pool.
   for (const BlockRef& p : go) {
     kernels::return_block(view, p.ptr);
     view.level_block_count[p.level] -= 1;

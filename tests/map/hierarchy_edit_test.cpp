@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <tuple>
@@ -62,13 +63,64 @@ std::vector<BlockRef> allocate_cube(VoxelBlockMap& map, int level, int n, std::m
   return refs;
 }
 
-// Parent-level value at parent voxel coordinate q (may be 8 = the +1 neighbour), as a test-side
-// reference: neighbour voxel if the neighbour block exists at that level, else the border voxel.
-TsdfVoxel parent_voxel(const VoxelBlockMap& map, const BlockRef& parent, Vec3i q) {
-  Vec3i g{8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z};
-  if (auto v = map.voxel(parent.level, g)) return *v;
-  for (int k = 0; k < 3; ++k) q[k] = std::min(q[k], 7);
-  return map.block_tsdf(parent.ptr)[voxel_index(q.x, q.y, q.z)];
+// Parent-level voxel at parent voxel coordinate q (may be 8 = the +1 neighbour), as a test-side
+// reference: the neighbour's voxel when the neighbour block exists at that level, else none.
+std::optional<TsdfVoxel> parent_voxel(const VoxelBlockMap& map, const BlockRef& parent,
+                                      const Vec3i& q) {
+  return map.voxel(parent.level,
+                   {8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z});
+}
+
+// The child voxels a split of `parent` should give, computed independently from the voxels of
+// its level (`voxel_of` reads one, or none): at global child voxel coordinates, the trilinear
+// value and weight, or nothing (unobserved) where a voxel the interpolation takes is unobserved
+// or missing.
+using ChildValues = std::map<std::tuple<int, int, int>, std::optional<std::pair<float, float>>>;
+template <typename VoxelOf>
+ChildValues expected_children(const BlockRef& parent, VoxelOf voxel_of) {
+  ChildValues expected;
+  for (int j = 0; j < 16 * 16 * 16; ++j) {
+    const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
+    float f = 0, w = 0;
+    bool observed = true;
+    for (int k = 0; k < 8; ++k) {
+      const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
+      if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
+      const float a =
+          ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
+      const std::optional<TsdfVoxel> v = voxel_of(Vec3i{c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
+      if (!v || v->weight == 0) {
+        observed = false;
+        break;
+      }
+      w += a * v->weight;
+      f += a * tsdf_to_float(v->tsdf);
+    }
+    const std::tuple<int, int, int> key{16 * parent.pos.x + c.x, 16 * parent.pos.y + c.y,
+                                        16 * parent.pos.z + c.z};
+    expected[key] = observed ? std::optional(std::pair(f, w)) : std::nullopt;
+  }
+  return expected;
+}
+
+// Checks the children of a split (level `parent.level - 1`) against `expected` for weight scale
+// 0.5; returns how many observed voxels were checked.
+int expect_children(const VoxelBlockMap& map, const BlockRef& parent, const ChildValues& expected) {
+  int checked = 0;
+  for (const auto& [key, value] : expected) {
+    const auto v =
+        map.voxel(parent.level - 1, {std::get<0>(key), std::get<1>(key), std::get<2>(key)});
+    EXPECT_TRUE(v.has_value());
+    if (!v) continue;
+    if (!value) {
+      EXPECT_EQ(v->weight, 0) << "a voxel next to an unobserved or missing one stays unobserved";
+      continue;
+    }
+    EXPECT_NEAR(tsdf_to_float(v->tsdf), value->first, 1.0f / 32767) << "exact interpolation";
+    EXPECT_NEAR(v->weight, std::max(1.0f, std::round(0.5f * value->second)), 0.5f);
+    ++checked;
+  }
+  return checked;
 }
 
 TEST(Split, ChildrenAreTheParentInterpolated) {
@@ -77,42 +129,62 @@ TEST(Split, ChildrenAreTheParentInterpolated) {
   const auto blocks = allocate_cube(map, 1, 3, rng);
   const BlockRef parent = blocks[13];  // the middle block: all +x/+y/+z neighbours exist
   // Expected child values, computed before the split from the parent and its neighbours.
-  std::map<std::tuple<int, int, int>, std::pair<float, float>> expected;  // global child voxel
-  for (int j = 0; j < 16 * 16 * 16; ++j) {
-    const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
-    float f = 0, fw = 0, w = 0;
-    for (int k = 0; k < 8; ++k) {
-      const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
-      if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
-      const float a =
-          ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
-      const TsdfVoxel v = parent_voxel(map, parent, {c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
-      w += a * v.weight;
-      if (v.weight) {
-        f += a * tsdf_to_float(v.tsdf);
-        fw += a;
-      }
-    }
-    expected[{16 * parent.pos.x + c.x, 16 * parent.pos.y + c.y, 16 * parent.pos.z + c.z}] = {
-        fw > 0 ? f / fw : 2.0f, w};
-  }
+  const ChildValues expected =
+      expected_children(parent, [&](const Vec3i& q) { return parent_voxel(map, parent, q); });
+  int unobserved = 0;
+  for (const auto& [key, value] : expected) unobserved += !value;
+  EXPECT_GT(unobserved, 100);  // the fill leaves some parent voxels unobserved
   const SplitMergeResult r = split_blocks(map, std::span(&parent, 1), 0.5f);
   ASSERT_EQ(r.done, 1);
   EXPECT_EQ(map.find(1, parent.pos)->ptr, kPtrSplit);
   test::expect_map_consistent(map);
-  int checked = 0;
-  for (const auto& [key, value] : expected) {
-    const auto v = map.voxel(0, {std::get<0>(key), std::get<1>(key), std::get<2>(key)});
-    ASSERT_TRUE(v.has_value());
-    if (value.first > 1.5f) {
-      EXPECT_EQ(v->weight, 0);  // nothing observed around it: stays unobserved
-      continue;
-    }
-    EXPECT_NEAR(tsdf_to_float(v->tsdf), value.first, 1.0f / 32767) << "exact interpolation";
-    EXPECT_NEAR(v->weight, std::max(1.0f, std::round(0.5f * value.second)), 0.5f);
-    ++checked;
+  EXPECT_GT(expect_children(map, parent, expected), 2500);
+}
+
+TEST(Split, NoValueIsExtrapolatedTowardsAMissingNeighbour) {
+  std::mt19937 rng(3);
+  VoxelBlockMap map(three_levels());
+  const auto blocks = allocate_cube(map, 1, 1, rng);  // one block, no neighbours
+  const BlockRef parent = blocks[0];
+  TsdfVoxel* v = MapAccess::tsdf(map, parent.ptr);
+  for (int i = 0; i < kBlockVoxels; ++i) v[i].weight = 10;  // all observed
+  ASSERT_EQ(split_blocks(map, std::span(&parent, 1), 0.5f).done, 1);
+  // Every child voxel inside the parent's voxels is observed; the last half voxel towards +x,
+  // +y and +z (child coordinate 15), where the neighbour would be, is not.
+  int observed = 0;
+  for (int j = 0; j < 16 * 16 * 16; ++j) {
+    const Vec3i c{j % 16, (j / 16) % 16, j / 256};
+    const auto child =
+        map.voxel(0, {16 * parent.pos.x + c.x, 16 * parent.pos.y + c.y, 16 * parent.pos.z + c.z});
+    ASSERT_TRUE(child.has_value());
+    const bool border = c.x == 15 || c.y == 15 || c.z == 15;
+    EXPECT_EQ(child->weight > 0, !border) << c.x << " " << c.y << " " << c.z;
+    observed += child->weight > 0;
   }
-  EXPECT_GT(checked, 3500);
+  EXPECT_EQ(observed, 15 * 15 * 15);
+}
+
+TEST(Split, ABorderInterpolatesTowardsASplitNeighboursChildren) {
+  std::mt19937 rng(4);
+  VoxelBlockMap map(three_levels());
+  std::vector<BlockRef> refs;
+  map.insert_blocks(std::vector<BlockKey>{{{0, 0, 0}, 1}, {{1, 0, 0}, 1}}, &refs);
+  for (const BlockRef& b : refs) fill_block(map, b, rng);
+  const BlockRef a = refs[0], b = refs[1];
+  // a's reference values, with b's voxels as they are before b splits (a split copies a parent
+  // voxel exactly to the child voxel at the same point, so b's children hold them after).
+  const ChildValues expected =
+      expected_children(a, [&](const Vec3i& q) { return parent_voxel(map, a, q); });
+  ASSERT_EQ(split_blocks(map, std::span(&b, 1), 1.0f).done, 1);  // weights kept
+  ASSERT_FALSE(map.voxel(1, {8, 0, 0}).has_value());             // b is at level 0 now
+  ASSERT_EQ(split_blocks(map, std::span(&a, 1), 0.5f).done, 1);
+  test::expect_map_consistent(map);
+  // The +x border of a's children (child x = 15) interpolates towards b's voxel x = 0, read
+  // from b's children; without b it would stay unobserved.
+  int border = 0;
+  for (const auto& [key, value] : expected) border += std::get<0>(key) == 15 && value.has_value();
+  EXPECT_GT(border, 30);
+  EXPECT_GT(expect_children(map, a, expected), 2000);
 }
 
 TEST(SplitMerge, RoundTripReproducesTheParent) {
