@@ -228,6 +228,8 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("every_n_frames", &RefineParams::every_n_frames)
       .def_readwrite("min_weight", &RefineParams::min_weight)
       .def_readwrite("min_updates", &RefineParams::min_updates)
+      .def_readwrite("split_unmeshable_cells", &RefineParams::split_unmeshable_cells)
+      .def_readwrite("unmeshable_min_weight", &RefineParams::unmeshable_min_weight)
       .def("validate", &RefineParams::validate)
       .def("__repr__", [](const RefineParams& p) {
         return fmt::format("hivox.RefineParams({})", p.to_string(std::nullopt));

@@ -341,6 +341,11 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "observations after which a block's fused noise counts as settled; young blocks "
                   "split only on detail well above their noise (lower: more blocks stay fine)")
       ->capture_default_str();
+  cmd->add_option("--refine-unmeshable-cells", p.refine.split_unmeshable_cells,
+                  "also split a block with this many cells whose surface its level cannot mesh "
+                  "(corners behind a surface seen at a grazing angle never observed), and keep "
+                  "such merges from happening; 0: off")
+      ->capture_default_str();
   cmd->add_option("--refine-split-weight-scale", p.refine.split_weight_scale,
                   "a split block's children start with the parent's interpolated weight times "
                   "this, (0, 1]: lower lets new fine observations outweigh the coarse values "

@@ -32,6 +32,7 @@ RefineParams RefineParams::paper() {
   p.merge_threshold = 1e-4f;
   p.min_weight = 1;
   p.min_updates = 1;
+  p.split_unmeshable_cells = 0;
   p.noise = SensorNoise::none();
   return p;
 }
@@ -72,6 +73,13 @@ void RefineParams::validate() const {
     fail(ErrorCode::InvalidArgument, "refine min_weight must be in [1, 65535], got {}", min_weight);
   if (!(settled_weight >= 1.0f))
     fail(ErrorCode::InvalidArgument, "refine settled_weight must be >= 1, got {}", settled_weight);
+  if (split_unmeshable_cells < 0 || split_unmeshable_cells > 343)
+    fail(ErrorCode::InvalidArgument,
+         "refine split_unmeshable_cells must be in [0, 343] (the cells of a block), got {}",
+         split_unmeshable_cells);
+  if (unmeshable_min_weight < 1)
+    fail(ErrorCode::InvalidArgument, "refine unmeshable_min_weight must be >= 1, got {}",
+         unmeshable_min_weight);
   if (min_samples < 1)
     fail(ErrorCode::InvalidArgument, "refine min_samples must be >= 1, got {}", min_samples);
   if (min_updates < 0 || min_updates > 65535)
@@ -100,12 +108,15 @@ std::string RefineParams::to_string(const std::optional<SensorNoise>& sensor) co
   const bool noisy = metres && (!n || n->sigma_min_m > 0.0f || n->quadratic_per_m > 0.0f);
   return fmt::format(
       "criterion {}, split > {:.3g}{}{}, merge < {:.3g}{}{}, every {} frame{}, min weight {}, min "
-      "updates {}",
+      "updates {}{}",
       hivox::to_string(criterion), metres ? split_threshold * 1000.0f : split_threshold,
       metres ? " mm" : "", noisy ? fmt::format(" or {} sigma(z)", split_noise_factor) : "",
       metres ? merge_threshold * 1000.0f : merge_threshold, metres ? " mm" : "",
       noisy ? fmt::format(" or {:g} sigma(z)", merge_noise_ratio * split_noise_factor) : "",
-      every_n_frames, every_n_frames > 1 ? "s" : "", min_weight, min_updates);
+      every_n_frames, every_n_frames > 1 ? "s" : "", min_weight, min_updates,
+      split_unmeshable_cells > 0
+          ? fmt::format(", split on {} unmeshable cells", split_unmeshable_cells)
+          : std::string());
 }
 
 }  // namespace hivox

@@ -50,6 +50,36 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
   return sqrtf(sum / static_cast<float>(n)) * mu_m;
 }
 
+/// Surface this level cannot mesh: the block's inner cells (7^3, within the block) that have a
+/// corner in front of the surface within the truncation band (0 < F < 1), observed `min_weight`
+/// times, and an unobserved corner. Seen at a grazing angle, a coarse cell's corners behind the
+/// surface lie beyond the band along the rays and are never updated, so the surface between them
+/// and the observed corners is lost; a finer level's voxels lie nearer the surface and are
+/// observed.
+HIVOX_HD inline int block_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
+  bool any_unobserved = false, any_front = false;
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    any_unobserved |= v[i].weight == 0;
+    any_front |=
+        v[i].weight >= min_weight && v[i].tsdf > 0 && v[i].tsdf < static_cast<int16_t>(kTsdfScale);
+  }
+  if (!any_unobserved || !any_front) return 0;
+  int n = 0;
+  for (int z = 0; z + 1 < kBlockSide; ++z)
+    for (int y = 0; y + 1 < kBlockSide; ++y)
+      for (int x = 0; x + 1 < kBlockSide; ++x) {
+        bool front = false, unobserved = false;
+        for (int c = 0; c < 8; ++c) {
+          const TsdfVoxel w = v[voxel_index(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
+          unobserved |= w.weight == 0;
+          front |=
+              w.weight >= min_weight && w.tsdf > 0 && w.tsdf < static_cast<int16_t>(kTsdfScale);
+        }
+        n += front && unobserved;
+      }
+  return n;
+}
+
 /// The paper's criterion: det(E[n n^T] - E[n] E[n]^T) of the unit forward-difference gradients
 /// n over the inner 7^3 voxels whose four voxels are observed `min_weight` times; sums divided
 /// by 512 as in the authors' implementation.

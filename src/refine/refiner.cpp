@@ -48,18 +48,23 @@ RefineStats Refiner::refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> ca
     return (T_cw * centre).z;
   };
 
-  // Split candidates: settled blocks above the finest level with complex surface.
-  std::vector<float> c(candidates.size(), -1.0f), w(candidates.size(), 0.0f);
+  // Split candidates: settled blocks above the finest level with complex surface, or with
+  // surface their level cannot mesh.
+  std::vector<uint8_t> split(candidates.size(), 0);
   parallel_for(static_cast<int64_t>(candidates.size()), [&](int64_t i) {
     const BlockRef& b = candidates[static_cast<std::size_t>(i)];
-    if (b.ptr >= 0 && b.level > 0 && settled(b.ptr)) c[i] = complexity(map, b.ptr, &w[i]);
+    if (b.ptr < 0 || b.level == 0 || !settled(b.ptr)) return;
+    float w = 0.0f;
+    const float c = complexity(map, b.ptr, &w);
+    split[i] =
+        c > params_.split_level(noise_, depth_of(b.pos, b.level), w) ||
+        (params_.split_unmeshable_cells > 0 &&
+         kernels::block_unmeshable_cells(map.block_tsdf(b.ptr), params_.unmeshable_min_weight) >=
+             params_.split_unmeshable_cells);
   });
   std::vector<BlockRef> splits;
-  for (std::size_t i = 0; i < candidates.size(); ++i) {
-    const BlockRef& b = candidates[i];
-    if (b.level > 0 && c[i] > params_.split_level(noise_, depth_of(b.pos, b.level), w[i]))
-      splits.push_back(b);
-  }
+  for (std::size_t i = 0; i < candidates.size(); ++i)
+    if (split[i]) splits.push_back(candidates[i]);
   stats.evaluated = static_cast<int64_t>(candidates.size());
 
   // Merge candidates: the split parents of touched blocks below the coarsest level, when all 8
@@ -83,6 +88,19 @@ RefineStats Refiner::refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> ca
       // never integrated, and waiting for them to settle kept the flat top split for good.
       if (c < 0.0f) continue;
       if (!settled(ptr) || c >= level) return;
+    }
+    if (params_.split_unmeshable_cells > 0) {
+      // The parent the merge would make (fill_merged_parent's subsampling) must mesh its surface.
+      TsdfVoxel merged[kBlockVoxels];
+      for (int j = 0; j < kBlockVoxels; ++j) {
+        const Vec3i q = voxel_coords(j);
+        const int k = (q.x >> 2) | ((q.y >> 2) << 1) | ((q.z >> 2) << 2);
+        const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_block_pos(p.pos, k));
+        merged[j] = map.block_tsdf(ptr)[voxel_index(2 * (q.x & 3), 2 * (q.y & 3), 2 * (q.z & 3))];
+      }
+      if (kernels::block_unmeshable_cells(merged, params_.unmeshable_min_weight) >=
+          params_.split_unmeshable_cells)
+        return;
     }
     mergeable[i] = 1;
   });

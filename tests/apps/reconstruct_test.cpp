@@ -188,9 +188,11 @@ TEST(Reconstruct, RefinementSettingsFollowTheCriterionAndTheDataset) {
       out.path().string();
   // Noise-free synthetic depth declares no sensor noise: only the absolute levels apply.
   auto r = run_hivox(base);
-  EXPECT_NE(r.output.find("split > 0.2 mm, merge < 0.1 mm"), std::string::npos) << r.output;
-  r = run_hivox(base + " --sensor-noise kinect");
-  EXPECT_NE(r.output.find("split > 0.2 mm or 0.25 sigma(z)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("split > 0.3 mm, merge < 0.15 mm"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("split on 8 unmeshable cells"), std::string::npos) << r.output;
+  r = run_hivox(base + " --sensor-noise kinect --refine-unmeshable-cells 0");
+  EXPECT_NE(r.output.find("split > 0.3 mm or 0.25 sigma(z)"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("unmeshable"), std::string::npos) << r.output;
   // det-cov takes the paper's threshold unless one is given.
   r = run_hivox(base + " --refine det-cov");
   EXPECT_NE(r.output.find("criterion det-cov, split > 0.0001, merge < 0.0001"), std::string::npos)

@@ -8,6 +8,7 @@
 #include <functional>
 #include <vector>
 
+#include "hivox/refine/params.h"
 #include "refine/refine_kernels.h"
 
 namespace hivox {
@@ -67,11 +68,11 @@ TEST(DetailCriterion, ASlantedViewsClampIsNotDetail) {
 }
 
 // A 90-degree edge (the table's rim) crossing the block: detail well above the default split
-// threshold (0.2 mm), which is what keeps such blocks fine.
+// threshold, which is what keeps such blocks fine.
 TEST(DetailCriterion, AnEdgeIsDetail) {
   const auto v = block_of([](const Vec3f& p) { return box_distance(p, false) / kMuM; });
   const float detail = kernels::block_detail_m(v.data(), kMuM, 2, 4);
-  EXPECT_GT(detail, 0.0002f);
+  EXPECT_GT(detail, RefineParams{}.split_threshold);
 }
 
 TEST(DetailCriterion, TooLittleSurfaceIsNotJudged) {
@@ -80,6 +81,41 @@ TEST(DetailCriterion, TooLittleSurfaceIsNotJudged) {
   auto unseen = block_of([](const Vec3f& p) { return plane_distance(p) / kMuM; });
   for (TsdfVoxel& x : unseen) x.weight = 1;  // observed fewer than min_weight times
   EXPECT_EQ(kernels::block_detail_m(unseen.data(), kMuM, 2, 4), -1.0f);
+}
+
+// Unmeshable cells: a horizontal plane at z = 14 mm seen at a grazing angle, where only voxels
+// at most 1 mm behind it (along the normal) were ever updated. Voxel rows z = 0..12 mm lie 2 mm
+// or more behind: unobserved. The 7 x 7 cells between rows 12 and 16 mm have observed corners
+// in front (F = 2 mm / mu) and unobserved ones: exactly those cannot be meshed.
+TEST(UnmeshableCells, AGrazingViewLeavesTheCellsBehindTheSurfaceUnobserved) {
+  auto grazing = block_of([](const Vec3f& p) { return (p.z - 0.014f) / kMuM; });
+  for (int i = 0; i < kBlockVoxels; ++i)
+    if (voxel_coords(i).z * kVoxelM - 0.014f < -0.001f)
+      grazing[static_cast<std::size_t>(i)].weight = 0;
+  EXPECT_EQ(kernels::block_unmeshable_cells(grazing.data(), 1), 7 * 7);
+  EXPECT_EQ(kernels::block_unmeshable_cells(grazing.data(), 10), 7 * 7);  // observed 10 times
+  EXPECT_EQ(kernels::block_unmeshable_cells(grazing.data(), 11), 0) << "too few observations";
+}
+
+TEST(UnmeshableCells, ObservedOrUnseenSurfacesHaveNone) {
+  const auto plane = block_of([](const Vec3f& p) { return plane_distance(p) / kMuM; });
+  EXPECT_EQ(kernels::block_unmeshable_cells(plane.data(), 1), 0) << "every corner observed";
+  auto unseen = plane;
+  for (TsdfVoxel& x : unseen) x.weight = 0;
+  EXPECT_EQ(kernels::block_unmeshable_cells(unseen.data(), 1), 0) << "nothing observed";
+  // Seen head-on: the band reaches mu behind the surface; beyond, cells are unobserved but their
+  // observed corners lie behind the surface too (F < 0), where no surface is missing.
+  auto head_on = block_of([](const Vec3f& p) { return (p.z - 0.026f) / 0.012f; });
+  for (int i = 0; i < kBlockVoxels; ++i)
+    if (voxel_coords(i).z * kVoxelM - 0.026f < -0.012f)
+      head_on[static_cast<std::size_t>(i)].weight = 0;
+  EXPECT_EQ(kernels::block_unmeshable_cells(head_on.data(), 1), 0);
+  auto saturated = plane;  // observed free space (F = 1) beside unobserved voxels: no surface
+  for (std::size_t i = 0; i < saturated.size(); ++i) {
+    saturated[i].tsdf = tsdf_from_float(1.0f);
+    if (i % 2 == 0) saturated[i].weight = 0;
+  }
+  EXPECT_EQ(kernels::block_unmeshable_cells(saturated.data(), 1), 0);
 }
 
 // The paper's criterion (det-cov) on the same kind of blocks. Its truncation here is 8 mm, so

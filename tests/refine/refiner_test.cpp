@@ -38,16 +38,31 @@ std::vector<BlockRef> split_plane_block(VoxelBlockMap& map, uint16_t upper) {
   return children;
 }
 
-TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
+RefineParams every_frame_without_noise() {
+  RefineParams rp;
+  rp.noise = SensorNoise::none();
+  rp.every_n_frames = 1;
+  return rp;
+}
+
+// A camera 1 m above the blocks, looking down.
+Pose camera_above() {
+  return Pose(Eigen::Translation3d(0.08, 0.08, 1.0)) *
+         Pose(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+}
+
+MapParams two_levels_of_1cm() {
   MapParams mp;
   mp.voxel_size_m = 0.01f;
   mp.levels = 2;
   mp.max_blocks = 64;
-  RefineParams rp;
-  rp.noise = SensorNoise::none();
-  rp.every_n_frames = 1;
-  const Pose above = Pose(Eigen::Translation3d(0.08, 0.08, 1.0)) *
-                     Pose(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  return mp;
+}
+
+TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
+  const MapParams mp = two_levels_of_1cm();
+  RefineParams rp = every_frame_without_noise();
+  const Pose above = camera_above();
   {
     VoxelBlockMap map(mp);
     const auto children = split_plane_block(map, rp.min_updates);
@@ -64,6 +79,57 @@ TEST(Refiner, AFlatParentMergesThoughItsUnobservedChildrenNeverSettle) {
     Refiner refiner(rp);
     EXPECT_EQ(refiner.refine(map, children, above).merges, 0);
     EXPECT_EQ(map.blocks_per_level(), (std::vector<int64_t>{8, 0}));
+  }
+}
+
+// A plane at z = 13.1 cm (positive above; mu = 3 cm) seen at a grazing angle: only voxels less
+// than 6 mm behind it were ever updated.
+void fill_grazing_plane(VoxelBlockMap& map, const BlockRef& b, uint16_t updates) {
+  const float s = map.params().voxel_size_at(b.level), mu = 0.03f;
+  TsdfVoxel* v = MapAccess::tsdf(map, b.ptr);
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    const float sdf = (8 * b.pos.z + voxel_coords(i).z) * s - 0.131f;
+    v[i].tsdf = tsdf_from_float(sdf / mu);
+    v[i].weight = sdf >= -0.006f ? 20 : 0;
+  }
+  MapAccess::refresh_surface(map, b.ptr);
+  MapAccess::meta(map, b.ptr).updates = updates;
+}
+
+// At 2 cm the voxel row below the plane (12 cm) lies 1.1 cm behind it: unobserved, so the
+// surface between it and the row above (14 cm, observed) cannot be meshed, though the plane has
+// no detail. The block splits; at 1 cm the row at 13 cm lies 1 mm behind and is observed.
+TEST(Refiner, ABlockWhoseSurfaceItsLevelCannotMeshSplits) {
+  RefineParams rp = every_frame_without_noise();
+  const Pose above = camera_above();
+  for (int cells : {8, 0}) {
+    rp.split_unmeshable_cells = cells;
+    VoxelBlockMap map(two_levels_of_1cm());
+    std::vector<BlockRef> block;
+    map.insert_blocks(std::vector<BlockKey>{{{0, 0, 0}, 1}}, &block);
+    fill_grazing_plane(map, block[0], rp.min_updates);
+    Refiner refiner(rp);
+    EXPECT_EQ(refiner.refine(map, block, above).splits, cells > 0 ? 1 : 0) << cells;
+  }
+}
+
+// The same plane in the children of a split level-1 block, observed as fusion at 1 cm leaves it:
+// the children are flat and settled, but merged (every other voxel) the row at 12 cm would be
+// the unobserved one below the surface again, so they stay split.
+TEST(Refiner, SiblingsMergeOnlyWhenTheMergedBlockCanMeshTheirSurface) {
+  RefineParams rp = every_frame_without_noise();
+  const Pose above = camera_above();
+  for (int cells : {8, 0}) {
+    rp.split_unmeshable_cells = cells;
+    VoxelBlockMap map(two_levels_of_1cm());
+    std::vector<BlockRef> parent;
+    map.insert_blocks(std::vector<BlockKey>{{{0, 0, 0}, 1}}, &parent);
+    ASSERT_EQ(split_blocks(map, parent).done, 1);
+    const std::vector<BlockRef> children = map.allocated_blocks();
+    for (const BlockRef& b : children) fill_grazing_plane(map, b, rp.min_updates);
+    Refiner refiner(rp);
+    EXPECT_EQ(refiner.refine(map, children, above).merges, cells > 0 ? 0 : 1) << cells;
+    test::expect_map_consistent(map);
   }
 }
 
