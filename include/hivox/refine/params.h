@@ -55,8 +55,8 @@ struct RefineParams {
   /// of the surface, an unobserved one), and merge 8 siblings only when the merged block would
   /// have fewer. Seen at grazing angles, a coarse cell's corners behind the surface are never
   /// updated and the surface there is lost; a finer level's are. 0: off. Replica office0 exact
-  /// (docs/experiments.md): completeness against the true mesh +18 % -> +11 % of the fixed 2 mm
-  /// grid's, for 3 % more blocks.
+  /// (docs/experiments.md): completeness against the true mesh +19 % -> +14 % of the fixed 2 mm
+  /// grid's, for 7 % more blocks.
   int split_unmeshable_cells = 8;
   /// The observed corner of an unmeshable cell counts when observed at least this often: fewer
   /// observations at the band's edge are mostly depth noise (on the synthetic desk with Kinect
