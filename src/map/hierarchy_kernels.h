@@ -96,9 +96,17 @@ HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map,
 
 // ---- merge: the parent from its children -----------------------------------------------------
 
+/// Where a merged parent's voxel `i` comes from: child `*child` (c = cx | cy << 1 | cz << 2) of
+/// the parent, at the returned voxel index -- child voxel 2 (i mod 4) of child i / 4 along each
+/// axis, the sample at the same position.
+HIVOX_HD inline int merged_voxel_source(int i, int* child) {
+  const Vec3i p = voxel_coords(i);
+  *child = (p.x >> 2) | ((p.y >> 2) << 1) | ((p.z >> 2) << 2);
+  return voxel_index(2 * (p.x & 3), 2 * (p.y & 3), 2 * (p.z & 3));
+}
+
 /// Fills a merged parent block by subsampling its 8 children (`child_ptrs[c]`, c = cx | cy << 1 |
-/// cz << 2): parent voxel i takes child voxel 2 (i mod 4) of child i / 4 along each axis, the
-/// sample at the same position. A split followed by a merge gives back the parent exactly.
+/// cz << 2; merged_voxel_source). A split followed by a merge gives back the parent exactly.
 /// Returns the parent's surface summary.
 HIVOX_HD inline BlockSurface fill_merged_parent(const MutableMapView& map,
                                                 const int32_t child_ptrs[8], int32_t parent_ptr) {
@@ -106,9 +114,8 @@ HIVOX_HD inline BlockSurface fill_merged_parent(const MutableMapView& map,
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(parent_ptr) * kBlockVoxels : nullptr;
   for (int i = 0; i < kBlockVoxels; ++i) {
-    const Vec3i p = voxel_coords(i);
-    const int child = (p.x >> 2) | ((p.y >> 2) << 1) | ((p.z >> 2) << 2);
-    const int src = voxel_index(2 * (p.x & 3), 2 * (p.y & 3), 2 * (p.z & 3));
+    int child;
+    const int src = merged_voxel_source(i, &child);
     const int64_t at = static_cast<int64_t>(child_ptrs[child]) * kBlockVoxels + src;
     out[i] = map.tsdf[at];
     if (out_c != nullptr) out_c[i] = map.color[at];

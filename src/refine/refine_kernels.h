@@ -55,13 +55,15 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
 /// times, and an unobserved corner. Seen at a grazing angle, a coarse cell's corners behind the
 /// surface lie beyond the band along the rays and are never updated, so the surface between them
 /// and the observed corners is lost; a finer level's voxels lie nearer the surface and are
-/// observed.
+/// observed. (observed_in_band_front: such a front corner.)
+HIVOX_HD inline bool observed_in_band_front(const TsdfVoxel& v, int min_weight) {
+  return v.weight >= min_weight && v.tsdf > 0 && v.tsdf < static_cast<int16_t>(kTsdfScale);
+}
 HIVOX_HD inline int block_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
-  bool any_unobserved = false, any_front = false;
+  bool any_unobserved = false, any_front = false;  // most blocks have none of one or the other
   for (int i = 0; i < kBlockVoxels; ++i) {
     any_unobserved |= v[i].weight == 0;
-    any_front |=
-        v[i].weight >= min_weight && v[i].tsdf > 0 && v[i].tsdf < static_cast<int16_t>(kTsdfScale);
+    any_front |= observed_in_band_front(v[i], min_weight);
   }
   if (!any_unobserved || !any_front) return 0;
   int n = 0;
@@ -72,8 +74,7 @@ HIVOX_HD inline int block_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
         for (int c = 0; c < 8; ++c) {
           const TsdfVoxel w = v[voxel_index(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
           unobserved |= w.weight == 0;
-          front |=
-              w.weight >= min_weight && w.tsdf > 0 && w.tsdf < static_cast<int16_t>(kTsdfScale);
+          front |= observed_in_band_front(w, min_weight);
         }
         n += front && unobserved;
       }

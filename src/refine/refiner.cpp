@@ -7,6 +7,7 @@
 #include "hivox/core/error.h"
 #include "hivox/core/log.h"
 #include "hivox/map/hierarchy_edit.h"
+#include "map/hierarchy_kernels.h"
 #include "refine/refine_kernels.h"
 
 namespace hivox {
@@ -79,9 +80,11 @@ RefineStats Refiner::refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> ca
     const BlockKey& p = parents[static_cast<std::size_t>(i)];
     if (find_block_ptr(view.level[p.level], p.pos) != kPtrSplit) return;
     const float level = params_.merge_level(noise_, depth_of(p.pos, p.level));
+    int32_t children[kBlockChildren];
     for (int k = 0; k < kBlockChildren; ++k) {
       const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_block_pos(p.pos, k));
       if (ptr < 0) return;
+      children[k] = ptr;
       const float c = complexity(map, ptr);
       // A child with too little surface to judge holds nothing a merge could lose, however
       // young: the children of a table top's block that lie below the band seen from above are
@@ -90,13 +93,12 @@ RefineStats Refiner::refine_cpu(VoxelBlockMap& map, std::span<const BlockRef> ca
       if (!settled(ptr) || c >= level) return;
     }
     if (params_.split_unmeshable_cells > 0) {
-      // The parent the merge would make (fill_merged_parent's subsampling) must mesh its surface.
+      // The parent the merge would make (the map's subsampling) must mesh its surface.
       TsdfVoxel merged[kBlockVoxels];
       for (int j = 0; j < kBlockVoxels; ++j) {
-        const Vec3i q = voxel_coords(j);
-        const int k = (q.x >> 2) | ((q.y >> 2) << 1) | ((q.z >> 2) << 2);
-        const int32_t ptr = find_block_ptr(view.level[p.level - 1], child_block_pos(p.pos, k));
-        merged[j] = map.block_tsdf(ptr)[voxel_index(2 * (q.x & 3), 2 * (q.y & 3), 2 * (q.z & 3))];
+        int k;
+        const int src = kernels::merged_voxel_source(j, &k);
+        merged[j] = map.block_tsdf(children[k])[src];
       }
       if (kernels::block_unmeshable_cells(merged, params_.unmeshable_min_weight) >=
           params_.split_unmeshable_cells)
