@@ -72,12 +72,10 @@ std::optional<TsdfVoxel> parent_voxel(const VoxelBlockMap& map, const BlockRef& 
 }
 
 // The child voxels a split of `parent` should give, computed independently from the voxels of
-// its level (`voxel_of` reads one, or none): at global child voxel coordinates, the trilinear
-// value and weight, or nothing (unobserved) where a voxel the interpolation takes is unobserved
-// or missing.
+// its level in `map` as they are now: at global child voxel coordinates, the trilinear value and
+// weight, or nothing (unobserved) where a voxel the interpolation takes is unobserved or missing.
 using ChildValues = std::map<std::tuple<int, int, int>, std::optional<std::pair<float, float>>>;
-template <typename VoxelOf>
-ChildValues expected_children(const BlockRef& parent, VoxelOf voxel_of) {
+ChildValues expected_children(const VoxelBlockMap& map, const BlockRef& parent) {
   ChildValues expected;
   for (int j = 0; j < 16 * 16 * 16; ++j) {
     const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
@@ -88,7 +86,8 @@ ChildValues expected_children(const BlockRef& parent, VoxelOf voxel_of) {
       if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
       const float a =
           ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
-      const std::optional<TsdfVoxel> v = voxel_of(Vec3i{c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
+      const std::optional<TsdfVoxel> v =
+          parent_voxel(map, parent, {c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
       if (!v || v->weight == 0) {
         observed = false;
         break;
@@ -129,8 +128,7 @@ TEST(Split, ChildrenAreTheParentInterpolated) {
   const auto blocks = allocate_cube(map, 1, 3, rng);
   const BlockRef parent = blocks[13];  // the middle block: all +x/+y/+z neighbours exist
   // Expected child values, computed before the split from the parent and its neighbours.
-  const ChildValues expected =
-      expected_children(parent, [&](const Vec3i& q) { return parent_voxel(map, parent, q); });
+  const ChildValues expected = expected_children(map, parent);
   int unobserved = 0;
   for (const auto& [key, value] : expected) unobserved += !value;
   EXPECT_GT(unobserved, 100);  // the fill leaves some parent voxels unobserved
@@ -173,8 +171,7 @@ TEST(Split, ABorderInterpolatesTowardsASplitNeighboursChildren) {
   const BlockRef a = refs[0], b = refs[1];
   // a's reference values, with b's voxels as they are before b splits (a split copies a parent
   // voxel exactly to the child voxel at the same point, so b's children hold them after).
-  const ChildValues expected =
-      expected_children(a, [&](const Vec3i& q) { return parent_voxel(map, a, q); });
+  const ChildValues expected = expected_children(map, a);
   ASSERT_EQ(split_blocks(map, std::span(&b, 1), 1.0f).done, 1);  // weights kept
   ASSERT_FALSE(map.voxel(1, {8, 0, 0}).has_value());             // b is at level 0 now
   ASSERT_EQ(split_blocks(map, std::span(&a, 1), 0.5f).done, 1);
