@@ -395,8 +395,8 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--device", o.device,
-                  "where the map lives and the stages run: cpu, or cuda[:N] (needs a build with "
-                  "the CUDA backend)")
+                  "where the stages run: cpu (a GPU runs the online loop through the "
+                  "library's hivox::cuda::GpuReconstruction, docs/cuda.md)")
       ->capture_default_str();
 }
 

@@ -26,7 +26,8 @@ std::string Device::to_string() const {
 void Device::require_available() const {
   if (is_cpu()) return;
   fail(ErrorCode::Unsupported,
-       "device {}: this build of hivox runs on the CPU only (the CUDA backend is not part of it); "
+       "device {}: this part of hivox runs on the CPU only; the online loop on a GPU is "
+       "hivox::cuda::GpuReconstruction (builds with -DHIVOX_WITH_CUDA=ON; bench/gpu_loop runs it); "
        "use --device cpu",
        to_string());
 }

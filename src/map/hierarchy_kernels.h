@@ -11,9 +11,9 @@ namespace hivox::kernels {
 
 // ---- split: children from the parent ---------------------------------------------------------
 
-/// Fills child `child` (offset (child & 1, (child >> 1) & 1, child >> 2)) of a splitting parent
-/// by trilinear interpolation of the parent's voxels. `parent_blocks[d]` holds the parent's block
-/// (d = 0) and its +x/+y/+z neighbours at the parent's level (d = dx | dy << 1 | dz << 2; a
+/// Voxel `i` of child `child` (offset (child & 1, (child >> 1) & 1, child >> 2)) of a splitting
+/// parent: trilinear interpolation of the parent's voxels. `parent_blocks[d]` holds the parent's
+/// block (d = 0) and its +x/+y/+z neighbours at the parent's level (d = dx | dy << 1 | dz << 2; a
 /// negative ptr when absent), `neighbour_children[d][c]` the children one level down of a
 /// neighbour that was split before (negative when none): the last half voxel of the parent
 /// interpolates towards the neighbour's voxel, read at the parent's level or, when split, at the
@@ -21,76 +21,85 @@ namespace hivox::kernels {
 /// interpolation takes is observed: a value is not extrapolated towards an unobserved or
 /// missing voxel (behind a surface seen at a grazing angle that would leave a positive value
 /// inside the object, a false surface fine observations never reach to correct). Weights are
-/// interpolated and scaled by `weight_scale`. Returns the child's surface summary.
+/// interpolated and scaled by `weight_scale`. Writes its colour to `*color` when not null.
+HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map,
+                                            const int32_t parent_blocks[8],
+                                            const int32_t neighbour_children[8][8], int child,
+                                            int i, float weight_scale, ColorVoxel* color) {
+  const int ox = child & 1, oy = (child >> 1) & 1, oz = child >> 2;
+  const Vec3i j = voxel_coords(i);
+  // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
+  const int qx = 4 * ox + (j.x >> 1), qy = 4 * oy + (j.y >> 1), qz = 4 * oz + (j.z >> 1);
+  const int hx = j.x & 1, hy = j.y & 1, hz = j.z & 1;  // 1: halfway to the next parent voxel
+  float f_sum = 0.0f, w_sum = 0.0f;
+  float r = 0.0f, g = 0.0f, b = 0.0f, cw_sum = 0.0f;
+  bool observed = true, coloured = color != nullptr && map.color != nullptr;
+  for (int c = 0; c < 8 && observed; ++c) {
+    const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
+    if ((cx > hx) | (cy > hy) | (cz > hz)) continue;  // corner not involved
+    const float a = (hx ? 0.5f : 1.0f) * (hy ? 0.5f : 1.0f) * (hz ? 0.5f : 1.0f);
+    const int px = qx + cx, py = qy + cy, pz = qz + cz;
+    const int d = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
+    int32_t ptr = parent_blocks[d];
+    int vi = voxel_index(px & 7, py & 7, pz & 7);
+    if (ptr < 0 && d != 0) {
+      // The neighbour was split: its child holds the same point one level down.
+      const int fx = 2 * (px & 7), fy = 2 * (py & 7), fz = 2 * (pz & 7);
+      ptr = neighbour_children[d][(fx >> 3) | ((fy >> 3) << 1) | ((fz >> 3) << 2)];
+      vi = voxel_index(fx & 7, fy & 7, fz & 7);
+    }
+    if (ptr < 0) {
+      observed = false;
+      break;
+    }
+    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
+    if (vox.weight == 0) {
+      observed = false;
+      break;
+    }
+    w_sum += a * static_cast<float>(vox.weight);
+    f_sum += a * tsdf_to_float(vox.tsdf);
+    if (coloured) {
+      const ColorVoxel col = map.color[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
+      coloured = col.weight > 0;
+      cw_sum += a * static_cast<float>(col.weight);
+      r += a * col.r;
+      g += a * col.g;
+      b += a * col.b;
+    }
+  }
+  TsdfVoxel v;
+  if (observed) {
+    v.tsdf = tsdf_from_float(f_sum);
+    const float w = w_sum * weight_scale + 0.5f;
+    v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
+  }
+  if (color != nullptr) {
+    ColorVoxel cv;
+    if (observed && coloured) {
+      cv.r = static_cast<uint8_t>(r + 0.5f);
+      cv.g = static_cast<uint8_t>(g + 0.5f);
+      cv.b = static_cast<uint8_t>(b + 0.5f);
+      const float w = cw_sum * weight_scale + 0.5f;
+      cv.weight = static_cast<uint8_t>(w < 1.0f ? 1.0f : (w > 255.0f ? 255.0f : w));
+    }
+    *color = cv;
+  }
+  return v;
+}
+
+/// Fills every voxel of child `child` of a splitting parent (split_child_voxel) into pool block
+/// `child_ptr`. Returns the child's surface summary.
 HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map,
                                               const int32_t parent_blocks[8],
                                               const int32_t neighbour_children[8][8], int child,
                                               int32_t child_ptr, float weight_scale) {
-  const int ox = child & 1, oy = (child >> 1) & 1, oz = child >> 2;
   TsdfVoxel* out = map.tsdf + static_cast<int64_t>(child_ptr) * kBlockVoxels;
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(child_ptr) * kBlockVoxels : nullptr;
-  for (int i = 0; i < kBlockVoxels; ++i) {
-    const Vec3i j = voxel_coords(i);
-    // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
-    const int qx = 4 * ox + (j.x >> 1), qy = 4 * oy + (j.y >> 1), qz = 4 * oz + (j.z >> 1);
-    const int hx = j.x & 1, hy = j.y & 1, hz = j.z & 1;  // 1: halfway to the next parent voxel
-    float f_sum = 0.0f, w_sum = 0.0f;
-    float r = 0.0f, g = 0.0f, b = 0.0f, cw_sum = 0.0f;
-    bool observed = true, coloured = out_c != nullptr;
-    for (int c = 0; c < 8 && observed; ++c) {
-      const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
-      if ((cx > hx) | (cy > hy) | (cz > hz)) continue;  // corner not involved
-      const float a = (hx ? 0.5f : 1.0f) * (hy ? 0.5f : 1.0f) * (hz ? 0.5f : 1.0f);
-      const int px = qx + cx, py = qy + cy, pz = qz + cz;
-      const int d = (px >> 3) | ((py >> 3) << 1) | ((pz >> 3) << 2);
-      int32_t ptr = parent_blocks[d];
-      int vi = voxel_index(px & 7, py & 7, pz & 7);
-      if (ptr < 0 && d != 0) {
-        // The neighbour was split: its child holds the same point one level down.
-        const int fx = 2 * (px & 7), fy = 2 * (py & 7), fz = 2 * (pz & 7);
-        ptr = neighbour_children[d][(fx >> 3) | ((fy >> 3) << 1) | ((fz >> 3) << 2)];
-        vi = voxel_index(fx & 7, fy & 7, fz & 7);
-      }
-      if (ptr < 0) {
-        observed = false;
-        break;
-      }
-      const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-      if (vox.weight == 0) {
-        observed = false;
-        break;
-      }
-      w_sum += a * static_cast<float>(vox.weight);
-      f_sum += a * tsdf_to_float(vox.tsdf);
-      if (coloured) {
-        const ColorVoxel col = map.color[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-        coloured = col.weight > 0;
-        cw_sum += a * static_cast<float>(col.weight);
-        r += a * col.r;
-        g += a * col.g;
-        b += a * col.b;
-      }
-    }
-    TsdfVoxel v;
-    if (observed) {
-      v.tsdf = tsdf_from_float(f_sum);
-      const float w = w_sum * weight_scale + 0.5f;
-      v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
-    }
-    out[i] = v;
-    if (out_c != nullptr) {
-      ColorVoxel cv;
-      if (observed && coloured) {
-        cv.r = static_cast<uint8_t>(r + 0.5f);
-        cv.g = static_cast<uint8_t>(g + 0.5f);
-        cv.b = static_cast<uint8_t>(b + 0.5f);
-        const float w = cw_sum * weight_scale + 0.5f;
-        cv.weight = static_cast<uint8_t>(w < 1.0f ? 1.0f : (w > 255.0f ? 255.0f : w));
-      }
-      out_c[i] = cv;
-    }
-  }
+  for (int i = 0; i < kBlockVoxels; ++i)
+    out[i] = split_child_voxel(map, parent_blocks, neighbour_children, child, i, weight_scale,
+                               out_c != nullptr ? out_c + i : nullptr);
   return block_surface(out);
 }
 

@@ -89,8 +89,11 @@ enum class AllocResult { Allocated, HashFull, PoolFull };
 /// Inserts block `pos` at `level` with a fresh (cleared) voxel block. On failure nothing is
 /// left behind: a reserved slot is released to Empty (a linked excess entry stays in its chain
 /// as a reusable empty slot). `entry_out` / `block_out` receive the indices on success.
+/// `clear_voxels` false: the caller clears the block's voxels itself (a GPU block of threads
+/// does it together) before anything reads them.
 HIVOX_HD inline AllocResult allocate_block(const MutableMapView& map, int level, const Vec3i& pos,
-                                           int32_t* entry_out, int32_t* block_out) {
+                                           int32_t* entry_out, int32_t* block_out,
+                                           bool clear_voxels = true) {
   const MutableLevelView& lv = map.level[level];
   const int32_t entry = reserve_entry(map, level, pos);
   if (entry == kNoEntry) return AllocResult::HashFull;
@@ -99,7 +102,7 @@ HIVOX_HD inline AllocResult allocate_block(const MutableMapView& map, int level,
     atomic_store(&lv.entries[entry].ptr, kPtrEmpty);
     return AllocResult::PoolFull;
   }
-  clear_block(map, block);
+  if (clear_voxels) clear_block(map, block);
   map.meta[block] = BlockMeta{pos, entry, static_cast<int16_t>(level), 0, BlockSurface{}};
   atomic_max(map.block_high_water, block + 1);
   atomic_store(&lv.entries[entry].ptr, block);

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "hivox/core/error.h"
+#include "refine/refine_kernels.h"
 
 namespace hivox {
 
@@ -37,26 +38,17 @@ RefineParams RefineParams::paper() {
   return p;
 }
 
-namespace {
-// sqrt(settled / observed), at least 1: fused noise shrinks with the observations.
-float young_factor(float settled_weight, float mean_weight) {
-  return mean_weight >= settled_weight || mean_weight <= 0.0f
-             ? 1.0f
-             : std::sqrt(settled_weight / mean_weight);
+kernels::RefineLevels kernels::refine_levels(const RefineParams& p) {
+  return {p.split_threshold,   p.merge_threshold, p.split_noise_factor,
+          p.merge_noise_ratio, p.settled_weight,  p.criterion == RefineCriterion::Detail};
 }
-}  // namespace
 
 float RefineParams::split_level(const SensorNoise& sensor, float z_m, float mean_weight) const {
-  if (criterion != RefineCriterion::Detail) return split_threshold;
-  const float n =
-      split_noise_factor * sensor.sigma_m(z_m) * young_factor(settled_weight, mean_weight);
-  return n > split_threshold ? n : split_threshold;
+  return kernels::split_level(kernels::refine_levels(*this), sensor.sigma_m(z_m), mean_weight);
 }
 
 float RefineParams::merge_level(const SensorNoise& sensor, float z_m) const {
-  if (criterion != RefineCriterion::Detail) return merge_threshold;
-  const float n = merge_noise_ratio * split_noise_factor * sensor.sigma_m(z_m);
-  return n > merge_threshold ? n : merge_threshold;
+  return kernels::merge_level(kernels::refine_levels(*this), sensor.sigma_m(z_m));
 }
 
 void RefineParams::validate() const {

@@ -5,6 +5,7 @@
 #include "hivox/core/hd.h"
 #include "hivox/core/math.h"
 #include "hivox/map/map_view.h"
+#include "hivox/refine/params.h"
 
 namespace hivox::kernels {
 
@@ -121,6 +122,37 @@ HIVOX_HD inline float block_det_cov(const TsdfVoxel* v, int min_weight) {
   const float xz = s2[2] * k - m[0] * m[2], yy = s2[3] * k - m[1] * m[1];
   const float yz = s2[4] * k - m[1] * m[2], zz = s2[5] * k - m[2] * m[2];
   return xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
+}
+
+struct RefineLevels;
+/// RefineParams' levels as kernels take them (src/refine/params.cpp).
+RefineLevels refine_levels(const RefineParams& p);
+
+/// The settings behind RefineParams::split_level and merge_level, as plain data for kernels.
+struct RefineLevels {
+  float split_threshold = 0, merge_threshold = 0;
+  float split_noise_factor = 0, merge_noise_ratio = 0, settled_weight = 0;
+  bool noise_scaled = false;  ///< the Detail criterion: levels follow the sensor's noise
+};
+
+/// The detail above which a block splits: the threshold, or the sensor's noise `sigma_m` at the
+/// block times the split noise factor where that is larger, raised by sqrt(settled / observed)
+/// while the block's mean weight is below the settled weight (fused noise shrinks with the
+/// observations).
+HIVOX_HD inline float split_level(const RefineLevels& p, float sigma_m, float mean_weight) {
+  if (!p.noise_scaled) return p.split_threshold;
+  const float young = mean_weight >= p.settled_weight || mean_weight <= 0.0f
+                          ? 1.0f
+                          : sqrtf(p.settled_weight / mean_weight);
+  const float n = p.split_noise_factor * sigma_m * young;
+  return n > p.split_threshold ? n : p.split_threshold;
+}
+
+/// The detail below which eight siblings merge (see split_level).
+HIVOX_HD inline float merge_level(const RefineLevels& p, float sigma_m) {
+  if (!p.noise_scaled) return p.merge_threshold;
+  const float n = p.merge_noise_ratio * p.split_noise_factor * sigma_m;
+  return n > p.merge_threshold ? n : p.merge_threshold;
 }
 
 }  // namespace hivox::kernels

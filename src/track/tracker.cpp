@@ -6,52 +6,13 @@
 #include <numbers>
 #include <vector>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-
 #include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/core/timer.h"
+#include "track/icp_solver.h"
 #include "track_kernels.h"
 
 namespace hivox {
-
-namespace {}  // namespace
-
-/// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
-/// and the residual statistics of its pairs.
-struct Tracker::IcpSystem {
-  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-  double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
-  double distance = 0;  ///< sum of the inliers' distances from the camera centre
-  int64_t inliers = 0;
-};
-
-namespace {
-
-/// Pose after the world-frame motion (t, w) of the camera about its centre c:
-/// p -> R(w) (p - c) + c + t.
-Pose apply_increment(const Pose& T, const Eigen::Matrix<double, 6, 1>& x) {
-  const Eigen::Vector3d t = x.head<3>(), w = x.tail<3>();
-  const double angle = w.norm();
-  const Eigen::Matrix3d R = angle > 0.0 ? Eigen::AngleAxisd(angle, w / angle).toRotationMatrix()
-                                        : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d c = T.translation();
-  Pose inc = Pose::Identity();
-  inc.linear() = R;
-  inc.translation() = c + t - R * c;
-  Pose out = inc * T;
-  // Keep the rotation orthonormal over many small updates.
-  out.linear() = Eigen::Quaterniond(out.linear()).normalized().toRotationMatrix();
-  return out;
-}
-
-double rotation_deg(const Pose& T) {
-  return rotation_angle_rad(T) * 180.0 / std::numbers::pi;
-}
-
-}  // namespace
 
 /// One row's sums of a pass (floats: the row's pixels are summed in floats), kept until the rows
 /// are summed in order. Two cache lines of its own: rows are written by different threads.
@@ -60,16 +21,6 @@ struct alignas(64) Tracker::RowSums {
   float b[6];   ///< J^T W r
   float r2 = 0, distance = 0;
   int32_t inliers = 0;
-};
-
-/// Where Gauss-Newton ended: the pose, the finest level's last system and the pose it was built
-/// at, the iterations run, and whether a step diverged.
-struct Tracker::Alignment {
-  Pose T = Pose::Identity();
-  Pose T_fin = Pose::Identity();
-  IcpSystem fin;
-  int iterations = 0;
-  bool diverged = false;
 };
 
 /// One thread's buffers for the pass over a row: the weighted Jacobian rows and residuals, and
@@ -145,11 +96,11 @@ void Tracker::build_model_pyramid(const RaycastResult& model) {
   }
 }
 
-Tracker::IcpSystem Tracker::reduce(int level, const Pose& T) {
+icp::System Tracker::reduce(int level, const Pose& T) {
   return dispatch(device_, "the ICP reduction", [&] { return reduce_cpu(level, T); });
 }
 
-Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
+icp::System Tracker::reduce_cpu(int level, const Pose& T) {
   const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
   const ModelLevel& M = model_[static_cast<std::size_t>(level)];
   const kernels::IcpPass pass(to_rigid3f(T), T_model_cw_, M.camera,
@@ -240,19 +191,12 @@ Tracker::IcpSystem Tracker::reduce_cpu(int level, const Pose& T) {
     }
   });
   // The rows summed in row order, in doubles: the same system whatever the thread count.
-  IcpSystem sum;
+  icp::System sum;
   for (int y = 0; y < h; ++y) {
     const RowSums& row = sums[y];
-    int k = 0;
-    for (int i = 0; i < 6; ++i) {
-      for (int j = i; j < 6; ++j) sum.A(i, j) += row.A[k++];
-      sum.b(i) += row.b[i];
-    }
-    sum.r2 += row.r2;
-    sum.distance += row.distance;
-    sum.inliers += row.inliers;
+    sum.add(row.A, row.b, row.r2, row.distance, row.inliers);
   }
-  sum.A.triangularView<Eigen::StrictlyLower>() = sum.A.transpose();
+  sum.symmetrize();
   return sum;
 }
 
@@ -287,84 +231,15 @@ TrackResult Tracker::track(const DepthImage& depth_m, const PinholeCamera& camer
   build_model_pyramid(model);
   T_model_cw_ = to_rigid3f(model.T_wc.inverse());
   result.preprocess_ms = watch.lap_ms();
-  Alignment a = align(T_wc_init);
-  result.iterations = a.iterations;
-  // The verdict, from the correspondences on the finest level at the pose of its last pass
-  // (one increment before the end: the same correspondences once converged); a fresh pass only
-  // when the last increment was large.
-  const Pose last_step = a.T_fin.inverse() * a.T;
-  if (a.iterations == 0 || last_step.translation().norm() > 1e-3 || rotation_deg(last_step) > 0.1)
-    a.fin = reduce(0, a.T);
-  judge(a, T_wc_init, &result);
+  int64_t valid_pixels = 0;
+  for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
+    if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++valid_pixels;
+  }
+  icp::align_and_judge(
+      params_, [&](int level, const Pose& T) { return reduce(level, T); }, valid_pixels, T_wc_init,
+      &result);
   result.icp_ms = watch.lap_ms();
   return result;
-}
-
-Tracker::Alignment Tracker::align(const Pose& T_wc_init) {
-  Alignment a;
-  Pose T = T_wc_init;
-  a.T_fin = T;
-  for (int level = params_.levels() - 1; level >= 0 && !a.diverged; --level) {
-    for (int it = 0; it < params_.iterations[static_cast<std::size_t>(level)]; ++it) {
-      const IcpSystem ne = reduce(level, T);
-      if (level == 0) {
-        a.fin = ne;
-        a.T_fin = T;
-      }
-      if (ne.inliers < 6) break;
-      const Eigen::Matrix<double, 6, 1> x = ne.A.ldlt().solve(-ne.b);
-      if (!x.allFinite()) {
-        a.diverged = true;
-        break;
-      }
-      T = apply_increment(T, x);
-      ++a.iterations;
-      if (x.head<3>().norm() < params_.convergence_step &&
-          x.tail<3>().norm() < params_.convergence_step)
-        break;
-    }
-  }
-  a.T = T;
-  return a;
-}
-
-void Tracker::judge(const Alignment& a, const Pose& T_wc_init, TrackResult* result) const {
-  const IcpSystem& fin = a.fin;
-  const Pose& T = a.T;
-  for (std::size_t i = 0; i < frame_[0].normals_c.size(); ++i) {
-    if (!kernels::is_zero(frame_[0].normals_c.data()[i])) ++result->valid_pixels;
-  }
-  result->inliers = fin.inliers;
-  result->inlier_ratio =
-      result->valid_pixels > 0 ? static_cast<double>(fin.inliers) / result->valid_pixels : 0.0;
-  result->rms_m = fin.inliers > 0 ? std::sqrt(fin.r2 / static_cast<double>(fin.inliers)) : 0.0;
-  if (fin.inliers >= 6) {
-    // Rotations scaled by the mean lever arm so that both halves are in metres.
-    const double arm = std::max(1e-3, fin.distance / static_cast<double>(fin.inliers));
-    Eigen::Matrix<double, 6, 1> s;
-    s << 1, 1, 1, 1 / arm, 1 / arm, 1 / arm;
-    const Eigen::Matrix<double, 6, 6> An = s.asDiagonal() * fin.A * s.asDiagonal();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(An,
-                                                                         Eigen::EigenvaluesOnly);
-    const double lmax = eig.eigenvalues().maxCoeff();
-    result->condition = lmax > 0.0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / lmax : 0.0;
-  }
-
-  const Pose jump = T_wc_init.inverse() * T;
-  const bool lost =
-      a.diverged || !T.matrix().allFinite() || fin.inliers < 6 ||
-      result->inlier_ratio < params_.lost_inlier_ratio || result->rms_m > params_.lost_rms_m ||
-      jump.translation().norm() > params_.lost_jump_m || rotation_deg(jump) > params_.lost_jump_deg;
-  if (lost) {
-    result->quality = TrackingQuality::Lost;
-    result->T_wc = T_wc_init;
-  } else {
-    result->quality = result->inlier_ratio < params_.poor_inlier_ratio ||
-                              result->condition < params_.poor_condition
-                          ? TrackingQuality::Poor
-                          : TrackingQuality::Good;
-    result->T_wc = T;
-  }
 }
 
 }  // namespace hivox

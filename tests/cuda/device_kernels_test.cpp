@@ -111,9 +111,12 @@ void compare_on_device(const Workload& w) {
       100.0 * static_cast<double>(tsdf_equal) / static_cast<double>(observed),
       static_cast<long long>(tsdf_far), integrate_ms);
   ASSERT_GT(observed, 100000);
-  EXPECT_LE(weight_differ, observed / 100000);
-  EXPECT_LE(tsdf_far, observed / 100000);
-  EXPECT_LE(color_far, observed / 100000);
+  // Rounding tips a decision (the bilinear depth's step test, the band's edge) at a few voxels:
+  // ~1e-5 of them where both sides use fused multiply-adds, ~1e-4 where the CPU build has none
+  // (HIVOX_NATIVE_ARCH=OFF).
+  EXPECT_LE(weight_differ, observed / 2000);
+  EXPECT_LE(tsdf_far, observed / 2000);
+  EXPECT_LE(color_far, observed / 2000);
   // A summary bit can only differ where a TSDF near 0 rounded to the other sign.
   EXPECT_LE(surface_differ, static_cast<int64_t>(blocks.size() / 1000));
 

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <span>
 
+#include "hivox/core/hd.h"
 #include "hivox/map/voxel_block_map.h"
 
 namespace hivox {
@@ -17,12 +18,12 @@ namespace hivox {
 inline constexpr int kBlockChildren = 8;
 
 /// Block coordinates of child `c` (offset (c & 1, (c >> 1) & 1, c >> 2)) of block `parent`.
-inline Vec3i child_block_pos(const Vec3i& parent, int c) {
+HIVOX_HD inline Vec3i child_block_pos(const Vec3i& parent, int c) {
   return {2 * parent.x + (c & 1), 2 * parent.y + ((c >> 1) & 1), 2 * parent.z + (c >> 2)};
 }
 
 /// Block coordinates of the parent of block `child` (one level coarser).
-inline Vec3i parent_block_pos(const Vec3i& child) {
+HIVOX_HD inline Vec3i parent_block_pos(const Vec3i& child) {
   return {child.x >> 1, child.y >> 1, child.z >> 1};  // arithmetic shift: floor division
 }
 

@@ -17,6 +17,10 @@
 
 namespace hivox {
 
+namespace icp {
+struct System;
+}
+
 struct TrackResult {
   Pose T_wc = Pose::Identity();  ///< estimated camera-to-world pose (the start pose when lost)
   TrackingQuality quality = TrackingQuality::Lost;
@@ -63,20 +67,13 @@ class Tracker {
     Image<Vec3f> points_w, normals_w;  ///< zero normal where the model has no surface
     DepthImage depth_m;
   };
-  struct IcpSystem;
-  struct Alignment;
   struct RowScratch;
   struct RowSums;
   void build_model_pyramid(const RaycastResult& model);
   /// One pass over pyramid level `level` at pose `T`: projective association against the model
   /// and the normal equations (the ICP reduction; dispatches on the device).
-  IcpSystem reduce(int level, const Pose& T);
-  IcpSystem reduce_cpu(int level, const Pose& T);
-  /// Gauss-Newton on SE(3), coarsest level first, from `T_wc_init`.
-  Alignment align(const Pose& T_wc_init);
-  /// The verdict on an alignment that started at `T_wc_init`: the finest level's numbers and
-  /// the quality; a lost frame keeps the start pose.
-  void judge(const Alignment& alignment, const Pose& T_wc_init, TrackResult* result) const;
+  icp::System reduce(int level, const Pose& T);
+  icp::System reduce_cpu(int level, const Pose& T);
 
   TrackParams params_;
   DepthRange depth_range_;

@@ -1,0 +1,231 @@
+// The online loop on a CUDA device over a sequence held in memory, per-stage times and the frame
+// rate, optionally with the CPU loop on the same frames for a same-run ratio.
+//
+//   hivox_gpu_loop synthetic:desk?frames=300 --levels 1            # fixed 2 mm, tracked
+//   hivox_gpu_loop data/tum_fr1_rpy --handover 50 --cpu           # 3 levels from a CPU-refined map
+//
+// `--handover K` runs frames [0, K) through the CPU reconstruction, copies its map to the device
+// and times frames [K, N) there (the device refines the hierarchy from then on). Times are the
+// host's wall clock around each stage, the device synchronised at its end; the first `--warmup`
+// timed frames are left out of the means.
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <numeric>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "hivox/core/error.h"
+#include "hivox/core/timer.h"
+#include "hivox/cuda/gpu_reconstruction.h"
+#include "hivox/eval/trajectory_eval.h"
+#include "hivox/io/dataset.h"
+#include "hivox/pipeline/reconstruction.h"
+
+namespace {
+
+using namespace hivox;
+
+struct Means {
+  double upload = 0, track = 0, allocate = 0, integrate = 0, refine = 0, raycast = 0, total = 0;
+  double median_total = 0;
+  int frames = 0;
+};
+
+Means means_of(const std::vector<cuda::GpuFrameStats>& frames, int warmup) {
+  Means m;
+  std::vector<double> totals;
+  for (std::size_t i = static_cast<std::size_t>(warmup); i < frames.size(); ++i) {
+    const cuda::GpuFrameStats& f = frames[i];
+    m.upload += f.upload_ms;
+    m.track += f.track_ms;
+    m.allocate += f.allocate_ms;
+    m.integrate += f.integrate_ms;
+    m.refine += f.refine_ms;
+    m.raycast += f.raycast_ms;
+    m.total += f.total_ms;
+    totals.push_back(f.total_ms);
+    ++m.frames;
+  }
+  if (m.frames == 0) return m;
+  for (double* v :
+       {&m.upload, &m.track, &m.allocate, &m.integrate, &m.refine, &m.raycast, &m.total})
+    *v /= m.frames;
+  std::nth_element(totals.begin(), totals.begin() + totals.size() / 2, totals.end());
+  m.median_total = totals[totals.size() / 2];
+  return m;
+}
+
+std::optional<double> ate_of(const std::vector<StampedPose>& gt,
+                             const std::vector<StampedPose>& est) {
+  if (gt.size() < 3 || est.size() < 3) return std::nullopt;
+  try {
+    return evaluate_ate(gt, est).rmse_m;
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+}
+
+std::string mm(const std::optional<double>& m) {
+  return m ? std::to_string(*m * 1e3) + " mm" : std::string("n/a");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"hivox's online loop on a CUDA device"};
+  std::string spec;
+  int frames = 0, handover = 0, levels = 3, warmup = 5;
+  float voxel_m = 0.002f;
+  std::string poses = "track";
+  bool cpu = false;
+  int64_t max_blocks = 1 << 20;
+  std::string json;
+  app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
+  app.add_option("--frames", frames, "frames to read (0: all)");
+  app.add_option("--handover", handover,
+                 "frames fused on the CPU first (with refinement) before the device takes over");
+  app.add_option("--levels", levels, "resolution levels");
+  app.add_option("--voxel-size", voxel_m, "finest voxel size, metres");
+  app.add_option("--poses", poses, "track (ICP) or gt (the dataset's poses)")
+      ->check(CLI::IsMember({"track", "gt"}));
+  app.add_option("--warmup", warmup, "timed frames left out of the means");
+  app.add_option("--max-blocks", max_blocks, "block pool capacity");
+  app.add_flag("--cpu", cpu, "also run the CPU loop on the same frames (same handover)");
+  app.add_option("--json", json, "write the results here");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const std::unique_ptr<DatasetReader> reader = open_dataset(spec);
+    const CameraRig& rig = reader->info().rig;
+    const std::size_t n =
+        frames > 0 ? std::min<std::size_t>(static_cast<std::size_t>(frames), reader->size())
+                   : reader->size();
+    std::vector<RgbdFrame> data;
+    Stopwatch read;
+    for (std::size_t i = 0; i < n; ++i) data.push_back(reader->read(i));
+    std::printf("read %zu frames of %s (%dx%d) in %.1f s\n", n, spec.c_str(),
+                rig.depth_camera.width, rig.depth_camera.height, read.elapsed_ms() / 1e3);
+    const bool track = poses == "track";
+    const bool has_gt = std::all_of(data.begin(), data.end(),
+                                    [](const RgbdFrame& f) { return f.T_wc_gt.has_value(); });
+    if (!track && !has_gt) throw Error(ErrorCode::InvalidArgument, "--poses gt: no ground truth");
+    const Pose first = has_gt ? *data[0].T_wc_gt : Pose::Identity();
+
+    ReconstructionParams params;
+    params.map.levels = levels;
+    params.map.voxel_size_m = voxel_m;
+    params.map.max_blocks = max_blocks;
+    const std::size_t k =
+        static_cast<std::size_t>(std::clamp<int>(handover, 0, static_cast<int>(n)));
+
+    // Frames [0, k) on the CPU; its map goes to the device (and, with --cpu, it continues).
+    ReconstructionParams cpu_params = params;
+    cpu_params.device = Device::cpu();
+    Reconstruction cpu_loop(cpu_params, rig);
+    Stopwatch handover_watch;
+    for (std::size_t i = 0; i < k; ++i) {
+      if (track)
+        cpu_loop.track_and_integrate(data[i], 0.0, first);
+      else
+        cpu_loop.integrate(data[i], *data[i].T_wc_gt);
+    }
+    if (k > 0)
+      std::printf("CPU: %zu frames fused before the handover (%.1f s), %lld blocks (%s)\n", k,
+                  handover_watch.elapsed_ms() / 1e3,
+                  static_cast<long long>(cpu_loop.map().blocks_in_use()),
+                  [&] {
+                    std::string s;
+                    for (int64_t b : cpu_loop.map().blocks_per_level())
+                      s += (s.empty() ? "" : " / ") + std::to_string(b);
+                    return s;
+                  }()
+                      .c_str());
+
+    params.device = Device::cuda();
+    std::unique_ptr<cuda::GpuReconstruction> gpu =
+        k > 0 ? std::make_unique<cuda::GpuReconstruction>(
+                    params, rig, cpu_loop.map(),
+                    std::optional<Pose>(cpu_loop.trajectory().back().T_wc))
+              : std::make_unique<cuda::GpuReconstruction>(params, rig);
+    std::printf("device: %s\n", cuda::device_name(0).c_str());
+    std::vector<StampedPose> gt;
+    for (std::size_t i = k; i < n; ++i) {
+      if (has_gt) gt.push_back({data[i].timestamp_s, *data[i].T_wc_gt});
+      if (track)
+        gpu->track_and_integrate(data[i], first);
+      else
+        gpu->integrate(data[i], *data[i].T_wc_gt);
+    }
+    const Means g = means_of(gpu->frames(), warmup);
+    int64_t lost = 0, splits = 0, merges = 0;
+    for (const cuda::GpuFrameStats& f : gpu->frames()) {
+      lost += !f.fused;
+      splits += f.splits;
+      merges += f.merges;
+    }
+    const std::optional<double> gpu_ate = has_gt ? ate_of(gt, gpu->trajectory()) : std::nullopt;
+    std::printf(
+        "GPU: %d frames timed (%d warm-up left out), %s poses, %d levels from %.1f mm\n"
+        "  mean ms: upload %.3f  track %.3f  allocate %.3f  integrate %.3f  refine %.3f  "
+        "raycast %.3f  "
+        "total %.3f (median %.3f)\n"
+        "  %.0f fps (mean), %.0f fps (median); %lld blocks (%lld splits, %lld merges); map %.1f "
+        "MiB, all device buffers %.1f MiB; %lld frames lost; ATE %s\n",
+        g.frames, warmup, poses.c_str(), levels, voxel_m * 1e3, g.upload, g.track, g.allocate,
+        g.integrate, g.refine, g.raycast, g.total, g.median_total, 1e3 / g.total,
+        1e3 / g.median_total, static_cast<long long>(gpu->blocks_in_use()),
+        static_cast<long long>(splits), static_cast<long long>(merges),
+        gpu->map_memory_bytes() / 1048576.0, gpu->device_memory_bytes() / 1048576.0,
+        static_cast<long long>(lost), mm(gpu_ate).c_str());
+
+    double cpu_ms = 0;
+    std::optional<double> cpu_ate;
+    int64_t cpu_map_bytes = 0;
+    if (cpu) {
+      Stopwatch watch;
+      for (std::size_t i = k; i < n; ++i) {
+        if (track)
+          cpu_loop.track_and_integrate(data[i], 0.0, first);
+        else
+          cpu_loop.integrate(data[i], *data[i].T_wc_gt);
+      }
+      cpu_ms = watch.elapsed_ms() / static_cast<double>(n - k);
+      std::vector<StampedPose> est(cpu_loop.trajectory().begin() + static_cast<std::ptrdiff_t>(k),
+                                   cpu_loop.trajectory().end());
+      if (has_gt) cpu_ate = ate_of(gt, est);
+      cpu_map_bytes = cpu_loop.map().memory_bytes();
+      std::printf(
+          "CPU: %.3f ms a frame (%.1f fps, refinement %s), %lld blocks, map %.1f MiB; ATE %s; "
+          "GPU/CPU speed-up %.1fx\n",
+          cpu_ms, 1e3 / cpu_ms, levels > 1 ? "on" : "n/a",
+          static_cast<long long>(cpu_loop.map().blocks_in_use()), cpu_map_bytes / 1048576.0,
+          mm(cpu_ate).c_str(), cpu_ms / g.total);
+    }
+    if (!json.empty()) {
+      std::ofstream out(json);
+      out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
+          << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
+          << poses << "\", \"handover\": " << k << ", \"frames_timed\": " << g.frames
+          << ", \"mean_ms\": {\"upload\": " << g.upload << ", \"track\": " << g.track
+          << ", \"allocate\": " << g.allocate << ", \"integrate\": " << g.integrate
+          << ", \"refine\": " << g.refine << ", \"raycast\": " << g.raycast
+          << ", \"total\": " << g.total << "}, \"median_total_ms\": " << g.median_total
+          << ", \"blocks\": " << gpu->blocks_in_use()
+          << ", \"map_bytes\": " << gpu->map_memory_bytes()
+          << ", \"device_bytes\": " << gpu->device_memory_bytes() << ", \"lost\": " << lost
+          << ", \"ate_m\": " << (gpu_ate ? std::to_string(*gpu_ate) : "null")
+          << ", \"cpu_ms\": " << cpu_ms << ", \"cpu_map_bytes\": " << cpu_map_bytes
+          << ", \"cpu_ate_m\": " << (cpu_ate ? std::to_string(*cpu_ate) : "null") << "}\n";
+    }
+  } catch (const Error& e) {
+    std::fprintf(stderr, "hivox_gpu_loop: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

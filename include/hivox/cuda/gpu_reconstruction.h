@@ -1,0 +1,88 @@
+#pragma once
+/// @file
+/// The online loop on a CUDA device: the map (hash tables, block pool, free lists) in device
+/// memory, allocation, integration, raycasting and ICP tracking as CUDA kernels over the same
+/// per-element functions as the CPU stages. Frames go in, poses and stats come out; the map and
+/// the last raycast come back to the host only when asked for (meshing, saving, comparing).
+/// Built with -DHIVOX_WITH_CUDA=ON (this header has no CUDA types).
+///
+/// Refinement (the CPU Refiner's decisions, split and merge) runs on the device too; meshing,
+/// saving and renders take the map back to the host (download_map).
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "hivox/core/camera_rig.h"
+#include "hivox/core/dataset.h"
+#include "hivox/map/voxel_block_map.h"
+#include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/raycaster.h"
+#include "hivox/track/tracker.h"
+
+namespace hivox::cuda {
+
+/// The name of CUDA device `index`, or empty when there is none (no driver, no such device).
+std::string device_name(int index = 0);
+
+/// One frame of the device loop. Stage times are wall-clock on the host around each stage, the
+/// device synchronised at its end.
+struct GpuFrameStats {
+  int64_t index = -1;
+  bool fused = true;
+  TrackResult track;  ///< default (Good, no iterations) for frames with a given pose
+  int64_t valid_pixels = 0;
+  int64_t visible_blocks = 0;
+  int64_t new_blocks = 0;
+  int64_t dropped_blocks = 0;
+  int64_t raycast_hits = 0;
+  int64_t splits = 0, merges = 0;
+  int64_t refine_waiting = 0;  ///< splits or merges postponed for lack of room
+  double upload_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0;
+  double raycast_ms = 0;
+  double total_ms = 0;
+};
+
+class GpuReconstruction {
+ public:
+  /// A new, empty map. `params.device` must be a CUDA device that is present (else
+  /// `Error(Unsupported)` naming it).
+  GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig);
+  /// Continues `map` (copied to the device; its parameters replace `params.map`). With
+  /// `last_pose` (the camera's pose at the map's last frame) the first frame is tracked from it.
+  GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                    const VoxelBlockMap& map, std::optional<Pose> last_pose = std::nullopt);
+  ~GpuReconstruction();
+  GpuReconstruction(const GpuReconstruction&) = delete;
+  GpuReconstruction& operator=(const GpuReconstruction&) = delete;
+
+  /// Fuses `frame` at the given pose (no tracking), then raycasts the model at it.
+  const GpuFrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc);
+  /// Tracks `frame` against the last model (the first frame of a new map takes `T_wc_first`),
+  /// fuses it unless tracking is lost, and raycasts the model at the new pose.
+  const GpuFrameStats& track_and_integrate(const RgbdFrame& frame,
+                                           const Pose& T_wc_first = Pose::Identity());
+
+  const std::vector<StampedPose>& trajectory() const;
+  const std::vector<GpuFrameStats>& frames() const;
+  const MapParams& map_params() const;
+
+  /// A host copy of the device map (same parameters, same tables and pool indices).
+  std::unique_ptr<VoxelBlockMap> download_map() const;
+  /// The last model raycast (the depth camera subsampled by the tracking's model_subsample),
+  /// copied to the host.
+  RaycastResult download_model() const;
+  /// Blocks allocated on the device (all levels).
+  int64_t blocks_in_use() const;
+  /// Device memory held by the map, and by the whole loop (map, frame and pyramid buffers).
+  int64_t map_memory_bytes() const;
+  int64_t device_memory_bytes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hivox::cuda

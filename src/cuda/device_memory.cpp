@@ -1,0 +1,150 @@
+#include "cuda/device_memory.h"
+
+#include <cuda.h>
+#include <cuda_runtime_api.h>
+
+#include <algorithm>
+
+#include <type_traits>
+
+#include "hivox/core/error.h"
+
+namespace hivox::cuda {
+
+void check_status(cudaError_t status, const char* what) {
+  if (status != cudaSuccess)
+    fail(ErrorCode::Cuda, "CUDA {} failed: {}", what, cudaGetErrorString(status));
+}
+
+namespace {
+
+/// The driver's virtual memory functions, fetched through the runtime (no link to the driver
+/// library: binaries start where there is none, and the GPU tests skip).
+struct VirtualMemory {
+  decltype(&cuMemGetAllocationGranularity) granularity = nullptr;
+  decltype(&cuMemAddressReserve) reserve = nullptr;
+  decltype(&cuMemAddressFree) free = nullptr;
+  decltype(&cuMemCreate) create = nullptr;
+  decltype(&cuMemRelease) release = nullptr;
+  decltype(&cuMemMap) map = nullptr;
+  decltype(&cuMemUnmap) unmap = nullptr;
+  decltype(&cuMemSetAccess) set_access = nullptr;
+  decltype(&cuDeviceGet) device = nullptr;
+  decltype(&cuDeviceGetAttribute) attribute = nullptr;
+  bool ok = false;
+
+  /// Whether device `ordinal` supports virtual memory management.
+  bool supported(int ordinal) const {
+    CUdevice d{};
+    int yes = 0;
+    return ok && device(&d, ordinal) == CUDA_SUCCESS &&
+           attribute(&yes, CU_DEVICE_ATTRIBUTE_VIRTUAL_MEMORY_MANAGEMENT_SUPPORTED, d) ==
+               CUDA_SUCCESS &&
+           yes != 0;
+  }
+
+  static const VirtualMemory& get() {
+    static const VirtualMemory vm = [] {
+      VirtualMemory v;
+      auto load = [](const char* name, auto** fn) {
+        cudaDriverEntryPointQueryResult status{};
+        void* p = nullptr;
+        if (cudaGetDriverEntryPointByVersion(name, &p, 12000, cudaEnableDefault, &status) !=
+                cudaSuccess ||
+            status != cudaDriverEntryPointSuccess)
+          return false;
+        *fn = reinterpret_cast<std::remove_pointer_t<decltype(fn)>>(p);
+        return true;
+      };
+      v.ok = load("cuMemGetAllocationGranularity", &v.granularity) &&
+             load("cuMemAddressReserve", &v.reserve) && load("cuMemAddressFree", &v.free) &&
+             load("cuMemCreate", &v.create) && load("cuMemRelease", &v.release) &&
+             load("cuMemMap", &v.map) && load("cuMemUnmap", &v.unmap) &&
+             load("cuMemSetAccess", &v.set_access) && load("cuDeviceGet", &v.device) &&
+             load("cuDeviceGetAttribute", &v.attribute);
+      cudaGetLastError();
+      return v;
+    }();
+    return vm;
+  }
+};
+
+CUmemAllocationProp allocation_prop(int device) {
+  CUmemAllocationProp prop{};
+  prop.type = CU_MEM_ALLOCATION_TYPE_PINNED;
+  prop.location.type = CU_MEM_LOCATION_TYPE_DEVICE;
+  prop.location.id = device;
+  return prop;
+}
+
+void check_driver(CUresult r, const char* what) {
+  if (r != CUDA_SUCCESS)
+    fail(ErrorCode::Cuda, "CUDA {} failed (driver error {})", what, static_cast<int>(r));
+}
+
+}  // namespace
+
+GrowingBuffer::~GrowingBuffer() {
+  release();
+}
+
+void GrowingBuffer::release() {
+  const VirtualMemory& vm = VirtualMemory::get();
+  if (virtual_) {
+    if (committed_ > 0) vm.unmap(reinterpret_cast<CUdeviceptr>(base_), committed_);
+    for (unsigned long long h : handles_) vm.release(h);
+    if (base_ != nullptr) vm.free(reinterpret_cast<CUdeviceptr>(base_), reserved_);
+  } else {
+    cudaFree(base_);
+  }
+  handles_.clear();
+  base_ = nullptr;
+  reserved_ = committed_ = 0;
+}
+
+void GrowingBuffer::reserve(std::size_t bytes, int device) {
+  release();
+  device_ = device;
+  const VirtualMemory& vm = VirtualMemory::get();
+  virtual_ = vm.supported(device);
+  if (!virtual_) {
+    check_status(cudaMalloc(&base_, std::max<std::size_t>(bytes, 1)),
+                 "allocation of device memory");
+    reserved_ = committed_ = bytes;
+    return;
+  }
+  const CUmemAllocationProp prop = allocation_prop(device);
+  std::size_t granularity = 0;
+  check_driver(vm.granularity(&granularity, &prop, CU_MEM_ALLOC_GRANULARITY_RECOMMENDED),
+               "asking the allocation granularity");
+  // Chunks of 8 MiB or more: few mappings, little committed beyond the need.
+  chunk_ = std::max<std::size_t>(granularity, std::size_t{8} << 20) / granularity * granularity;
+  reserved_ = (std::max<std::size_t>(bytes, 1) + chunk_ - 1) / chunk_ * chunk_;
+  CUdeviceptr base = 0;
+  check_driver(vm.reserve(&base, reserved_, 0, 0, 0), "reserving device addresses");
+  base_ = reinterpret_cast<void*>(base);
+}
+
+std::size_t GrowingBuffer::commit(std::size_t bytes) {
+  if (!virtual_ || bytes <= committed_) return committed_;
+  const VirtualMemory& vm = VirtualMemory::get();
+  const CUmemAllocationProp prop = allocation_prop(device_);
+  CUmemAccessDesc access{};
+  access.location = prop.location;
+  access.flags = CU_MEM_ACCESS_FLAGS_PROT_READWRITE;
+  const std::size_t target = std::min(reserved_, (bytes + chunk_ - 1) / chunk_ * chunk_);
+  while (committed_ < target) {
+    CUmemGenericAllocationHandle h = 0;
+    check_driver(vm.create(&h, chunk_, &prop, 0), "committing device memory");
+    const CUdeviceptr at = reinterpret_cast<CUdeviceptr>(base_) + committed_;
+    const CUresult mapped = vm.map(at, chunk_, 0, h, 0);
+    if (mapped != CUDA_SUCCESS) vm.release(h);
+    check_driver(mapped, "mapping device memory");
+    handles_.push_back(h);
+    check_driver(vm.set_access(at, chunk_, &access, 1), "enabling access to device memory");
+    committed_ += chunk_;
+  }
+  return committed_;
+}
+
+}  // namespace hivox::cuda

@@ -1,0 +1,123 @@
+#pragma once
+// Device memory for the CUDA loop: plain buffers, page-locked host buffers for uploads, and a
+// buffer that reserves its whole capacity as addresses but commits memory only as it is used
+// (the device's counterpart of the CPU map's lazily committed pool). Host code (runtime API).
+
+#include <cuda_runtime_api.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace hivox::cuda {
+
+/// Throws `Error(Cuda)` naming `what` when `status` is not success.
+void check_status(cudaError_t status, const char* what);
+
+/// Device memory freed with its owner; its bytes are added to `*total` (when not null).
+template <typename T>
+class Buffer {
+ public:
+  Buffer() = default;
+  ~Buffer() { release(); }
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  Buffer(Buffer&& o) noexcept : ptr_(o.ptr_), size_(o.size_) {
+    o.ptr_ = nullptr;
+    o.size_ = 0;
+  }
+  void reset(std::size_t n, int64_t* total) {
+    release();
+    ptr_ = static_cast<T*>(allocate(n * sizeof(T)));
+    size_ = n;
+    if (total != nullptr) *total += static_cast<int64_t>(n * sizeof(T));
+  }
+  T* get() const { return ptr_; }
+  std::size_t size() const { return size_; }
+  void upload(const T* host, std::size_t n, std::size_t offset = 0) {
+    copy_to_device(ptr_ + offset, host, n * sizeof(T));
+  }
+  void download(T* host, std::size_t n, std::size_t offset = 0) const {
+    copy_to_host(host, ptr_ + offset, n * sizeof(T));
+  }
+
+ private:
+  static void* allocate(std::size_t bytes) {
+    void* p = nullptr;
+    if (bytes > 0) check_status(cudaMalloc(&p, bytes), "allocation of device memory");
+    return p;
+  }
+  static void copy_to_device(void* device, const void* host, std::size_t bytes) {
+    if (bytes > 0) check_status(cudaMemcpy(device, host, bytes, cudaMemcpyHostToDevice), "upload");
+  }
+  static void copy_to_host(void* host, const void* device, std::size_t bytes) {
+    if (bytes > 0)
+      check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), "download");
+  }
+  void release() {
+    cudaFree(ptr_);
+    ptr_ = nullptr;
+    size_ = 0;
+  }
+  T* ptr_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+/// Page-locked host memory, grown on demand (uploads from it run at the bus's speed).
+template <typename T>
+class PinnedBuffer {
+ public:
+  PinnedBuffer() = default;
+  ~PinnedBuffer() { release(); }
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+  T* reserve(std::size_t n) {
+    if (n > size_) {
+      release();
+      ptr_ = static_cast<T*>(allocate(n * sizeof(T)));
+      size_ = n;
+    }
+    return ptr_;
+  }
+
+ private:
+  static void* allocate(std::size_t bytes) {
+    void* p = nullptr;
+    check_status(cudaMallocHost(&p, bytes), "allocation of page-locked host memory");
+    return p;
+  }
+  void release() {
+    cudaFreeHost(ptr_);
+    ptr_ = nullptr;
+    size_ = 0;
+  }
+  T* ptr_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+/// `capacity` elements of address space reserved on the current device; memory is committed in
+/// chunks as `commit(n)` asks for the first n elements. Falls back to one plain allocation of the
+/// whole capacity where the driver has no virtual memory management.
+class GrowingBuffer {
+ public:
+  GrowingBuffer() = default;
+  ~GrowingBuffer();
+  GrowingBuffer(const GrowingBuffer&) = delete;
+  GrowingBuffer& operator=(const GrowingBuffer&) = delete;
+  /// Reserves `bytes` of addresses (committing nothing yet).
+  void reserve(std::size_t bytes, int device);
+  /// Makes at least the first `bytes` usable; returns the bytes committed now in all.
+  std::size_t commit(std::size_t bytes);
+  void* get() const { return base_; }
+  std::size_t committed() const { return committed_; }
+
+ private:
+  void release();
+  void* base_ = nullptr;
+  std::size_t reserved_ = 0, committed_ = 0, chunk_ = 0;
+  int device_ = 0;
+  bool virtual_ = false;
+  std::vector<unsigned long long> handles_;
+};
+
+}  // namespace hivox::cuda

@@ -1,0 +1,717 @@
+#include "hivox/cuda/gpu_reconstruction.h"
+
+#include <cuda_runtime_api.h>
+
+#include <algorithm>
+#include <array>
+#include <cstring>
+#include <limits>
+#include <utility>
+
+#include "cuda/device_memory.h"
+#include "cuda/loop_kernels.h"
+#include "fusion/integration_frame.h"
+#include "hivox/core/error.h"
+#include "hivox/core/log.h"
+#include "hivox/core/timer.h"
+#include "hivox/map/hierarchy_edit.h"
+#include "map/map_access.h"
+#include "track/icp_solver.h"
+
+namespace hivox::cuda {
+
+namespace {
+
+void check(cudaError_t e, const char* what) {
+  check_status(e, what);
+}
+
+void synchronize(const char* stage) {
+  check(cudaDeviceSynchronize(), stage);
+}
+
+/// The counters of a device map, laid out as one array (see MutableMapView's pointers).
+constexpr int kExcessCount = 0;              // kMaxLevels: free excess entries per level
+constexpr int kBlockFreeCount = kMaxLevels;  // free pool blocks
+constexpr int kLevelCount = kMaxLevels + 1;  // kMaxLevels: blocks per level
+constexpr int kHighWater = 2 * kMaxLevels + 1;
+constexpr int kCounters = 2 * kMaxLevels + 2;
+
+struct ImageLevel {
+  PinholeCamera camera;
+  Buffer<float> depth;
+  Buffer<Vec3f> points, normals;
+};
+
+}  // namespace
+
+std::string device_name(int index) {
+  int count = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess || index < 0 || index >= count) {
+    cudaGetLastError();  // clear the error for later calls
+    return {};
+  }
+  cudaDeviceProp prop;
+  if (cudaGetDeviceProperties(&prop, index) != cudaSuccess) return {};
+  return prop.name;
+}
+
+struct GpuReconstruction::Impl {
+  ReconstructionParams params;
+  CameraRig rig;
+  MapParams map_params;
+  int64_t map_bytes = 0, total_bytes = 0;  ///< fixed allocations (the pools apart)
+
+  // The map.
+  std::array<Buffer<HashEntry>, kMaxLevels> entries;
+  std::array<Buffer<int32_t>, kMaxLevels> excess_free;
+  Buffer<int32_t> block_free;
+  Buffer<BlockMeta> meta;
+  Buffer<int32_t> counters;
+  GrowingBuffer tsdf, color;  ///< the voxel pool: committed up to the high-water mark
+  MutableMapView view;
+  int32_t high_water = 0;  ///< the device's, as of the last frame's end
+  int64_t blocks = 0;
+
+  // Allocation.
+  Buffer<int32_t> stamps;
+  int32_t frame = 0;
+  Buffer<unsigned long long> missing_keys;
+  Buffer<BlockKey> missing_list;
+  Buffer<BlockRef> visible;
+  Buffer<AllocCounters> alloc_counters;
+  PinnedBuffer<AllocCounters> host_counters;
+
+  // The frame.
+  PinnedBuffer<float> staged_depth;
+  PinnedBuffer<Rgb8> staged_color;
+  Buffer<float> depth;
+  Buffer<Rgb8> color_image;
+  Buffer<uint32_t> packed_color;
+
+  // The model raycast and its pyramid; the frame's pyramid.
+  Buffer<float> tile_z_min, tile_z_max;
+  Buffer<Rgb8> model_colors;
+  Buffer<int8_t> model_levels;
+  std::vector<ImageLevel> model, pyramid;
+  Pose model_T_wc = Pose::Identity();
+  bool has_model = false;
+  Buffer<float> icp_partials;
+  Buffer<double> icp_sums;
+  Buffer<uint32_t> icp_done;
+  PinnedBuffer<double> host_sums;
+
+  // Refinement.
+  Buffer<BlockRef> split_list;
+  Buffer<BlockKey> merge_list;
+  Buffer<unsigned long long> parent_keys;
+  Buffer<BlockKey> parent_list;
+  Buffer<int32_t> refine_counts;
+  Buffer<MergeJob> merge_jobs;
+  Buffer<SplitJob> split_jobs;
+  int64_t refine_calls = 0;
+
+  std::vector<StampedPose> trajectory;
+  std::vector<GpuFrameStats> frames;
+  Pose motion = Pose::Identity();
+  std::optional<Pose> resume_pose;  ///< the handed-over map's last pose: track from it
+
+  Impl(const ReconstructionParams& p, const CameraRig& r, const VoxelBlockMap& host)
+      : params(p), rig(r), map_params(host.params()) {
+    params.map = map_params;
+    params.map.validate();
+    params.fusion.validate();
+    params.raycast.validate();
+    params.track.validate();
+    rig.validate();
+    if (params.device.is_cpu())
+      fail(ErrorCode::InvalidArgument, "the CUDA loop needs a CUDA device, got {}",
+           params.device.to_string());
+    const std::string name = device_name(params.device.index);
+    if (name.empty())
+      fail(ErrorCode::Unsupported, "device {}: no such CUDA device here (no driver or no GPU)",
+           params.device.to_string());
+    check(cudaSetDevice(params.device.index), "selecting the device");
+    upload_map(host);
+    allocate_frame_buffers();
+  }
+
+  void upload_map(const VoxelBlockMap& host) {
+    const MutableMapView h = MapAccess::storage(host);
+    const MapParams& mp = map_params;
+    view = h;  // geometry; every pointer is replaced below
+    const auto capacity = static_cast<std::size_t>(mp.max_blocks);
+    for (int l = 0; l < mp.levels; ++l) {
+      const auto n = static_cast<std::size_t>(h.read.level[l].entry_count);
+      entries[l].reset(n, &map_bytes);
+      entries[l].upload(h.level[l].entries, n);
+      excess_free[l].reset(static_cast<std::size_t>(h.level[l].excess.capacity), &map_bytes);
+      excess_free[l].upload(h.level[l].excess.items, excess_free[l].size());
+      view.level[l].entries = entries[l].get();
+      view.read.level[l].entries = entries[l].get();
+    }
+    block_free.reset(capacity, &map_bytes);
+    block_free.upload(h.blocks.items, capacity);
+    meta.reset(capacity, &map_bytes);
+    meta.upload(h.meta, capacity);
+    const int32_t used = host.block_high_water();
+    tsdf.reserve(capacity * kBlockVoxels * sizeof(TsdfVoxel), params.device.index);
+    if (h.color != nullptr)
+      color.reserve(capacity * kBlockVoxels * sizeof(ColorVoxel), params.device.index);
+    commit_pool(used);
+    view.tsdf = static_cast<TsdfVoxel*>(tsdf.get());
+    view.color = h.color != nullptr ? static_cast<ColorVoxel*>(color.get()) : nullptr;
+    const auto voxels = static_cast<std::size_t>(used) * kBlockVoxels;
+    check(cudaMemcpy(view.tsdf, h.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyHostToDevice),
+          "uploading the map's voxels");
+    if (view.color != nullptr)
+      check(cudaMemcpy(view.color, h.color, voxels * sizeof(ColorVoxel), cudaMemcpyHostToDevice),
+            "uploading the map's colours");
+    counters.reset(kCounters, &map_bytes);
+    int32_t c[kCounters] = {};
+    for (int l = 0; l < mp.levels; ++l) c[kExcessCount + l] = *h.level[l].excess.count;
+    c[kBlockFreeCount] = *h.blocks.count;
+    for (int l = 0; l < kMaxLevels; ++l) c[kLevelCount + l] = h.level_block_count[l];
+    c[kHighWater] = *h.block_high_water;
+    counters.upload(c, kCounters);
+    for (int l = 0; l < mp.levels; ++l)
+      view.level[l].excess = {excess_free[l].get(), counters.get() + kExcessCount + l,
+                              h.level[l].excess.capacity};
+    view.blocks = {block_free.get(), counters.get() + kBlockFreeCount, h.blocks.capacity};
+    view.level_block_count = counters.get() + kLevelCount;
+    view.block_high_water = counters.get() + kHighWater;
+    view.meta = meta.get();
+    view.read.tsdf = view.tsdf;
+    view.read.color = view.color;
+    view.read.meta = view.meta;
+    high_water = host.block_high_water();
+    blocks = host.blocks_in_use();
+    total_bytes += map_bytes;
+  }
+
+  /// Commits the voxel pool's memory for pool blocks [0, blocks).
+  void commit_pool(int64_t blocks) {
+    const auto voxels = static_cast<std::size_t>(blocks) * kBlockVoxels;
+    tsdf.commit(voxels * sizeof(TsdfVoxel));
+    if (color.get() != nullptr) color.commit(voxels * sizeof(ColorVoxel));
+  }
+
+  int64_t pool_bytes() const {
+    return static_cast<int64_t>(tsdf.committed() +
+                                (color.get() != nullptr ? color.committed() : 0));
+  }
+
+  void allocate_frame_buffers() {
+    const PinholeCamera& cam = rig.depth_camera;
+    const auto pixels = static_cast<std::size_t>(cam.width) * cam.height;
+    const auto capacity = static_cast<std::size_t>(map_params.max_blocks);
+    stamps.reset(capacity, &total_bytes);
+    check(cudaMemset(stamps.get(), 0xFF, capacity * sizeof(int32_t)), "clearing stamps");
+    // The missing set: twice the slots of its list, which holds what the pool could take in
+    // one frame up to 2^20 blocks.
+    const std::size_t list = std::min<std::size_t>(capacity, std::size_t{1} << 20);
+    std::size_t slots = 1;
+    while (slots < 2 * list) slots <<= 1;
+    missing_keys.reset(slots, &total_bytes);
+    missing_list.reset(list, &total_bytes);
+    visible.reset(capacity, &total_bytes);
+    alloc_counters.reset(1, &total_bytes);
+    host_counters.reserve(1);
+    depth.reset(pixels, &total_bytes);
+    if (map_params.store_color && params.fusion.integrate_color) {
+      color_image.reset(static_cast<std::size_t>(rig.color_camera.width) * rig.color_camera.height,
+                        &total_bytes);
+      packed_color.reset(pixels, &total_bytes);
+    }
+    // Pyramids: the frame's from the depth camera, the model's from its subsampled camera.
+    const int levels = params.track.levels();
+    pyramid.resize(static_cast<std::size_t>(levels));
+    model.resize(static_cast<std::size_t>(levels));
+    PinholeCamera fc = cam, mc = cam.subsampled(params.track.model_subsample);
+    for (int l = 0; l < levels; ++l) {
+      for (auto [level, c] : {std::pair{&pyramid[l], fc}, std::pair{&model[l], mc}}) {
+        level->camera = c;
+        const auto n = static_cast<std::size_t>(c.width) * c.height;
+        level->depth.reset(n, &total_bytes);
+        level->points.reset(n, &total_bytes);
+        level->normals.reset(n, &total_bytes);
+      }
+      fc = fc.subsampled(2);
+      mc = mc.subsampled(2);
+    }
+    const PinholeCamera& m0 = model[0].camera;
+    const auto model_pixels = static_cast<std::size_t>(m0.width) * m0.height;
+    model_colors.reset(model_pixels, &total_bytes);
+    model_levels.reset(model_pixels, &total_bytes);
+    const kernels::RangeTiles tiles =
+        kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0);
+    tile_z_min.reset(static_cast<std::size_t>(tiles.count()), &total_bytes);
+    tile_z_max.reset(static_cast<std::size_t>(tiles.count()), &total_bytes);
+    icp_partials.reset(static_cast<std::size_t>(icp_partials_size(static_cast<int64_t>(pixels))),
+                       &total_bytes);
+    icp_sums.reset(32, &total_bytes);
+    icp_done.reset(1, &total_bytes);
+    check(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
+    host_sums.reserve(32);
+    if (map_params.levels > 1) {
+      // At most every visible block splits; their parents (each once) may merge.
+      split_list.reset(list, &total_bytes);
+      merge_list.reset(list, &total_bytes);
+      parent_keys.reset(slots, &total_bytes);
+      parent_list.reset(list, &total_bytes);
+      refine_counts.reset(3, &total_bytes);
+    }
+  }
+
+  /// Device buffer `b` holding at least `n` elements (grown by half again when short).
+  template <typename T>
+  void ensure(Buffer<T>& b, std::size_t n) {
+    if (b.size() < n) b.reset(n + n / 2, &total_bytes);
+  }
+
+  int32_t read_counter(int index) const {
+    int32_t v = 0;
+    counters.download(&v, 1, static_cast<std::size_t>(index));
+    return v;
+  }
+
+  /// The CPU Refiner's refinement of the blocks this frame touched (the first `visible` of the
+  /// visible list), on the device: decisions per block, then merges, then splits.
+  void refine(const Pose& T_wc, int32_t visible_count, GpuFrameStats& s) {
+    if (map_params.levels < 2 || (refine_calls++ % params.refine.every_n_frames) != 0) return;
+    Stopwatch stage;
+    const RefineParams& rp = params.refine;
+    RefineConstants k;
+    k.levels = kernels::refine_levels(rp);
+    k.det_cov = rp.criterion == RefineCriterion::DetCov;
+    k.mu_m = map_params.truncation_m;
+    k.min_weight = rp.min_weight;
+    k.min_samples = rp.min_samples;
+    k.min_updates = rp.min_updates;
+    k.unmeshable_cells = rp.split_unmeshable_cells;
+    k.unmeshable_min_weight = rp.unmeshable_min_weight;
+    k.noise = rp.noise.value_or(rig.depth_noise);
+    k.T_cw = to_rigid3f(T_wc.inverse());
+    check(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t)), "clearing counters");
+    check(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t)),
+          "clearing the parent set");
+    const auto capacity = static_cast<int32_t>(split_list.size());
+    const RefineLists lists{
+        split_list.get(), merge_list.get(), capacity,
+        MissingSet{parent_keys.get(), static_cast<uint32_t>(parent_keys.size() - 1),
+                   parent_list.get(), static_cast<int32_t>(parent_list.size())},
+        refine_counts.get()};
+    split_candidates(view.read, visible.get(), visible_count, alloc_counters.get(), k, lists);
+    int32_t counts[3];
+    refine_counts.download(counts, 3);
+    merge_candidates(view.read, std::min(counts[1], lists.parents.capacity), k, lists);
+    refine_counts.download(counts, 3);
+    std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
+    std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
+    split_list.download(splits.data(), splits.size());
+    merge_list.download(merges.data(), merges.size());
+
+    // Merges, in key order (the CPU's merge_blocks).
+    std::sort(merges.begin(), merges.end());
+    std::vector<MergeJob> mj(merges.size());
+    for (std::size_t i = 0; i < merges.size(); ++i) mj[i].parent = merges[i];
+    if (!mj.empty()) {
+      ensure(merge_jobs, mj.size());
+      merge_jobs.upload(mj.data(), mj.size());
+      merge_lookup(view.read, merge_jobs.get(), static_cast<int32_t>(mj.size()));
+      merge_jobs.download(mj.data(), mj.size());
+      std::erase_if(mj, [](const MergeJob& m) { return m.ok == 0; });
+      const int64_t room = read_counter(kBlockFreeCount);
+      if (static_cast<int64_t>(mj.size()) > room) {  // a merge needs a block before it frees 8
+        s.refine_waiting += static_cast<int64_t>(mj.size()) - room;
+        mj.resize(static_cast<std::size_t>(room));
+      }
+      merge_jobs.upload(mj.data(), mj.size());
+      commit_pool(static_cast<int64_t>(high_water) + static_cast<int64_t>(mj.size()));
+      merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
+      s.merges = static_cast<int64_t>(mj.size());
+    }
+
+    // Splits, in key order, once per block (the CPU's split_blocks).
+    std::sort(splits.begin(), splits.end(), [](const BlockRef& a, const BlockRef& b) {
+      return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+    });
+    splits.erase(std::unique(splits.begin(), splits.end(),
+                             [](const BlockRef& a, const BlockRef& b) { return a.ptr == b.ptr; }),
+                 splits.end());
+    std::vector<SplitJob> sj(splits.size());
+    for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
+    if (!sj.empty()) {
+      ensure(split_jobs, sj.size());
+      split_jobs.upload(sj.data(), sj.size());
+      split_check(view.read, split_jobs.get(), static_cast<int32_t>(sj.size()));
+      split_jobs.download(sj.data(), sj.size());
+      std::erase_if(sj, [](const SplitJob& j) { return j.ok == 0; });
+      // Room: 8 pool blocks per split and, at worst, 8 overflow entries at the child level.
+      int32_t c[kCounters];
+      counters.download(c, kCounters);
+      int64_t free_blocks = c[kBlockFreeCount];
+      std::array<int64_t, kMaxLevels> free_excess{};
+      for (int l = 0; l < map_params.levels; ++l) free_excess[l] = c[kExcessCount + l];
+      std::vector<SplitJob> go;
+      for (const SplitJob& j : sj) {
+        const int cl = j.parent.level - 1;
+        if (free_blocks >= kBlockChildren && free_excess[cl] >= kBlockChildren) {
+          free_blocks -= kBlockChildren;
+          free_excess[cl] -= kBlockChildren;
+          go.push_back(j);
+        } else {
+          ++s.refine_waiting;
+        }
+      }
+      if (s.refine_waiting > 0)
+        log::warn_once("cuda.split_waiting",
+                       "device map: voxel block pool or hash overflow list too small for all "
+                       "splits: splits wait and are counted in stats; raise --max-blocks");
+      // One parent level at a time, finest first (a split reads its level while it writes the
+      // next finer one).
+      std::stable_sort(go.begin(), go.end(), [](const SplitJob& a, const SplitJob& b) {
+        return a.parent.level < b.parent.level;
+      });
+      if (!go.empty()) {
+        split_jobs.upload(go.data(), go.size());
+        commit_pool(static_cast<int64_t>(read_counter(kHighWater)) +
+                    static_cast<int64_t>(go.size()) * kBlockChildren);
+        std::size_t begin = 0;
+        while (begin < go.size()) {
+          std::size_t end = begin;
+          while (end < go.size() && go[end].parent.level == go[begin].parent.level) ++end;
+          split_apply_level(view, split_jobs.get() + begin, static_cast<int32_t>(end - begin),
+                            rp.split_weight_scale);
+          begin = end;
+        }
+        split_finish(view, split_jobs.get(), static_cast<int32_t>(go.size()));
+      }
+      s.splits = static_cast<int64_t>(go.size());
+    }
+    blocks += kBlockChildren * s.splits - s.splits + s.merges - kBlockChildren * s.merges;
+    high_water = read_counter(kHighWater);
+    s.refine_ms = stage.lap_ms();
+  }
+
+  /// The frame's depth (and colour) on the device; returns the fusion's input views.
+  IntegrationFrame upload_frame(const RgbdFrame& f, const Pose& T_wc) {
+    const PinholeCamera& cam = rig.depth_camera;
+    if (f.depth_m.width() != cam.width || f.depth_m.height() != cam.height)
+      fail(ErrorCode::InvalidArgument, "frame {}: the depth image is {}x{} but the camera is {}x{}",
+           f.index, f.depth_m.width(), f.depth_m.height(), cam.width, cam.height);
+    const FusionInput in = fusion_input(rig, f, T_wc);
+    validate_input(in);
+    // Depth view and constants as the CPU builds them (no colour: registered colour is packed on
+    // the device, not the host); the image pointers are the device's.
+    FusionInput depth_only = in;
+    depth_only.color = nullptr;
+    std::vector<uint32_t> unused;
+    IntegrationFrame frame = integration_frame(depth_only, params.fusion, map_params, &unused);
+    const std::size_t pixels = f.depth_m.size();
+    float* staged = staged_depth.reserve(pixels);
+    std::memcpy(staged, f.depth_m.data(), pixels * sizeof(float));
+    check(cudaMemcpyAsync(depth.get(), staged, pixels * sizeof(float), cudaMemcpyHostToDevice),
+          "uploading the depth");
+    frame.depth.depth_m.data = depth.get();
+    if (color_image.size() > 0 && in.color != nullptr) {
+      const PinholeCamera& cc = rig.color_camera;
+      if (f.color.width() != cc.width || f.color.height() != cc.height)
+        fail(ErrorCode::InvalidArgument,
+             "frame {}: the colour image is {}x{} but the colour camera is {}x{}", f.index,
+             f.color.width(), f.color.height(), cc.width, cc.height);
+      const std::size_t n = f.color.size();
+      Rgb8* staged_c = staged_color.reserve(n);
+      std::memcpy(staged_c, f.color.data(), n * sizeof(Rgb8));
+      check(cudaMemcpyAsync(color_image.get(), staged_c, n * sizeof(Rgb8), cudaMemcpyHostToDevice),
+            "uploading the colour");
+      kernels::ColorFrameView& color = frame.color;
+      color.image = {color_image.get(), cc.width, cc.height};
+      color.camera = cc;
+      color.T_color_depth = to_rigid3f(rig.T_color_depth);
+      color.registered = rig.color_registered();
+      if (color.registered) {
+        pack_color(color_image.get(), packed_color.get(), static_cast<int64_t>(n));
+        color.packed = packed_color.get();
+      }
+    }
+    return frame;
+  }
+
+  void fuse(const IntegrationFrame& f, const Pose& T_wc, GpuFrameStats& s) {
+    Stopwatch stage;
+    if (++frame == INT32_MAX) {
+      check(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)), "clearing stamps");
+      frame = 0;
+    }
+    check(cudaMemsetAsync(alloc_counters.get(), 0, sizeof(AllocCounters)), "clearing counters");
+    check(cudaMemsetAsync(missing_keys.get(), 0xFF, missing_keys.size() * sizeof(uint64_t)),
+          "clearing the missing set");
+    const int64_t free_blocks = map_params.max_blocks - blocks;
+    MissingSet missing{missing_keys.get(), static_cast<uint32_t>(missing_keys.size() - 1),
+                       missing_list.get(),
+                       static_cast<int32_t>(std::min<int64_t>(
+                           free_blocks, static_cast<int64_t>(missing_list.size())))};
+    const Rigid3f T = to_rigid3f(T_wc);
+    find_blocks(view.read, f.depth, T, map_params.truncation_m, stamps.get(), frame, missing,
+                visible.get(), alloc_counters.get());
+    AllocCounters* c = host_counters.reserve(1);
+    check(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+          "allocation (reading the counters)");
+    const int32_t found = c->visible;
+    const int32_t to_insert = std::min(c->missing, missing.capacity);
+    const int64_t beyond = c->missing - to_insert;
+    // Pops take the lowest free pool blocks: the high-water mark grows by at most the insertions.
+    commit_pool(static_cast<int64_t>(high_water) + to_insert);
+    insert_blocks(view, missing, to_insert, visible.get(), stamps.get(), frame,
+                  alloc_counters.get());
+    synchronize("allocation");
+    s.allocate_ms = stage.lap_ms();
+    cuda::integrate(view, visible.get(), found + to_insert, alloc_counters.get(), f.depth, f.color,
+                    f.constants);
+    synchronize("integration");
+    s.integrate_ms = stage.lap_ms();
+    check(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+          "reading the counters");
+    s.valid_pixels = c->valid_pixels;
+    s.visible_blocks = c->visible;
+    s.new_blocks = c->inserted;
+    s.dropped_blocks = c->hash_full + c->pool_full + beyond;
+    blocks += c->inserted;
+    const int32_t visible_count = c->visible;
+    int32_t hw = 0;
+    check(cudaMemcpy(&hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
+          "reading the high-water mark");
+    high_water = hw;
+    refine(T_wc, visible_count, s);
+    if (s.dropped_blocks > 0)
+      log::warn_once("cuda.dropped",
+                     "device map: {} blocks dropped this frame (pool or hash table full); raise "
+                     "--max-blocks, --hash-buckets or --hash-excess",
+                     s.dropped_blocks);
+  }
+
+  /// Raycasts the model at `T_wc`; `frame_hint`: the frame on the device was taken there, its
+  /// depth tells the rays where to start.
+  void raycast_model(const Pose& T_wc, bool frame_hint, GpuFrameStats& s) {
+    Stopwatch stage;
+    const ImageLevel& m0 = model[0];
+    kernels::RangeTiles tiles =
+        kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0.camera);
+    tiles.z_min = tile_z_min.get();
+    tiles.z_max = tile_z_max.get();
+    const kernels::RayMarchConstants k =
+        kernels::march_constants(params.raycast, view.read, kernels::CoarseOccupancy{});
+    const kernels::RaycastOutputView out{m0.depth.get(), m0.points.get(), m0.normals.get(),
+                                         model_colors.get(), model_levels.get()};
+    check(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),
+          "clearing counters");
+    const DepthRange& range = params.fusion.depth_range;
+    StartHint hint;
+    if (frame_hint) hint = {depth.get(), rig.depth_camera.width, params.track.model_subsample};
+    cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
+                  tiles, k, hint, out, alloc_counters.get());
+    int32_t hits = 0;
+    check(cudaMemcpy(&hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t),
+                     cudaMemcpyDeviceToHost),
+          "raycast");
+    s.raycast_hits = hits;
+    model_T_wc = T_wc;
+    has_model = true;
+    s.raycast_ms = stage.lap_ms();
+  }
+
+  TrackResult track(const Pose& T_init) {
+    TrackResult result;
+    Stopwatch watch;
+    const TrackParams& tp = params.track;
+    const DepthRange& range = params.fusion.depth_range;
+    const float lo = std::max(range.min_m, std::numeric_limits<float>::min());
+    const float inv_px = 1.0f / (2.0f * tp.bilateral_sigma_px * tp.bilateral_sigma_px);
+    const float inv_d = 1.0f / (2.0f * tp.bilateral_sigma_depth_m * tp.bilateral_sigma_depth_m);
+    const PinholeCamera& cam = pyramid[0].camera;
+    filter_depth(depth.get(), pyramid[0].depth.get(), cam.width, cam.height, tp.bilateral_radius_px,
+                 inv_px, inv_d, lo, range.max_m);
+    int32_t* valid = &alloc_counters.get()->icp_valid_pixels;
+    check(cudaMemsetAsync(valid, 0, sizeof(int32_t)), "clearing counters");
+    for (std::size_t l = 0; l < pyramid.size(); ++l) {
+      ImageLevel& P = pyramid[l];
+      if (l > 0)
+        downsample_depth(pyramid[l - 1].depth.get(), P.depth.get(), P.camera.width, P.camera.height,
+                         tp.max_depth_jump_ratio);
+      points_and_normals(P.depth.get(), P.camera, tp.max_depth_jump_ratio, P.points.get(),
+                         P.normals.get(), l == 0 ? valid : nullptr);
+      if (l > 0) {
+        const ImageLevel& in = model[l - 1];
+        ImageLevel& out = model[l];
+        downsample_model(in.points.get(), in.normals.get(), in.depth.get(), in.camera.width,
+                         out.points.get(), out.normals.get(), out.depth.get(), out.camera.width,
+                         out.camera.height, tp.max_depth_jump_ratio);
+      }
+    }
+    int32_t valid_pixels = 0;
+    check(cudaMemcpy(&valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
+          "tracking (preprocessing)");
+    result.preprocess_ms = watch.lap_ms();
+    const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
+    double* sums = host_sums.reserve(32);
+    const icp::Reduce reduce = [&](int level, const Pose& T) {
+      const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
+      const ImageLevel& M = model[static_cast<std::size_t>(level)];
+      const kernels::IcpPass pass(to_rigid3f(T), T_model_cw, M.camera,
+                                  tp.max_distance_m * static_cast<float>(1 << level), tp);
+      icp_reduce(pass, F.points.get(), F.normals.get(),
+                 static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
+                 M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(), sums);
+      icp::System sys;
+      sys.r2 = sums[27];
+      sys.distance = sums[28];
+      sys.inliers = static_cast<int64_t>(sums[29]);
+      int k = 0;
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) sys.A(i, j) = sums[k++];
+        sys.b(i) = sums[21 + i];
+      }
+      sys.symmetrize();
+      return sys;
+    };
+    icp::align_and_judge(tp, reduce, valid_pixels, T_init, &result);
+    result.icp_ms = watch.lap_ms();
+    return result;
+  }
+
+  const GpuFrameStats& record(const RgbdFrame& f, const Pose& T_wc, const Stopwatch& total,
+                              GpuFrameStats& s) {
+    s.index = static_cast<int64_t>(f.index);
+    s.total_ms = total.elapsed_ms();
+    trajectory.push_back({f.timestamp_s, T_wc});
+    frames.push_back(s);
+    return frames.back();
+  }
+};
+
+GpuReconstruction::GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig)
+    : GpuReconstruction(params, rig, VoxelBlockMap(params.map)) {}
+
+GpuReconstruction::GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                                     const VoxelBlockMap& map, std::optional<Pose> last_pose)
+    : impl_(std::make_unique<Impl>(params, rig, map)) {
+  impl_->resume_pose = last_pose;
+}
+
+GpuReconstruction::~GpuReconstruction() = default;
+
+const GpuFrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc) {
+  Impl& m = *impl_;
+  GpuFrameStats s;
+  s.track.quality = TrackingQuality::Good;  // a given pose
+  s.track.T_wc = T_wc;
+  Stopwatch total;
+  const IntegrationFrame f = m.upload_frame(frame, T_wc);
+  s.upload_ms = total.elapsed_ms();
+  m.fuse(f, T_wc, s);
+  m.raycast_model(T_wc, true, s);
+  return m.record(frame, T_wc, total, s);
+}
+
+const GpuFrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
+                                                            const Pose& T_wc_first) {
+  Impl& m = *impl_;
+  if (m.trajectory.empty() && !m.resume_pose) {
+    m.motion = Pose::Identity();
+    return integrate(frame, T_wc_first);
+  }
+  GpuFrameStats s;
+  Stopwatch total;
+  const Pose T_prev = m.trajectory.empty() ? *m.resume_pose : m.trajectory.back().T_wc;
+  const IntegrationFrame f0 = m.upload_frame(frame, T_prev);
+  s.upload_ms = total.elapsed_ms();
+  Stopwatch stage;
+  if (!m.has_model || !m.model_T_wc.isApprox(T_prev)) m.raycast_model(T_prev, false, s);
+  const Pose T_init = m.params.track.constant_velocity ? Pose(T_prev * m.motion) : T_prev;
+  s.track = m.track(T_init);
+  s.track_ms = stage.lap_ms();
+  if (s.track.quality == TrackingQuality::Lost) {
+    s.fused = false;
+    m.motion = Pose::Identity();
+    return m.record(frame, T_prev, total, s);
+  }
+  const Pose T_wc = s.track.T_wc;
+  m.motion = T_prev.inverse() * T_wc;
+  // The integration constants at the tracked pose (the images are already on the device).
+  IntegrationFrame f = f0;
+  f.constants.T_cw = to_rigid3f(T_wc.inverse());
+  m.fuse(f, T_wc, s);
+  m.raycast_model(T_wc, true, s);
+  return m.record(frame, T_wc, total, s);
+}
+
+const std::vector<StampedPose>& GpuReconstruction::trajectory() const {
+  return impl_->trajectory;
+}
+const std::vector<GpuFrameStats>& GpuReconstruction::frames() const {
+  return impl_->frames;
+}
+const MapParams& GpuReconstruction::map_params() const {
+  return impl_->map_params;
+}
+int64_t GpuReconstruction::blocks_in_use() const {
+  return impl_->blocks;
+}
+int64_t GpuReconstruction::map_memory_bytes() const {
+  return impl_->map_bytes + impl_->pool_bytes();
+}
+int64_t GpuReconstruction::device_memory_bytes() const {
+  return impl_->total_bytes + impl_->pool_bytes();
+}
+
+std::unique_ptr<VoxelBlockMap> GpuReconstruction::download_map() const {
+  const Impl& m = *impl_;
+  auto host = std::make_unique<VoxelBlockMap>(m.map_params);
+  const MutableMapView h = MapAccess::storage(*host);
+  int32_t c[kCounters];
+  m.counters.download(c, kCounters);
+  for (int l = 0; l < m.map_params.levels; ++l) {
+    m.entries[l].download(h.level[l].entries, m.entries[l].size());
+    m.excess_free[l].download(h.level[l].excess.items, m.excess_free[l].size());
+    *h.level[l].excess.count = c[kExcessCount + l];
+  }
+  m.block_free.download(h.blocks.items, m.block_free.size());
+  *h.blocks.count = c[kBlockFreeCount];
+  for (int l = 0; l < kMaxLevels; ++l) h.level_block_count[l] = c[kLevelCount + l];
+  *h.block_high_water = c[kHighWater];
+  const auto used = static_cast<std::size_t>(c[kHighWater]);
+  m.meta.download(h.meta, m.meta.size());
+  check(cudaMemcpy(h.tsdf, m.view.tsdf, used * kBlockVoxels * sizeof(TsdfVoxel),
+                   cudaMemcpyDeviceToHost),
+        "downloading the voxels");
+  if (h.color != nullptr && m.view.color != nullptr)
+    check(cudaMemcpy(h.color, m.view.color, used * kBlockVoxels * sizeof(ColorVoxel),
+                     cudaMemcpyDeviceToHost),
+          "downloading the colours");
+  return host;
+}
+
+RaycastResult GpuReconstruction::download_model() const {
+  const Impl& m = *impl_;
+  RaycastResult r;
+  const ImageLevel& m0 = m.model[0];
+  r.camera = m0.camera;
+  r.T_wc = m.model_T_wc;
+  const int w = m0.camera.width, h = m0.camera.height;
+  const auto n = static_cast<std::size_t>(w) * h;
+  r.depth_m.resize(w, h);
+  r.points_w.resize(w, h);
+  r.normals_w.resize(w, h);
+  r.colors.resize(w, h);
+  r.levels.resize(w, h);
+  m0.depth.download(r.depth_m.data(), n);
+  m0.points.download(r.points_w.data(), n);
+  m0.normals.download(r.normals_w.data(), n);
+  m.model_colors.download(r.colors.data(), n);
+  m.model_levels.download(r.levels.data(), n);
+  r.has_color = m.view.color != nullptr;
+  return r;
+}
+
+}  // namespace hivox::cuda

@@ -1,0 +1,481 @@
+#include "cuda/loop_kernels.h"
+
+#include <cuda_runtime.h>
+
+#include <cfloat>
+#include <climits>
+#include <string>
+
+#include "core/parallel.h"
+#include "cuda/device_helpers.cuh"
+#include "hivox/core/device.h"
+#include "map/map_kernels.h"
+
+namespace hivox::cuda {
+
+void check_last(const char* what) {
+  const cudaError_t e = cudaGetLastError();
+  if (e != cudaSuccess)
+    cuda_launch_failed(Device::cuda(), (std::string(what) + ": " + cudaGetErrorString(e)).c_str());
+}
+
+namespace {
+
+constexpr int kThreads = 256;
+
+unsigned grid_for(int64_t n, int threads = kThreads) {
+  const int64_t blocks = (n + threads - 1) / threads;
+  return static_cast<unsigned>(blocks < 1 ? 1 : blocks);
+}
+
+struct FindVisitor {
+  const MapView& map;
+  int32_t* stamps;
+  int32_t frame;
+  const MissingSet& missing;
+  BlockRef* visible;
+  AllocCounters* counters;
+  // The last block looked up: neighbouring steps of a band cross the same block.
+  Vec3i last_pos{INT_MIN, INT_MIN, INT_MIN};
+  int last_level = -1;
+  int32_t last_ptr = kPtrEmpty;
+
+  __device__ void add_missing(int level, const Vec3i& pos) {
+    add_unique(missing, level, pos, &counters->missing);
+  }
+
+  __device__ int32_t block(int level, const Vec3i& pos) {
+    if (level == last_level && pos == last_pos) return last_ptr;
+    const LevelView& lv = map.level[level];
+    const int32_t entry = find_entry(lv, pos);
+    const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
+    if (ptr == kPtrEmpty) add_missing(level, pos);
+    const bool first_visit =
+        ptr >= 0 && stamps[ptr] != frame && atomicExch(&stamps[ptr], frame) != frame;
+    const int32_t slot = append_index(first_visit, &counters->visible);
+    if (first_visit) visible[slot] = BlockRef{pos, level, entry, ptr};
+    last_level = level;
+    last_pos = pos;
+    last_ptr = ptr;
+    return ptr;
+  }
+};
+
+__global__ void find_blocks_kernel(MapView map, kernels::DepthFrameView depth, Rigid3f T_wc,
+                                   float mu_m, int32_t* stamps, int32_t frame, MissingSet missing,
+                                   BlockRef* visible, AllocCounters* counters) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < depth.depth_m.width && y < depth.depth_m.height;
+  Vec3f a, b;
+  const bool valid = in_image && kernels::band_segment(depth, T_wc, mu_m, x, y, &a, &b);
+  count_warp(valid, &counters->valid_pixels);
+  if (!valid) return;
+  FindVisitor visitor{map, stamps, frame, missing, visible, counters};
+  kernels::walk_segment(map, a, b, visitor);
+}
+
+/// One CUDA block per missing key: its first thread inserts the block (kernels::allocate_block),
+/// then all its threads clear the block's voxels together (coalesced).
+__global__ void insert_blocks_kernel(MutableMapView map, MissingSet missing, BlockRef* visible,
+                                     int32_t* stamps, int32_t frame, AllocCounters* counters) {
+  __shared__ int32_t block;
+  if (threadIdx.x == 0) {
+    const BlockKey k = missing.list[blockIdx.x];
+    int32_t entry = kNoEntry;
+    block = kPtrEmpty;
+    switch (kernels::allocate_block(map, k.level, k.pos, &entry, &block, false)) {
+      case kernels::AllocResult::Allocated:
+        stamps[block] = frame;
+        visible[atomicAdd(&counters->visible, 1)] = BlockRef{k.pos, k.level, entry, block};
+        atomicAdd(&counters->inserted, 1);
+        break;
+      case kernels::AllocResult::HashFull:
+        atomicAdd(&counters->hash_full, 1);
+        break;
+      case kernels::AllocResult::PoolFull:
+        atomicAdd(&counters->pool_full, 1);
+        break;
+    }
+  }
+  __syncthreads();
+  if (block < 0) return;
+  TsdfVoxel* v = map.tsdf + static_cast<int64_t>(block) * kBlockVoxels;
+  for (int i = threadIdx.x; i < kBlockVoxels; i += blockDim.x) v[i] = TsdfVoxel{};
+  if (map.color != nullptr) {
+    ColorVoxel* c = map.color + static_cast<int64_t>(block) * kBlockVoxels;
+    for (int i = threadIdx.x; i < kBlockVoxels; i += blockDim.x) c[i] = ColorVoxel{};
+  }
+}
+
+/// One CUDA block per voxel block, one thread per voxel: the per-voxel update of
+/// kernels::integrate_block_slices, from the same functions.
+template <bool kBilinear>
+__global__ void __launch_bounds__(kBlockVoxels)
+    integrate_kernel(MutableMapView map, const BlockRef* blocks, const AllocCounters* counters,
+                     kernels::DepthFrameView depth, kernels::ColorFrameView color,
+                     kernels::IntegrationConstants k) {
+  if (static_cast<int32_t>(blockIdx.x) >= counters->visible) return;
+  __shared__ unsigned observed_octants, surface_octants;
+  if (threadIdx.x == 0) observed_octants = surface_octants = 0;
+  __syncthreads();
+  const BlockRef b = blocks[blockIdx.x];
+  const int i = threadIdx.x;  // voxel_index(x, y, z) = x + 8 y + 64 z
+  const int x = i & 7, y = (i >> 3) & 7, z = i >> 6;
+  const float s = map.read.level[b.level].voxel_size_m;
+  const Vec3f origin_c = k.T_cw * (to_float(b.pos) * (static_cast<float>(kBlockSide) * s));
+  const Vec3f step_x = k.T_cw.R.col(0) * s, step_y = k.T_cw.R.col(1) * s,
+              step_z = k.T_cw.R.col(2) * s;
+  const float xf = static_cast<float>(x), yf = static_cast<float>(y), zf = static_cast<float>(z);
+  const Vec3f p{origin_c.x + step_y.x * yf + step_z.x * zf + step_x.x * xf,
+                origin_c.y + step_y.y * yf + step_z.y * zf + step_x.y * xf,
+                origin_c.z + step_y.z * yf + step_z.z * zf + step_x.z * xf};
+  int px;
+  bool inside;
+  float d;
+  if constexpr (kBilinear) {
+    const Vec2f uv = depth.camera.project(p);
+    inside = kernels::nearest_pixel(depth.camera, uv, p.z, &px);
+    d = kernels::depth_bilinear(depth.camera, depth.depth_m.data, uv, depth.min_depth_m, k.mu_m);
+  } else {
+    inside = kernels::project_to_pixel(depth.camera, p, &px);
+    d = depth.depth_m.data[px];
+  }
+  const bool observed =
+      inside && d >= depth.min_depth_m && d <= depth.max_depth_m && d - p.z >= -k.mu_m;
+  const float eta = d - p.z;
+  uint32_t* word =
+      reinterpret_cast<uint32_t*>(map.tsdf + static_cast<int64_t>(b.ptr) * kBlockVoxels) + i;
+  uint32_t result = *word;
+  if (observed) {
+    result = kernels::fuse_tsdf_word(result, eta, k.inv_mu, k.max_weight);
+    *word = result;
+  }
+  if ((result >> 16) != 0u) {
+    const unsigned octants = voxel_octants(x, y, z);
+    atomicOr(&observed_octants, octants);
+    if (tsdf_of_word(result) <= 0) atomicOr(&surface_octants, octants);
+  }
+  if (map.color != nullptr && !color.image.empty() && observed && eta < k.mu_m) {
+    ColorVoxel* c = map.color + static_cast<int64_t>(b.ptr) * kBlockVoxels + i;
+    if (color.packed != nullptr) {
+      uint32_t* cw = reinterpret_cast<uint32_t*>(c);
+      *cw = kernels::fuse_color_word(*cw, color.packed[px], k.max_weight);
+    } else {
+      int cp = px;
+      if (color.registered || kernels::project_to_pixel(color.camera, color.T_color_depth * p, &cp))
+        kernels::fuse_color(*c, color.image.data[cp], k.max_weight);
+    }
+  }
+  __syncthreads();
+  if (threadIdx.x == 0) {
+    BlockMeta& meta = map.meta[b.ptr];
+    meta.surface.observed = static_cast<uint8_t>(observed_octants);
+    meta.surface.surface = static_cast<uint8_t>(surface_octants);
+    if (meta.updates < 65535) ++meta.updates;
+  }
+}
+
+__global__ void pack_color_kernel(const Rgb8* rgb, uint32_t* packed, int64_t n) {
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i < n) packed[i] = kernels::pack_rgb(rgb[i]);
+}
+
+__global__ void fill_tiles(kernels::RangeTiles tiles) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= tiles.count()) return;
+  tiles.z_min[i] = FLT_MAX;
+  tiles.z_max[i] = 0.0f;
+}
+
+__global__ void project_blocks_kernel(MapView map, int32_t high_water, Rigid3f T_cw,
+                                      PinholeCamera cam, float min_depth_m, float max_depth_m,
+                                      kernels::RangeTiles tiles) {
+  const int32_t ptr = blockIdx.x * blockDim.x + threadIdx.x;
+  if (ptr >= high_water) return;
+  const BlockMeta m = map.meta[ptr];
+  if (m.level < 0) return;
+  kernels::project_block_to_tiles(T_cw, cam, m.pos, map.level[m.level].block_size_m, min_depth_m,
+                                  max_depth_m, tiles);
+}
+
+__global__ void cast_rays_kernel(MapView map, PinholeCamera cam, Rigid3f T_wc,
+                                 kernels::RangeTiles tiles, kernels::RayMarchConstants k,
+                                 StartHint hint, kernels::RaycastOutputView out,
+                                 AllocCounters* counters) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < cam.width && y < cam.height;
+  bool found = false;
+  if (in_image) {
+    const int64_t i = static_cast<int64_t>(y) * cam.width + x;
+    const int t = tiles.tile_of(x, y);
+    const float z_min = tiles.z_min[t], z_max = tiles.z_max[t];
+    const int n = hint.subsample;
+    const float start =
+        hint.depth_m != nullptr
+            ? hint.depth_m[static_cast<int64_t>(n * y + n / 2) * hint.width + n * x + n / 2]
+            : 0.0f;
+    const kernels::RayHints hints = kernels::ray_hints(start, 0.0f, k, z_min, z_max);
+    const Vec3f dir = T_wc.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+    kernels::BlockLookupCache cache;
+    kernels::RayHit hit;
+    found = kernels::cast_ray(map, cache, T_wc.t, dir, hints, z_min, z_max, k, &hit) !=
+            kernels::RayOutcome::Miss;
+    kernels::write_ray(out, map, i, found, hit);
+  }
+  count_warp(found, &counters->raycast_hits);
+}
+
+__global__ void filter_depth_kernel(ImageView<const float> in, float* out, int radius, float inv_px,
+                                    float inv_d, float min_m, float max_m) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= in.width || y >= in.height) return;
+  const int64_t i = static_cast<int64_t>(y) * in.width + x;
+  if (radius > 0) {
+    out[i] = kernels::bilateral_depth(in, x, y, radius, inv_px, inv_d, min_m, max_m);
+  } else {
+    const float d = in(x, y);
+    out[i] = d >= min_m && d <= max_m ? d : 0.0f;
+  }
+}
+
+__global__ void downsample_depth_kernel(const float* in, float* out, int w, int h,
+                                        float max_jump_ratio) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= w || y >= h) return;
+  const int in_w = 2 * w;
+  float d[4];
+  for (int k = 0; k < 4; ++k) d[k] = in[(2 * y + (k >> 1)) * in_w + 2 * x + (k & 1)];
+  const int mask = kernels::same_surface_2x2(d, max_jump_ratio);
+  float sum = 0.0f;
+  for (int k = 0; k < 4; ++k)
+    if (mask & (1 << k)) sum += d[k];
+  out[y * w + x] = mask != 0 ? sum / static_cast<float>(__popc(mask)) : 0.0f;
+}
+
+__global__ void unproject_kernel(const float* depth, PinholeCamera cam, Vec3f* points) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= cam.width || y >= cam.height) return;
+  const int64_t i = static_cast<int64_t>(y) * cam.width + x;
+  const float d = depth[i];
+  points[i] =
+      d > 0.0f ? cam.unproject(static_cast<float>(x), static_cast<float>(y), d) : Vec3f{0, 0, 0};
+}
+
+__global__ void normals_kernel(ImageView<const Vec3f> points, float max_jump_ratio, Vec3f* normals,
+                               int32_t* valid) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < points.width && y < points.height;
+  bool has_normal = false;
+  if (in_image) {
+    const Vec3f n = kernels::normal_from_points(points, x, y, max_jump_ratio);
+    normals[static_cast<int64_t>(y) * points.width + x] = n;
+    has_normal = !kernels::is_zero(n);
+  }
+  if (valid != nullptr) count_warp(has_normal, valid);
+}
+
+__global__ void downsample_model_kernel(const Vec3f* points, const Vec3f* normals,
+                                        const float* depth, int in_w, Vec3f* out_points,
+                                        Vec3f* out_normals, float* out_depth, int w, int h,
+                                        float max_jump_ratio) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= w || y >= h) return;
+  float dk[4];
+  int64_t src[4];
+  for (int k = 0; k < 4; ++k) {
+    src[k] = static_cast<int64_t>(2 * y + (k >> 1)) * in_w + 2 * x + (k & 1);
+    dk[k] = kernels::is_zero(normals[src[k]]) ? 0.0f : depth[src[k]];
+  }
+  const int mask = kernels::same_surface_2x2(dk, max_jump_ratio);
+  Vec3f p{0, 0, 0}, n{0, 0, 0};
+  float d = 0.0f;
+  for (int k = 0; k < 4; ++k) {
+    if (!(mask & (1 << k))) continue;
+    p += points[src[k]];
+    n += normals[src[k]];
+    d += dk[k];
+  }
+  const int count = __popc(mask);
+  const int64_t o = static_cast<int64_t>(y) * w + x;
+  out_points[o] = count > 0 ? p / static_cast<float>(count) : Vec3f{0, 0, 0};
+  out_normals[o] = count > 0 ? normalized(n) : Vec3f{0, 0, 0};
+  out_depth[o] = count > 0 ? d / static_cast<float>(count) : 0.0f;
+}
+
+constexpr int kSums = 30;  // A upper (21), b (6), r2, distance, inliers
+
+__global__ void __launch_bounds__(kThreads)
+    icp_kernel(kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c, int64_t pixels,
+               const Vec3f* model_points, const Vec3f* model_normals, float* partials,
+               unsigned* done, double* sums) {
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  float v[kSums];
+  for (int k = 0; k < kSums; ++k) v[k] = 0.0f;
+  if (i < pixels) {
+    const Vec3f p_c = points_c[i], n_c = normals_c[i];
+    const Vec3f p_w = c.T_wc * p_c;
+    int32_t m = 0;
+    const bool inside = kernels::icp_model_pixel(c, p_w, &m);
+    const kernels::IcpTerm t =
+        kernels::icp_pair_term(c, p_c, n_c, p_w, inside, model_points[m], model_normals[m]);
+    if (t.paired) {
+      const float sw = t.sqrt_weight;
+      const float J[6] = {sw * t.J.t.x, sw * t.J.t.y, sw * t.J.t.z,
+                          sw * t.J.w.x, sw * t.J.w.y, sw * t.J.w.z};
+      const float r = sw * t.r;
+      int k = 0;
+      for (int a = 0; a < 6; ++a)
+        for (int b = a; b < 6; ++b) v[k++] = J[a] * J[b];
+      for (int a = 0; a < 6; ++a) v[21 + a] = J[a] * r;
+      v[27] = t.r * t.r;
+      v[28] = t.distance_m;
+      v[29] = 1.0f;
+    }
+  }
+  // The block's sums: within each warp by shuffles, then across the warps.
+  __shared__ float warp_sums[kThreads / 32][kSums];
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  for (int k = 0; k < kSums; ++k) {
+    float x = v[k];
+    for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(0xFFFFFFFFu, x, o);
+    if (lane == 0) warp_sums[warp][k] = x;
+  }
+  __syncthreads();
+  if (threadIdx.x < kSums) {
+    float x = 0.0f;
+    for (int w = 0; w < kThreads / 32; ++w) x += warp_sums[w][threadIdx.x];
+    partials[static_cast<int64_t>(blockIdx.x) * kSums + threadIdx.x] = x;
+    __threadfence();
+  }
+  // The last block to finish sums the blocks' sums in doubles, one warp per sum at a time: lane
+  // l takes blocks l, l + 32, ..., then the lanes are summed by a fixed tree (the same system
+  // whatever the timing).
+  __shared__ bool last;
+  __syncthreads();
+  if (threadIdx.x == 0) last = atomicAdd(done, 1u) == gridDim.x - 1;
+  __syncthreads();
+  if (!last) return;
+  for (int k = warp; k < kSums; k += kThreads / 32) {
+    double s = 0.0;
+    for (unsigned b = lane; b < gridDim.x; b += 32)
+      s += __ldcg(&partials[static_cast<int64_t>(b) * kSums + k]);
+    for (int o = 16; o > 0; o >>= 1) s += __shfl_down_sync(0xFFFFFFFFu, s, o);
+    if (lane == 0) sums[k] = s;
+  }
+  if (threadIdx.x == 0) *done = 0;  // ready for the next pass
+}
+
+dim3 image_grid(int w, int h, dim3 threads) {
+  return dim3((w + threads.x - 1) / threads.x, (h + threads.y - 1) / threads.y);
+}
+
+}  // namespace
+
+void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
+                 float mu_m, int32_t* stamps, int32_t frame, const MissingSet& missing,
+                 BlockRef* visible, AllocCounters* counters) {
+  const dim3 threads(16, 8);
+  find_blocks_kernel<<<image_grid(depth.depth_m.width, depth.depth_m.height, threads), threads>>>(
+      map, depth, T_wc, mu_m, stamps, frame, missing, visible, counters);
+  check_last("allocation (finding blocks)");
+}
+
+void insert_blocks(const MutableMapView& map, const MissingSet& missing, int32_t count,
+                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters) {
+  if (count <= 0) return;
+  insert_blocks_kernel<<<static_cast<unsigned>(count), 128>>>(map, missing, visible, stamps, frame,
+                                                              counters);
+  check_last("allocation (inserting blocks)");
+}
+
+void integrate(const MutableMapView& map, const BlockRef* blocks, int32_t max_blocks,
+               const AllocCounters* counters, const kernels::DepthFrameView& depth,
+               const kernels::ColorFrameView& color, const kernels::IntegrationConstants& k) {
+  if (max_blocks <= 0) return;
+  if (k.bilinear_depth)
+    integrate_kernel<true><<<max_blocks, kBlockVoxels>>>(map, blocks, counters, depth, color, k);
+  else
+    integrate_kernel<false><<<max_blocks, kBlockVoxels>>>(map, blocks, counters, depth, color, k);
+  check_last("integration");
+}
+
+void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n) {
+  if (n <= 0) return;
+  pack_color_kernel<<<grid_for(n), kThreads>>>(rgb, packed, n);
+  check_last("packing colour");
+}
+
+void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
+             const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
+             const kernels::RayMarchConstants& k, const StartHint& hint,
+             const kernels::RaycastOutputView& out, AllocCounters* counters) {
+  fill_tiles<<<grid_for(tiles.count()), kThreads>>>(tiles);
+  if (high_water > 0)
+    project_blocks_kernel<<<grid_for(high_water), kThreads>>>(
+        map, high_water, T_wc.inverse(), camera, min_depth_m, max_depth_m, tiles);
+  const dim3 threads(16, 8);
+  cast_rays_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
+      map, camera, T_wc, tiles, k, hint, out, counters);
+  check_last("raycast");
+}
+
+void filter_depth(const float* in, float* out, int width, int height, int radius,
+                  float inv_2sigma_px2, float inv_2sigma_d2, float min_m, float max_m) {
+  const dim3 threads(32, 8);
+  filter_depth_kernel<<<image_grid(width, height, threads), threads>>>(
+      ImageView<const float>{in, width, height}, out, radius, inv_2sigma_px2, inv_2sigma_d2, min_m,
+      max_m);
+  check_last("depth filter");
+}
+
+void downsample_depth(const float* in, float* out, int out_width, int out_height,
+                      float max_jump_ratio) {
+  const dim3 threads(32, 8);
+  downsample_depth_kernel<<<image_grid(out_width, out_height, threads), threads>>>(
+      in, out, out_width, out_height, max_jump_ratio);
+  check_last("depth downsampling");
+}
+
+void points_and_normals(const float* depth, const PinholeCamera& camera, float max_jump_ratio,
+                        Vec3f* points, Vec3f* normals, int32_t* valid) {
+  const dim3 threads(32, 8);
+  const dim3 grid = image_grid(camera.width, camera.height, threads);
+  unproject_kernel<<<grid, threads>>>(depth, camera, points);
+  normals_kernel<<<grid, threads>>>(ImageView<const Vec3f>{points, camera.width, camera.height},
+                                    max_jump_ratio, normals, valid);
+  check_last("points and normals");
+}
+
+void downsample_model(const Vec3f* points, const Vec3f* normals, const float* depth, int in_width,
+                      Vec3f* out_points, Vec3f* out_normals, float* out_depth, int out_width,
+                      int out_height, float max_jump_ratio) {
+  const dim3 threads(32, 8);
+  downsample_model_kernel<<<image_grid(out_width, out_height, threads), threads>>>(
+      points, normals, depth, in_width, out_points, out_normals, out_depth, out_width, out_height,
+      max_jump_ratio);
+  check_last("model downsampling");
+}
+
+int64_t icp_partials_size(int64_t pixels) {
+  return static_cast<int64_t>(grid_for(pixels)) * kSums;
+}
+
+void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
+                int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+                float* partials, unsigned* done, double* sums, double* host_sums) {
+  const unsigned blocks = grid_for(pixels);
+  icp_kernel<<<blocks, kThreads>>>(pass, points_c, normals_c, pixels, model_points, model_normals,
+                                   partials, done, sums);
+  check_last("ICP reduction");
+  if (cudaMemcpy(host_sums, sums, kSums * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
+    check_last("ICP reduction (copying the sums)");
+}
+
+}  // namespace hivox::cuda

@@ -1,0 +1,170 @@
+#pragma once
+// The CUDA loop's launches: host-callable functions on the kernels' plain types (no CUDA types,
+// no Eigen), defined in loop_kernels.cu. Every launch goes on the default stream; none waits for
+// the device unless it says so.
+
+#include <cstdint>
+
+#include "fusion/fusion_kernels.h"
+#include "hivox/core/camera.h"
+#include "hivox/core/math.h"
+#include "hivox/core/sensor_noise.h"
+#include "hivox/map/map_view.h"
+#include "hivox/map/voxel_block_map.h"
+#include "raycast/raycast_kernels.h"
+#include "refine/refine_kernels.h"
+#include "track/track_kernels.h"
+
+namespace hivox::cuda {
+
+/// Throws `Error(Cuda)` naming `what` when the last launch or call on the device failed.
+void check_last(const char* what);
+
+/// Counters of one frame's allocation, in device memory.
+struct AllocCounters {
+  int32_t missing = 0;       ///< distinct missing blocks recorded (may exceed the list)
+  int32_t visible = 0;       ///< blocks in the visible list
+  int32_t valid_pixels = 0;  ///< pixels with a valid depth
+  int32_t inserted = 0;
+  int32_t hash_full = 0;  ///< dropped: a level's excess entries ran out
+  int32_t pool_full = 0;  ///< dropped: the pool ran out (or the missing list was full)
+  int32_t raycast_hits = 0;
+  int32_t icp_valid_pixels = 0;  ///< finest pyramid level: pixels with a normal
+};
+
+/// The frame's missing blocks, de-duplicated in an open-addressing set of packed keys.
+struct MissingSet {
+  unsigned long long* keys = nullptr;  ///< `mask + 1` slots, all ones = empty
+  uint32_t mask = 0;
+  BlockKey* list = nullptr;  ///< the distinct keys, in no order
+  int32_t capacity = 0;      ///< of `list`
+};
+
+/// Stage one of allocation: every valid pixel walks its truncation band through the levels;
+/// blocks found are stamped with `frame` and listed as visible once, missing ones go into the
+/// set. `missing.keys` must be cleared (all ones) before.
+void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
+                 float mu_m, int32_t* stamps, int32_t frame, const MissingSet& missing,
+                 BlockRef* visible, AllocCounters* counters);
+
+/// Stage two: inserts the `count` distinct missing blocks (lock-free, kernels::allocate_block)
+/// and appends the new ones to the visible list, stamped.
+void insert_blocks(const MutableMapView& map, const MissingSet& missing, int32_t count,
+                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters);
+
+/// Integrates the frame into the visible blocks (the first `counters->visible` of at most
+/// `max_blocks`): one thread per voxel, the block's surface summary and update count after.
+void integrate(const MutableMapView& map, const BlockRef* blocks, int32_t max_blocks,
+               const AllocCounters* counters, const kernels::DepthFrameView& depth,
+               const kernels::ColorFrameView& color, const kernels::IntegrationConstants& k);
+
+/// Registered colour packed as 32-bit words (kernels::pack_rgb).
+void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n);
+
+/// Where each ray starts searching (kernels::ray_hints): the depth of a frame taken from the
+/// raycast's pose, at pixel (n x + n/2, n y + n/2) for ray (x, y) with n = `subsample`, as the
+/// CPU's FrameHints takes it; null: no hint.
+struct StartHint {
+  const float* depth_m = nullptr;
+  int width = 0;
+  int subsample = 1;
+};
+
+/// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
+/// then one ray per pixel; counts hits into `counters->raycast_hits`.
+void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
+             const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
+             const kernels::RayMarchConstants& k, const StartHint& hint,
+             const kernels::RaycastOutputView& out, AllocCounters* counters);
+
+/// Depth preprocessing for tracking (the CPU's build_pyramid, per pixel): the bilateral filter
+/// (radius 0: range check only), 2x2 downsampling within a surface, points and normals.
+void filter_depth(const float* in, float* out, int width, int height, int radius,
+                  float inv_2sigma_px2, float inv_2sigma_d2, float min_m, float max_m);
+void downsample_depth(const float* in, float* out, int out_width, int out_height,
+                      float max_jump_ratio);
+/// Points and normals of a depth image; counts pixels with a normal into `valid` when not null.
+void points_and_normals(const float* depth, const PinholeCamera& camera, float max_jump_ratio,
+                        Vec3f* points, Vec3f* normals, int32_t* valid);
+/// The model pyramid's next level: 2x2 averages of points, normals and depth within a surface.
+void downsample_model(const Vec3f* points, const Vec3f* normals, const float* depth, int in_width,
+                      Vec3f* out_points, Vec3f* out_normals, float* out_depth, int out_width,
+                      int out_height, float max_jump_ratio);
+
+/// One ICP pass over a pyramid level: the sums of the normal equations, in `sums` (device, 30
+/// doubles: A's upper triangle row-major (21), b (6), r2, distance, inliers) and copied to
+/// `host_sums` (the call waits for them). `partials` holds icp_partials_size(pixels) floats;
+/// `done` is a counter of the passes' own, zero before the first pass (each pass leaves it zero).
+int64_t icp_partials_size(int64_t pixels);
+void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
+                int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+                float* partials, unsigned* done, double* sums, double* host_sums);
+
+// ---- refinement (refine_kernels.cu): the CPU Refiner's decisions and the map's split and merge
+// edits, per block on the device ----------------------------------------------------------------
+
+/// What the decisions need, as plain data (RefineParams and the frame's pose).
+struct RefineConstants {
+  kernels::RefineLevels levels;
+  bool det_cov = false;  ///< the DetCov criterion (else Detail)
+  float mu_m = 0;
+  int min_weight = 0, min_samples = 0, min_updates = 0;
+  int unmeshable_cells = 0, unmeshable_min_weight = 0;
+  SensorNoise noise;
+  Rigid3f T_cw;  ///< the camera that just saw the blocks (their depth for the noise)
+};
+
+/// The candidates' lists: splits (visible blocks), the split parents of visible blocks (each
+/// once, through `parents`), and the parents that may merge. `counts`: [0] splits, [1] parents,
+/// [2] merges.
+struct RefineLists {
+  BlockRef* splits = nullptr;
+  BlockKey* merges = nullptr;
+  int32_t capacity = 0;  ///< of `splits` and `merges`
+  MissingSet parents;
+  int32_t* counts = nullptr;
+};
+
+/// Split candidates among the first `counters->visible` of `visible` (at most `max_visible`) and
+/// their parents (the set `lists.parents` must be cleared before).
+void split_candidates(const MapView& map, const BlockRef* visible, int32_t max_visible,
+                      const AllocCounters* counters, const RefineConstants& k,
+                      const RefineLists& lists);
+/// Merge candidates among the first `lists.counts[1]` parents (at most `max_parents`).
+void merge_candidates(const MapView& map, int32_t max_parents, const RefineConstants& k,
+                      const RefineLists& lists);
+
+/// One merge: the parent's entry, its 8 children's entries and blocks, the parent's new block.
+struct MergeJob {
+  BlockKey parent;
+  int32_t entry = kNoEntry;
+  int32_t child_entry[8];
+  int32_t child_block[8];
+  int32_t block = kPtrEmpty;
+  BlockSurface surface;
+  int32_t ok = 0;
+};
+/// Looks the jobs' parents and children up; `ok` where the merge is still possible.
+void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n);
+/// Merges (the CPU's merge_blocks passes: fill the parents, publish them and empty the
+/// children's entries, return the children's blocks and unlinked entries).
+void merge_apply(const MutableMapView& map, MergeJob* jobs, int32_t n);
+
+/// One split: the parent, the blocks its interpolation reads, its children's blocks and entries.
+struct SplitJob {
+  BlockRef parent;
+  int32_t parents[8];
+  int32_t neighbour_children[8][8];
+  int32_t child_block[8];
+  int32_t child_entry[8];
+  BlockSurface child_surface[8];
+  int32_t ok = 0;
+};
+/// `ok` where the parent is still the allocated block the job names.
+void split_check(const MapView& map, SplitJob* jobs, int32_t n);
+/// Splits jobs [0, n), all parents of one level (the CPU's passes 1 to 3 for that level).
+void split_apply_level(const MutableMapView& map, SplitJob* jobs, int32_t n, float weight_scale);
+/// Returns the split parents' blocks to the pool and moves the level counts.
+void split_finish(const MutableMapView& map, const SplitJob* jobs, int32_t n);
+
+}  // namespace hivox::cuda

@@ -1,0 +1,43 @@
+#pragma once
+// Gauss-Newton on the point-to-plane normal equations and the verdict on an alignment: host code
+// written once for every device. Only the ICP reduction (the sums over a pyramid level's pixels)
+// is device-specific; the CPU tracker and the CUDA loop hand theirs in.
+
+#include <cstdint>
+#include <functional>
+
+#include <Eigen/Core>
+
+#include "hivox/core/pose.h"
+#include "hivox/track/params.h"
+#include "hivox/track/tracker.h"
+
+namespace hivox::icp {
+
+/// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
+/// and the residual statistics of its pairs.
+struct System {
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  double r2 = 0;        ///< sum of squared (unweighted) residuals of the inliers
+  double distance = 0;  ///< sum of the inliers' distances from the camera centre
+  int64_t inliers = 0;
+
+  /// Adds partial sums in the reductions' layout: the upper triangle of A row-major (21), b (6).
+  void add(const float* A_upper, const float* b6, double r2_sum, double distance_sum,
+           int64_t inlier_count);
+  /// Mirrors the upper triangle into the lower (after the last `add`).
+  void symmetrize();
+};
+
+/// One pass over pyramid level `level` (0 finest) at pose `T_wc`.
+using Reduce = std::function<System(int level, const Pose& T_wc)>;
+
+/// Aligns from `T_wc_init` (Gauss-Newton on SE(3), coarsest level first, `params.iterations`
+/// passes per level at most) and judges the result: the finest level's numbers and the quality;
+/// a lost frame keeps the start pose. `valid_pixels`: finest-level pixels with a point and a
+/// normal. Fills everything but the timings.
+void align_and_judge(const TrackParams& params, const Reduce& reduce, int64_t valid_pixels,
+                     const Pose& T_wc_init, TrackResult* result);
+
+}  // namespace hivox::icp

@@ -1,0 +1,322 @@
+// The CUDA loop (hivox::cuda::GpuReconstruction) gives what the CPU stages give on the same
+// inputs: the same blocks per level, the TSDF within its quantisation, the same raycast, the same
+// tracked poses within tolerance. Built with -DHIVOX_WITH_CUDA=ON; skipped without a CUDA device.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "hivox/core/error.h"
+#include "hivox/cuda/gpu_reconstruction.h"
+#include "hivox/eval/trajectory_eval.h"
+#include "hivox/fusion/integrator.h"
+#include "hivox/io/dataset.h"
+#include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/hints.h"
+#include "hivox/raycast/raycaster.h"
+#include "hivox/refine/refiner.h"
+#include "hivox/synth/synthetic_dataset.h"
+#include "test_util.h"
+
+namespace hivox::test {
+namespace {
+
+#define HIVOX_REQUIRE_CUDA()                                                          \
+  const std::string device = cuda::device_name();                                     \
+  if (device.empty()) GTEST_SKIP() << "no CUDA device found; skipping the GPU tests"; \
+  std::printf("[ device   ] %s\n", device.c_str())
+
+using Key = std::tuple<int, int, int, int>;  // level, x, y, z
+
+std::string fmt_levels(const VoxelBlockMap& map) {
+  std::string s;
+  for (const int64_t n : map.blocks_per_level()) s += (s.empty() ? "" : " / ") + std::to_string(n);
+  return s + " per level";
+}
+
+std::map<Key, int32_t> blocks_of(const VoxelBlockMap& map) {
+  std::map<Key, int32_t> out;
+  for (const BlockRef& b : map.allocated_blocks())
+    out[{b.level, b.pos.x, b.pos.y, b.pos.z}] = b.ptr;
+  return out;
+}
+
+/// Compares two maps block by block and voxel by voxel (pool indices may differ). Maps fused at
+/// the same poses agree to the TSDF's quantisation but at a few voxels; maps fused at tracked
+/// poses (`tracked`) differ as much as the poses do.
+void expect_same_map(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu, const char* what,
+                     bool tracked = false) {
+  const double unit_m = cpu.params().truncation_m / 32767.0;
+  const auto a = blocks_of(cpu), b = blocks_of(gpu);
+  int64_t only_cpu = 0, only_gpu = 0, observed = 0, weight_differ = 0, tsdf_far = 0, color_far = 0,
+          tsdf_mm = 0;
+  for (const auto& [key, ptr] : a) {
+    const auto it = b.find(key);
+    if (it == b.end()) {
+      ++only_cpu;
+      continue;
+    }
+    const TsdfVoxel* c = cpu.block_tsdf(ptr);
+    const TsdfVoxel* g = gpu.block_tsdf(it->second);
+    const ColorVoxel* cc = cpu.block_color(ptr);
+    const ColorVoxel* gc = gpu.block_color(it->second);
+    for (int v = 0; v < kBlockVoxels; ++v) {
+      if (c[v].weight == 0 && g[v].weight == 0) continue;
+      ++observed;
+      weight_differ += c[v].weight != g[v].weight;
+      // One int16 unit is 1/32767 of the band: float rounding (fused multiply-adds) alone.
+      tsdf_far += std::abs(c[v].tsdf - g[v].tsdf) > 1;
+      tsdf_mm += std::abs(c[v].tsdf - g[v].tsdf) * unit_m > 1e-3;
+      if (cc != nullptr && gc != nullptr)
+        color_far += std::abs(cc[v].r - gc[v].r) > 1 || std::abs(cc[v].g - gc[v].g) > 1 ||
+                     std::abs(cc[v].b - gc[v].b) > 1 || cc[v].weight != gc[v].weight;
+    }
+  }
+  for (const auto& [key, ptr] : b) only_gpu += a.count(key) == 0;
+  std::printf(
+      "[ map      ] %s: %zu blocks on the CPU (%s), %lld only on the CPU, %lld only on the GPU; "
+      "%lld observed voxels, %lld weights differ, %lld TSDFs more than one unit apart (%lld more "
+      "than 1 mm), %lld colours differ\n",
+      what, a.size(), fmt_levels(cpu).c_str(), static_cast<long long>(only_cpu),
+      static_cast<long long>(only_gpu), static_cast<long long>(observed),
+      static_cast<long long>(weight_differ), static_cast<long long>(tsdf_far),
+      static_cast<long long>(tsdf_mm), static_cast<long long>(color_far));
+  ASSERT_GT(a.size(), 1000u);
+  // A band's end rounded across a block face can add or miss a block at a few pixels.
+  EXPECT_LE(only_cpu + only_gpu, static_cast<int64_t>(a.size() / 1000));
+  for (int l = 0; l < cpu.levels(); ++l)
+    EXPECT_NEAR(cpu.blocks_per_level()[l], gpu.blocks_per_level()[l],
+                1 + cpu.blocks_per_level()[l] / 1000)
+        << "level " << l;
+  if (tracked) {
+    // Poses ~0.1 mm apart move the band's edges (weights) and every value a little.
+    EXPECT_LE(weight_differ, observed / 20);
+    EXPECT_LE(tsdf_mm, observed / 200);
+    return;
+  }
+  // Rounding tips a decision (the bilinear depth's step test, the band's edge) at a few voxels,
+  // and a voxel that differed keeps differing over the frames: up to ~6e-4 of them where the CPU
+  // build has no fused multiply-adds (HIVOX_NATIVE_ARCH=OFF) and the GPU has.
+  EXPECT_LE(weight_differ, observed / 1000);
+  EXPECT_LE(tsdf_far, observed / 1000);
+  EXPECT_LE(tsdf_mm, observed / 5000);
+  EXPECT_LE(color_far, observed / 1000);
+}
+
+/// The GPU's model raycast against the CPU's raycast of the CPU map at the same pose.
+void expect_same_raycast(const RaycastResult& cpu, const RaycastResult& gpu) {
+  ASSERT_EQ(cpu.depth_m.width(), gpu.depth_m.width());
+  ASSERT_EQ(cpu.depth_m.height(), gpu.depth_m.height());
+  int64_t both = 0, only_one = 0, depth_far = 0, normal_far = 0;
+  for (int y = 0; y < cpu.depth_m.height(); ++y) {
+    for (int x = 0; x < cpu.depth_m.width(); ++x) {
+      const bool c = cpu.hit(x, y), g = gpu.hit(x, y);
+      only_one += c != g;
+      if (!c || !g) continue;
+      ++both;
+      depth_far += std::abs(cpu.depth_m(x, y) - gpu.depth_m(x, y)) > 1e-3f;
+      const Vec3f& a = cpu.normals_w(x, y);
+      const Vec3f& b = gpu.normals_w(x, y);
+      normal_far += a.x * b.x + a.y * b.y + a.z * b.z < std::cos(2.0f * 3.14159265f / 180.0f);
+    }
+  }
+  std::printf(
+      "[ raycast  ] %lld hits, %lld hit by one only, %lld depths > 1 mm apart, %lld normals > 2 "
+      "deg apart\n",
+      static_cast<long long>(both), static_cast<long long>(only_one),
+      static_cast<long long>(depth_far), static_cast<long long>(normal_far));
+  ASSERT_GT(both, 10000);
+  EXPECT_LE(only_one, both / 200);
+  EXPECT_LE(depth_far, both / 200);
+  EXPECT_LE(normal_far, both / 200);
+}
+
+ReconstructionParams params_for(int levels, float voxel_m, float truncation_m) {
+  ReconstructionParams p;
+  p.device = Device::cuda();
+  p.map.levels = levels;
+  p.map.voxel_size_m = voxel_m;
+  p.map.truncation_m = truncation_m;
+  p.map.max_blocks = 1 << 18;
+  p.map.buckets_per_level = 1 << 18;
+  p.map.excess_per_level = 1 << 17;
+  return p;
+}
+
+/// Fuses `first` frames on the CPU (refining between frames when the map has several levels),
+/// hands the map to the GPU, then fuses (and refines) frames [first, last) at their true poses
+/// on both.
+void compare_fusion(const std::string& spec, int levels, float voxel_m, float truncation_m,
+                    int first, int last) {
+  SyntheticDataset data(parse_synthetic_spec(spec));
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(levels, voxel_m, truncation_m);
+  VoxelBlockMap map(p.map);
+  TsdfIntegrator integrator(p.fusion);
+  Refiner refiner(p.refine, rig.depth_noise);
+  for (int i = 0; i < first; ++i) {
+    const RgbdFrame f = data.read(static_cast<std::size_t>(i));
+    const Allocation a = integrator.fuse(map, fusion_input(rig, f, *f.T_wc_gt));
+    if (levels > 1) refiner.refine(map, a.visible_blocks, *f.T_wc_gt);
+  }
+  cuda::GpuReconstruction gpu(p, rig, map);
+  // From the handover on both refine, counting their calls from there.
+  Refiner after(p.refine, rig.depth_noise);
+  Pose last_pose = Pose::Identity();
+  for (int i = first; i < last; ++i) {
+    const RgbdFrame f = data.read(static_cast<std::size_t>(i));
+    const Allocation a = integrator.fuse(map, fusion_input(rig, f, *f.T_wc_gt));
+    if (levels > 1) after.refine(map, a.visible_blocks, *f.T_wc_gt);
+    const cuda::GpuFrameStats& s = gpu.integrate(f, *f.T_wc_gt);
+    EXPECT_EQ(s.dropped_blocks, 0);
+    last_pose = *f.T_wc_gt;
+  }
+  const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
+  EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
+  expect_same_map(map, *downloaded, spec.c_str());
+
+  // The CPU raycast with the start hint the GPU takes: the last frame's depth.
+  RaycastParams rp;
+  Raycaster raycaster(rp);
+  FrameHints hints;
+  const RgbdFrame last_frame = data.read(static_cast<std::size_t>(last - 1));
+  const RaycastResult gpu_model = gpu.download_model();
+  const RaycastResult& cpu_model =
+      raycaster.raycast(map, gpu_model.camera, last_pose, p.fusion.depth_range,
+                        hints.build(last_frame.depth_m, rig.depth_camera, p.track.model_subsample,
+                                    last_pose, nullptr, p.map.truncation_m));
+  expect_same_raycast(cpu_model, gpu_model);
+}
+
+TEST(GpuLoop, FusesTheCpusMapOnAFixedGrid) {
+  HIVOX_REQUIRE_CUDA();
+  compare_fusion("synthetic:desk?frames=30&noise=kinect", 1, 0.005f, 0.02f, 0, 30);
+}
+
+TEST(GpuLoop, FusesIntoAHierarchyHandedOverByTheCpu) {
+  HIVOX_REQUIRE_CUDA();
+  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40);
+}
+
+TEST(GpuLoop, TracksAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  ReconstructionParams p = params_for(1, 0.004f, 0.016f);
+  cuda::GpuReconstruction gpu(p, rig);
+  p.device = Device::cpu();
+  Reconstruction cpu(p, rig);
+  std::vector<StampedPose> gt;
+  const Pose first = *data.read(0).T_wc_gt;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const RgbdFrame f = data.read(i);
+    gt.push_back({f.timestamp_s, *f.T_wc_gt});
+    cpu.track_and_integrate(f, 0.0, first);
+    const cuda::GpuFrameStats& s = gpu.track_and_integrate(f, first);
+    EXPECT_TRUE(s.fused) << "frame " << i;
+  }
+  double max_dt = 0, max_dr = 0;
+  for (std::size_t i = 0; i < gt.size(); ++i) {
+    const Pose d = cpu.trajectory()[i].T_wc.inverse() * gpu.trajectory()[i].T_wc;
+    max_dt = std::max(max_dt, d.translation().norm());
+    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+  }
+  const double ate_cpu = evaluate_ate(gt, cpu.trajectory()).rmse_m;
+  const double ate_gpu = evaluate_ate(gt, gpu.trajectory()).rmse_m;
+  std::printf(
+      "[ track    ] %zu frames: poses at most %.3f mm and %.4f deg apart; ATE CPU %.2f mm, GPU "
+      "%.2f mm\n",
+      gt.size(), 1e3 * max_dt, max_dr, 1e3 * ate_cpu, 1e3 * ate_gpu);
+  EXPECT_LT(max_dt, 1e-3);
+  EXPECT_LT(max_dr, 0.1);
+  EXPECT_LT(ate_gpu, 0.01);
+  const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
+  expect_same_map(cpu.map(), *downloaded, "tracked desk, fixed 4 mm", true);
+}
+
+/// Fusing at the true poses with refinement on both: the same splits and merges but where
+/// rounding tips a decision at a threshold, so the same blocks per level within a little.
+TEST(GpuLoop, RefinesAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  cuda::GpuReconstruction gpu(p, rig);
+  p.device = Device::cpu();
+  Reconstruction cpu(p, rig);
+  int64_t cpu_splits = 0, cpu_merges = 0, gpu_splits = 0, gpu_merges = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const RgbdFrame f = data.read(i);
+    const FrameStats& c = cpu.integrate(f, *f.T_wc_gt);
+    const cuda::GpuFrameStats& g = gpu.integrate(f, *f.T_wc_gt);
+    cpu_splits += c.splits;
+    cpu_merges += c.merges;
+    gpu_splits += g.splits;
+    gpu_merges += g.merges;
+  }
+  const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
+  const std::vector<int64_t> a = cpu.map().blocks_per_level(), b = downloaded->blocks_per_level();
+  std::printf(
+      "[ refine   ] splits %lld / %lld, merges %lld / %lld (CPU / GPU); blocks per level "
+      "%s / %s\n",
+      static_cast<long long>(cpu_splits), static_cast<long long>(gpu_splits),
+      static_cast<long long>(cpu_merges), static_cast<long long>(gpu_merges),
+      fmt_levels(cpu.map()).c_str(), fmt_levels(*downloaded).c_str());
+  ASSERT_GT(cpu_splits, 100);
+  EXPECT_NEAR(static_cast<double>(gpu_splits), static_cast<double>(cpu_splits), 0.02 * cpu_splits);
+  EXPECT_NEAR(static_cast<double>(gpu_merges), static_cast<double>(cpu_merges),
+              2.0 + 0.05 * cpu_merges);
+  for (int l = 0; l < 3; ++l)
+    EXPECT_NEAR(static_cast<double>(b[l]), static_cast<double>(a[l]), 10.0 + 0.02 * a[l])
+        << "level " << l;
+  EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
+  // The surface: the models of the last frame.
+  RaycastParams rp;
+  Raycaster raycaster(rp);
+  FrameHints hints;
+  const RgbdFrame last = data.read(data.size() - 1);
+  const RaycastResult gpu_model = gpu.download_model();
+  const RaycastResult& cpu_model =
+      raycaster.raycast(cpu.map(), gpu_model.camera, *last.T_wc_gt, p.fusion.depth_range,
+                        hints.build(last.depth_m, rig.depth_camera, p.track.model_subsample,
+                                    *last.T_wc_gt, nullptr, p.map.truncation_m));
+  int64_t both = 0, far = 0;
+  for (int y = 0; y < cpu_model.depth_m.height(); ++y)
+    for (int x = 0; x < cpu_model.depth_m.width(); ++x)
+      if (cpu_model.hit(x, y) && gpu_model.hit(x, y)) {
+        ++both;
+        far += std::abs(cpu_model.depth_m(x, y) - gpu_model.depth_m(x, y)) > 1e-3f;
+      }
+  std::printf("[ refine   ] model: %lld hits in both, %lld depths > 1 mm apart\n",
+              static_cast<long long>(both), static_cast<long long>(far));
+  EXPECT_GT(both, 60000);
+  EXPECT_LE(far, both / 100);
+}
+
+TEST(GpuLoop, BadInputIsRefusedWithAClearError) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=2"));
+  ReconstructionParams p = params_for(1, 0.005f, 0.02f);
+  cuda::GpuReconstruction gpu(p, data.info().rig);
+  RgbdFrame f = data.read(0);
+  f.depth_m.resize(f.depth_m.width() / 2, f.depth_m.height() / 2);
+  const Error size = error_of([&] { gpu.integrate(f, Pose::Identity()); });
+  EXPECT_EQ(size.code(), ErrorCode::InvalidArgument);
+  EXPECT_TRUE(contains(size.what(), "depth image is 320x240")) << size.what();
+  p.device = Device::cpu();
+  const Error cpu = error_of([&] { cuda::GpuReconstruction(p, data.info().rig); });
+  EXPECT_TRUE(contains(cpu.what(), "needs a CUDA device")) << cpu.what();
+  p.device = Device::cuda(99);
+  const Error missing = error_of([&] { cuda::GpuReconstruction(p, data.info().rig); });
+  EXPECT_EQ(missing.code(), ErrorCode::Unsupported);
+  EXPECT_TRUE(contains(missing.what(), "cuda:99")) << missing.what();
+}
+
+}  // namespace
+}  // namespace hivox::test
