@@ -37,6 +37,9 @@ constexpr int kLevelCount = kMaxLevels + 1;  // kMaxLevels: blocks per level
 constexpr int kHighWater = 2 * kMaxLevels + 1;
 constexpr int kCounters = 2 * kMaxLevels + 2;
 
+/// Stack bytes a GPU thread gets (see Impl's constructor).
+constexpr std::size_t kStackBytes = 4096;
+
 struct ImageLevel {
   PinholeCamera camera;
   Buffer<float> depth;
@@ -132,6 +135,13 @@ struct GpuReconstruction::Impl {
       fail(ErrorCode::Unsupported, "device {}: no such CUDA device here (no driver or no GPU)",
            params.device.to_string());
     check(cudaSetDevice(params.device.index), "selecting the device");
+    // The walk through the levels recurses (kernels::walk_segment_in): its depth grows with the
+    // levels, so the compiler cannot size the stack; 1 KB a thread (the default) is too little
+    // for four levels, or for three under compute-sanitizer.
+    std::size_t stack = 0;
+    check(cudaDeviceGetLimit(&stack, cudaLimitStackSize), "reading the stack size");
+    if (stack < kStackBytes)
+      check(cudaDeviceSetLimit(cudaLimitStackSize, kStackBytes), "setting the stack size");
     upload_map(host);
     allocate_frame_buffers();
   }

@@ -199,10 +199,12 @@ __global__ void project_blocks_kernel(MapView map, int32_t high_water, Rigid3f T
                                   max_depth_m, tiles);
 }
 
-__global__ void cast_rays_kernel(MapView map, PinholeCamera cam, Rigid3f T_wc,
-                                 kernels::RangeTiles tiles, kernels::RayMarchConstants k,
-                                 StartHint hint, kernels::RaycastOutputView out,
-                                 AllocCounters* counters) {
+/// At most 128 registers a thread (4 blocks of 128 threads an SM, not 3): a ray is a chain of
+/// dependent loads, and more rays in flight hide more of their latency.
+__global__ void __launch_bounds__(128, 4)
+    cast_rays_kernel(MapView map, PinholeCamera cam, Rigid3f T_wc, kernels::RangeTiles tiles,
+                     kernels::RayMarchConstants k, StartHint hint, kernels::RaycastOutputView out,
+                     AllocCounters* counters) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
   const bool in_image = x < cam.width && y < cam.height;
@@ -315,10 +317,12 @@ __global__ void __launch_bounds__(kThreads)
     icp_kernel(kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c, int64_t pixels,
                const Vec3f* model_points, const Vec3f* model_normals, float* partials,
                unsigned* done, double* sums) {
-  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  // Each thread sums the terms of its pixels (a grid-stride loop: a few pixels a thread).
   float v[kSums];
   for (int k = 0; k < kSums; ++k) v[k] = 0.0f;
-  if (i < pixels) {
+  const int64_t stride = static_cast<int64_t>(gridDim.x) * blockDim.x;
+  for (int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x; i < pixels;
+       i += stride) {
     const Vec3f p_c = points_c[i], n_c = normals_c[i];
     const Vec3f p_w = c.T_wc * p_c;
     int32_t m = 0;
@@ -332,11 +336,11 @@ __global__ void __launch_bounds__(kThreads)
       const float r = sw * t.r;
       int k = 0;
       for (int a = 0; a < 6; ++a)
-        for (int b = a; b < 6; ++b) v[k++] = J[a] * J[b];
-      for (int a = 0; a < 6; ++a) v[21 + a] = J[a] * r;
-      v[27] = t.r * t.r;
-      v[28] = t.distance_m;
-      v[29] = 1.0f;
+        for (int b = a; b < 6; ++b) v[k++] += J[a] * J[b];
+      for (int a = 0; a < 6; ++a) v[21 + a] += J[a] * r;
+      v[27] += t.r * t.r;
+      v[28] += t.distance_m;
+      v[29] += 1.0f;
     }
   }
   // The block's sums: within each warp by shuffles, then across the warps.
@@ -463,6 +467,22 @@ void downsample_model(const Vec3f* points, const Vec3f* normals, const float* de
   check_last("model downsampling");
 }
 
+namespace {
+/// Blocks of an ICP pass: enough to fill the device a few times over, so that the last block's
+/// sum over their partial sums stays short.
+unsigned icp_blocks(int64_t pixels) {
+  static const int sms = [] {
+    int device = 0, n = 0;
+    cudaGetDevice(&device);
+    cudaDeviceGetAttribute(&n, cudaDevAttrMultiProcessorCount, device);
+    return n > 0 ? n : 32;
+  }();
+  const unsigned needed = grid_for(pixels);
+  const unsigned most = 4u * static_cast<unsigned>(sms);
+  return needed < most ? needed : most;
+}
+}  // namespace
+
 int64_t icp_partials_size(int64_t pixels) {
   return static_cast<int64_t>(grid_for(pixels)) * kSums;
 }
@@ -470,7 +490,7 @@ int64_t icp_partials_size(int64_t pixels) {
 void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
                 int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                 float* partials, unsigned* done, double* sums, double* host_sums) {
-  const unsigned blocks = grid_for(pixels);
+  const unsigned blocks = icp_blocks(pixels);
   icp_kernel<<<blocks, kThreads>>>(pass, points_c, normals_c, pixels, model_points, model_normals,
                                    partials, done, sums);
   check_last("ICP reduction");
