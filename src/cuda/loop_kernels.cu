@@ -199,12 +199,10 @@ __global__ void project_blocks_kernel(MapView map, int32_t high_water, Rigid3f T
                                   max_depth_m, tiles);
 }
 
-/// At most 128 registers a thread (4 blocks of 128 threads an SM, not 3): a ray is a chain of
-/// dependent loads, and more rays in flight hide more of their latency.
-__global__ void __launch_bounds__(128, 4)
-    cast_rays_kernel(MapView map, PinholeCamera cam, Rigid3f T_wc, kernels::RangeTiles tiles,
-                     kernels::RayMarchConstants k, StartHint hint, kernels::RaycastOutputView out,
-                     AllocCounters* counters) {
+__global__ void cast_rays_kernel(MapView map, PinholeCamera cam, Rigid3f T_wc,
+                                 kernels::RangeTiles tiles, kernels::RayMarchConstants k,
+                                 StartHint hint, kernels::RaycastOutputView out,
+                                 AllocCounters* counters) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
   const bool in_image = x < cam.width && y < cam.height;
