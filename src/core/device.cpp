@@ -27,7 +27,7 @@ void Device::require_available() const {
   if (is_cpu()) return;
   fail(ErrorCode::Unsupported,
        "device {}: this part of hivox runs on the CPU only; the online loop on a GPU is "
-       "hivox::cuda::GpuReconstruction (builds with -DHIVOX_WITH_CUDA=ON; bench/gpu_loop runs it); "
+       "hivox::cuda::GpuReconstruction (builds with -DHIVOX_WITH_CUDA=ON, docs/cuda.md); "
        "use --device cpu",
        to_string());
 }
