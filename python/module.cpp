@@ -250,6 +250,10 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("fusion", &ReconstructionParams::fusion)
       .def_readwrite("refine", &ReconstructionParams::refine)
       .def_readwrite("raycast_every_frame", &ReconstructionParams::raycast_every_frame)
+      .def_property(
+          "device", [](const ReconstructionParams& p) { return p.device.to_string(); },
+          [](ReconstructionParams& p, const std::string& name) { p.device = Device::parse(name); },
+          "where the frames run: 'cpu', or 'cuda' / 'cuda:N' (builds with the CUDA loop)")
       .def("validate", &ReconstructionParams::validate)
       .def("__repr__", [](const ReconstructionParams& p) {
         return "hivox.ReconstructionParams(\n" + p.to_string() + ")";
@@ -335,7 +339,7 @@ PYBIND11_MODULE(hivox, m) {
              CameraRig rig = CameraRig::registered(camera);
              rig.depth_scale = depth_scale;
              if (noise_free) rig.depth_noise = SensorNoise::none();
-             return std::make_unique<Reconstruction>(params, rig);
+             return make_reconstruction(params, rig);
            }),
            py::arg("params"), py::arg("camera"), py::arg("depth_scale") = 0.0,
            py::arg("noise_free") = false,
@@ -482,7 +486,7 @@ PYBIND11_MODULE(hivox, m) {
                                                               "pass camera=");
         CameraRig rig = CameraRig::registered(cam);
         rig.depth_scale = depth_scale;
-        return std::make_unique<Reconstruction>(p, rig, std::move(loaded.map), loaded.info.session);
+        return make_reconstruction(p, rig, std::move(loaded.map), loaded.info.session);
       },
       py::arg("path"), py::arg("params") = ReconstructionParams{}, py::arg("camera") = py::none(),
       py::arg("depth_scale") = 0.0,

@@ -29,6 +29,21 @@ def test_params_take_keywords_print_and_validate():
     assert isinstance(hivox.__version__, str) and hivox.__version__.count(".") == 2
 
 
+def test_the_device_is_chosen_by_name():
+    p = small_params()
+    assert p.device == "cpu"
+    p.device = "cuda:1"
+    assert p.device == "cuda:1"
+    with pytest.raises(hivox.Error, match="device must be 'cpu', 'cuda' or 'cuda:N', got 'gpu'"):
+        p.device = "gpu"
+    # A device this machine cannot run is refused naming it (where a GPU is, the run's tests in
+    # test_cuda_loop cover it).
+    p.device = "cuda:7"
+    with pytest.raises(hivox.Error, match="cuda:7"):
+        hivox.Reconstruction(p, hivox.PinholeCamera(fx=80.0, fy=80.0, cx=39.5, cy=29.5, width=80,
+                                                    height=60))
+
+
 def test_frames_fused_from_python_equal_the_library_run(tmp_path):
     data = hivox.open_dataset(SCENE)
     assert len(data) == 6 and data.layout == "synthetic" and data.has_ground_truth

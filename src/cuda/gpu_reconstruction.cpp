@@ -676,9 +676,22 @@ int64_t GpuReconstruction::device_memory_bytes() const {
 }
 
 std::unique_ptr<VoxelBlockMap> GpuReconstruction::download_map() const {
+  auto host = std::make_unique<VoxelBlockMap>(impl_->map_params);
+  download_map(*host);
+  return host;
+}
+
+void GpuReconstruction::download_map(VoxelBlockMap& host) const {
   const Impl& m = *impl_;
-  auto host = std::make_unique<VoxelBlockMap>(m.map_params);
-  const MutableMapView h = MapAccess::storage(*host);
+  const MapParams& hp = host.params();
+  if (!hp.shape_difference(m.map_params).empty() || hp.max_blocks != m.map_params.max_blocks ||
+      hp.buckets_per_level != m.map_params.buckets_per_level ||
+      hp.excess_per_level != m.map_params.excess_per_level ||
+      hp.store_color != m.map_params.store_color)
+    fail(ErrorCode::InvalidArgument, "download_map: the host map differs from the device's: {}",
+         hp.shape_difference(m.map_params).empty() ? "its capacities"
+                                                   : hp.shape_difference(m.map_params));
+  const MutableMapView h = MapAccess::storage(host);
   int32_t c[kCounters];
   m.counters.download(c, kCounters);
   for (int l = 0; l < m.map_params.levels; ++l) {
@@ -699,7 +712,15 @@ std::unique_ptr<VoxelBlockMap> GpuReconstruction::download_map() const {
     check(cudaMemcpy(h.color, m.view.color, used * kBlockVoxels * sizeof(ColorVoxel),
                      cudaMemcpyDeviceToHost),
           "downloading the colours");
-  return host;
+}
+
+std::vector<int64_t> GpuReconstruction::blocks_per_level() const {
+  const Impl& m = *impl_;
+  int32_t c[kCounters];
+  m.counters.download(c, kCounters);
+  std::vector<int64_t> out;
+  for (int l = 0; l < m.map_params.levels; ++l) out.push_back(c[kLevelCount + l]);
+  return out;
 }
 
 RaycastResult GpuReconstruction::download_model() const {
@@ -722,6 +743,67 @@ RaycastResult GpuReconstruction::download_model() const {
   m.model_levels.download(r.levels.data(), n);
   r.has_color = m.view.color != nullptr;
   return r;
+}
+
+namespace {
+
+/// The GPU loop behind a Reconstruction (DeviceLoop): its stats in the CPU loop's terms.
+class CudaLoop final : public DeviceLoop {
+ public:
+  CudaLoop(const ReconstructionParams& params, const CameraRig& rig, const VoxelBlockMap* map,
+           const std::optional<Pose>& last_pose)
+      : gpu_(map != nullptr ? std::make_unique<GpuReconstruction>(params, rig, *map, last_pose)
+                            : std::make_unique<GpuReconstruction>(params, rig)) {}
+
+  void integrate(const RgbdFrame& frame, const Pose& T_wc, FrameStats* s) override {
+    copy(gpu_->integrate(frame, T_wc), s);
+  }
+  Pose track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first, FrameStats* s,
+                           TrackResult* track) override {
+    const GpuFrameStats& g = gpu_->track_and_integrate(frame, T_wc_first);
+    copy(g, s);
+    *track = g.track;
+    s->tracking = g.track.quality;
+    s->track_inlier_ratio = g.track.inlier_ratio;
+    s->track_rms_m = g.track.rms_m;
+    s->track_condition = g.track.condition;
+    s->track_iterations = g.track.iterations;
+    return gpu_->trajectory().back().T_wc;
+  }
+  std::vector<int64_t> blocks_per_level() const override { return gpu_->blocks_per_level(); }
+  void download_map(VoxelBlockMap& map) const override { gpu_->download_map(map); }
+  RaycastResult model() const override { return gpu_->download_model(); }
+
+ private:
+  static void copy(const GpuFrameStats& g, FrameStats* s) {
+    s->track_ms = g.track_ms;
+    s->allocate_ms = g.upload_ms + g.allocate_ms;  // the frame's upload counts as allocation's
+    s->integrate_ms = g.integrate_ms;
+    s->refine_ms = g.refine_ms;
+    s->raycast_ms = g.raycast_ms;
+    s->valid_pixels = g.valid_pixels;
+    s->visible_blocks = g.visible_blocks;
+    s->new_blocks = g.new_blocks;
+    s->dropped_blocks = g.dropped_blocks;
+    s->splits = g.splits;
+    s->merges = g.merges;
+    s->refine_waiting = g.refine_waiting;
+    s->raycast_hits = g.raycast_hits;
+    s->fused = g.fused;
+  }
+  std::unique_ptr<GpuReconstruction> gpu_;
+};
+
+}  // namespace
+
+std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& params,
+                                                    const CameraRig& rig,
+                                                    std::unique_ptr<VoxelBlockMap> map,
+                                                    const MapSession& session) {
+  std::optional<Pose> last_pose;
+  if (map != nullptr) last_pose = session.last_pose;
+  auto loop = std::make_unique<CudaLoop>(params, rig, map.get(), last_pose);
+  return std::make_unique<Reconstruction>(params, rig, std::move(loop), std::move(map), session);
 }
 
 }  // namespace hivox::cuda

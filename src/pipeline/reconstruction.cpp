@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -12,7 +13,6 @@
 namespace hivox {
 
 void ReconstructionParams::validate() const {
-  device.require_available();
   map.validate();
   fusion.validate();
   refine.validate();
@@ -31,28 +31,46 @@ std::string ReconstructionParams::to_string(const CameraRig* rig) const {
 }
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig)
-    : Reconstruction(params, rig, nullptr, MapSession{}, false) {}
+    : Reconstruction(params, rig, nullptr, MapSession{}, false, nullptr) {}
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
                                std::unique_ptr<VoxelBlockMap> map, const MapSession& session)
-    : Reconstruction(params, rig, std::move(map), session, true) {}
+    : Reconstruction(params, rig, std::move(map), session, true, nullptr) {}
+
+Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                               std::unique_ptr<DeviceLoop> loop, std::unique_ptr<VoxelBlockMap> map,
+                               const MapSession& session)
+    : Reconstruction(params, rig, std::move(map), session, true, std::move(loop)) {}
+
+Reconstruction::~Reconstruction() = default;
+
+namespace {
+/// The CPU stages' device: the CPU unless a device loop runs the frames (then the CPU's objects
+/// only serve renders and checks on the host's copy).
+Device host_stage_device(const ReconstructionParams& p, const DeviceLoop* loop) {
+  if (loop != nullptr) return Device::cpu();
+  p.device.require_available();
+  return p.device;
+}
+}  // namespace
 
 Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
                                std::unique_ptr<VoxelBlockMap> map, const MapSession& session,
-                               bool continues_map)
+                               bool continues_map, std::unique_ptr<DeviceLoop> loop)
     : params_(params),
       rig_(rig),
       integrator_(params_.fusion),
       refiner_(params_.refine, rig.depth_noise),
       raycaster_(params_.raycast),
-      tracker_(params_.track, params_.fusion.depth_range, params_.device),
+      tracker_(params_.track, params_.fusion.depth_range, host_stage_device(params_, loop.get())),
       resumed_(session),
-      continues_map_(continues_map) {
+      continues_map_(continues_map && (map != nullptr || loop == nullptr)),
+      loop_(std::move(loop)) {
   params_.validate();
   params_.map.warn_about_combinations();
   rig_.validate();
-  if (!continues_map) {
-    map_ = std::make_unique<VoxelBlockMap>(params_.map, params_.device);
+  if (!continues_map_) {
+    map_ = std::make_unique<VoxelBlockMap>(params_.map, loop_ ? Device::cpu() : params_.device);
     return;
   }
   if (!map) fail(ErrorCode::InvalidArgument, "no map to continue");
@@ -64,6 +82,28 @@ Reconstruction::Reconstruction(const ReconstructionParams& params, const CameraR
   map_ = std::move(map);
   params_.map = map_->params();  // its capacities are the map's own
   refiner_.resume_after(session.frames_fused);
+}
+
+const VoxelBlockMap& Reconstruction::map() const {
+  if (loop_ && map_stale_) {
+    loop_->download_map(*map_);
+    map_stale_ = false;
+  }
+  return *map_;
+}
+
+VoxelBlockMap& Reconstruction::map() {
+  std::as_const(*this).map();
+  return *map_;
+}
+
+const RaycastResult& Reconstruction::last_raycast() const {
+  if (!loop_) return raycaster_.result();
+  if (model_stale_) {
+    device_model_ = loop_->model();
+    model_stale_ = false;
+  }
+  return device_model_;
 }
 
 MapSession Reconstruction::session() const {
@@ -81,12 +121,25 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   FrameStats s;
   s.read_ms = read_ms;
   Stopwatch total;
-  fuse(frame, T_wc, s);
+  if (loop_) {
+    loop_->integrate(frame, T_wc, &s);
+    map_stale_ = model_stale_ = true;
+  } else {
+    fuse(frame, T_wc, s);
+  }
   return record(frame, T_wc, total, s);
 }
 
 const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, double read_ms,
                                                       const Pose& T_wc_first) {
+  if (loop_) {
+    FrameStats s;
+    s.read_ms = read_ms;
+    Stopwatch total;
+    const Pose T_wc = loop_->track_and_integrate(frame, T_wc_first, &s, &last_track_);
+    map_stale_ = model_stale_ = true;
+    return record(frame, T_wc, total, s);
+  }
   if (trajectory_.empty() && !continues_map_) {
     last_track_ = TrackResult{};
     last_track_.T_wc = T_wc_first;
@@ -129,8 +182,12 @@ const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_w
                                          const Stopwatch& total, FrameStats& s) {
   s.index = frame.index;
   s.timestamp_s = frame.timestamp_s;
+  s.blocks_per_level = loop_ ? loop_->blocks_per_level() : map_->blocks_per_level();
   s.blocks_total = map_->blocks_in_use();
-  s.blocks_per_level = map_->blocks_per_level();
+  if (loop_) {  // the device's counts (the host's copy is refreshed only when read)
+    s.blocks_total = 0;
+    for (const int64_t n : s.blocks_per_level) s.blocks_total += n;
+  }
   peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
   s.total_ms = total.elapsed_ms();
   switch (s.tracking) {
@@ -191,8 +248,8 @@ PinholeCamera Reconstruction::model_camera() const {
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {
   // Robust centre and extent of the model: the blocks' centres, trimmed of the farthest 5 %.
   std::vector<Eigen::Vector3d> centres;
-  for (const BlockRef& b : map_->allocated_blocks()) {
-    const double s = map_->params().block_size_at(b.level);
+  for (const BlockRef& b : map().allocated_blocks()) {
+    const double s = map().params().block_size_at(b.level);
     centres.emplace_back((b.pos.x + 0.5) * s, (b.pos.y + 0.5) * s, (b.pos.z + 0.5) * s);
   }
   Eigen::Vector3d forward = Eigen::Vector3d::UnitZ(), up = -Eigen::Vector3d::UnitY();
@@ -229,7 +286,7 @@ const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const P
   DepthRange range = params_.fusion.depth_range;
   if (max_depth_m > 0.0f) range.max_m = max_depth_m;
   Raycaster raycaster(params_.raycast);
-  raycaster.raycast(*map_, camera, T_wc, range);
+  raycaster.raycast(map(), camera, T_wc, range);
   // Keep the per-frame raycast intact: copy the render out of the temporary raycaster.
   render_result_ = raycaster.result();
   return render_result_;

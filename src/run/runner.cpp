@@ -9,6 +9,9 @@
 #include "hivox/core/log.h"
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
+#if defined(HIVOX_WITH_CUDA)
+#include "hivox/cuda/gpu_reconstruction.h"
+#endif
 #include "hivox/io/atomic_file.h"
 #include "hivox/io/map_file.h"
 #include "hivox/io/ply.h"
@@ -53,8 +56,38 @@ BadFramePolicy parse_bad_frame_policy(std::string_view name) {
   fail(ErrorCode::InvalidArgument, "on_bad_frame must be 'stop' or 'skip', got '{}'", name);
 }
 
+namespace {
+/// Throws `Error(Unsupported)` when `device` cannot run a reconstruction here.
+void check_device(const Device& device) {
+  if (device.is_cpu()) return;
+#if defined(HIVOX_WITH_CUDA)
+  if (cuda::device_name(device.index).empty())
+    fail(ErrorCode::Unsupported,
+         "device {}: no such CUDA device here (no driver or no GPU); use "
+         "--device cpu",
+         device.to_string());
+#else
+  device.require_available();
+#endif
+}
+}  // namespace
+
+std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& params,
+                                                    const CameraRig& rig,
+                                                    std::unique_ptr<VoxelBlockMap> map,
+                                                    const MapSession& session) {
+  check_device(params.device);
+#if defined(HIVOX_WITH_CUDA)
+  if (!params.device.is_cpu())
+    return cuda::make_reconstruction(params, rig, std::move(map), session);
+#endif
+  if (map == nullptr) return std::make_unique<Reconstruction>(params, rig);
+  return std::make_unique<Reconstruction>(params, rig, std::move(map), session);
+}
+
 void RunParams::validate() const {
   reconstruction.validate();
+  check_device(reconstruction.device);
   mesh.validate();
   if (render_every < 0)
     fail(ErrorCode::InvalidArgument, "render_every must be >= 0, got {}", render_every);
@@ -131,14 +164,13 @@ class Run {
   /// A new reconstruction, or one that continues the map file `map_in`.
   std::unique_ptr<Reconstruction> make_reconstruction() {
     if (params_.map_in.empty())
-      return std::make_unique<Reconstruction>(params_.reconstruction, info_.rig);
+      return hivox::make_reconstruction(params_.reconstruction, info_.rig);
     Stopwatch load;
     const ReconstructionParams& p = params_.reconstruction;
     LoadedMap loaded = read_map_file(params_.map_in, p.map);
     check_map_continues(loaded.info, params_.map_in, p.map, p.fusion);
     session_start_ = loaded.info.session.last_pose;
-    auto rec =
-        std::make_unique<Reconstruction>(p, info_.rig, std::move(loaded.map), loaded.info.session);
+    auto rec = hivox::make_reconstruction(p, info_.rig, std::move(loaded.map), loaded.info.session);
     summary_.map_load_s = load.elapsed_ms() / 1e3;
     return rec;
   }

@@ -71,6 +71,10 @@ class GpuReconstruction {
 
   /// A host copy of the device map (same parameters, same tables and pool indices).
   std::unique_ptr<VoxelBlockMap> download_map() const;
+  /// Copies the device map into `map`, a host map of the same parameters (map_params()).
+  void download_map(VoxelBlockMap& map) const;
+  /// Allocated blocks per level (finest first), read from the device's counters.
+  std::vector<int64_t> blocks_per_level() const;
   /// The last model raycast (the depth camera subsampled by the tracking's model_subsample),
   /// copied to the host.
   RaycastResult download_model() const;
@@ -84,5 +88,14 @@ class GpuReconstruction {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// A Reconstruction whose frames run on the CUDA device `params.device` (a GpuReconstruction
+/// behind it): the CLI's and the Python module's runs with `--device cuda[:N]`. Its map() is the
+/// host's copy, refreshed when read after the device fused. With `map` it continues that map
+/// (tracking from `session.last_pose`).
+std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& params,
+                                                    const CameraRig& rig,
+                                                    std::unique_ptr<VoxelBlockMap> map = nullptr,
+                                                    const MapSession& session = {});
 
 }  // namespace hivox::cuda

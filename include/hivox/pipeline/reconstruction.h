@@ -20,6 +20,7 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/stored_map.h"
 #include "hivox/map/voxel_block_map.h"
+#include "hivox/pipeline/device_loop.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/refine/refiner.h"
 #include "hivox/track/tracker.h"
@@ -30,7 +31,8 @@ namespace hivox {
 /// (`map.truncation_m`) and the depth range the fusion's (`fusion.depth_range`); refinement,
 /// raycasting and tracking read them from there.
 struct ReconstructionParams {
-  /// Where the map lives and every stage runs (this build: the CPU; see Device).
+  /// Where the map lives and every stage runs: the CPU, or a CUDA device through
+  /// hivox::cuda::make_reconstruction (builds with -DHIVOX_WITH_CUDA=ON; docs/cuda.md).
   Device device;
   MapParams map;
   FusionParams fusion;
@@ -45,7 +47,7 @@ struct ReconstructionParams {
   /// otherwise search their whole depth range). false: those rays search the whole range.
   bool previous_raycast_hints = true;
 
-  /// Validates every part.
+  /// Validates every part (a device other than the CPU is checked where the loop is made).
   void validate() const;
   /// The settings in words; `rig` (optional): the sensor, whose noise model the refinement uses
   /// unless `refine.noise` is set.
@@ -108,6 +110,12 @@ class Reconstruction {
   /// first frame is tracked against the map (not fused blindly at its start pose).
   Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
                  std::unique_ptr<VoxelBlockMap> map, const MapSession& session);
+  /// Frames run on `loop` (another device; see DeviceLoop); `map` (null for a new map) is the
+  /// map the loop continues, kept on the host as the copy that map() refreshes when read.
+  Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
+                 std::unique_ptr<DeviceLoop> loop, std::unique_ptr<VoxelBlockMap> map,
+                 const MapSession& session);
+  ~Reconstruction();
 
   const ReconstructionParams& params() const { return params_; }
   const CameraRig& rig() const { return rig_; }
@@ -131,11 +139,12 @@ class Reconstruction {
   const TrackResult& last_track() const { return last_track_; }
   const TrackingCounts& tracking_counts() const { return tracking_counts_; }
 
-  const VoxelBlockMap& map() const { return *map_; }
-  VoxelBlockMap& map() { return *map_; }
+  /// The map (on another device: the host's copy, refreshed when the device has fused since).
+  const VoxelBlockMap& map() const;
+  VoxelBlockMap& map();
   /// The raycast of the last frame (empty before the first, or without raycast_every_frame), at
   /// the tracking model's resolution (`track.model_subsample`); `render` gives full renders.
-  const RaycastResult& last_raycast() const { return raycaster_.result(); }
+  const RaycastResult& last_raycast() const;
   /// Raycasts the model from any pose with any camera (renders, overviews).
   const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
                               float max_depth_m = 0.0f);
@@ -179,8 +188,13 @@ class Reconstruction {
   int64_t peak_blocks_ = 0;
   MapSession resumed_;  ///< the session of the map this reconstruction continues
   bool continues_map_ = false;
+  std::unique_ptr<DeviceLoop> loop_;  ///< frames run there when set
+  mutable bool map_stale_ = false;    ///< the device fused since map_ was refreshed
+  mutable RaycastResult device_model_;
+  mutable bool model_stale_ = false;
   Reconstruction(const ReconstructionParams& params, const CameraRig& rig,
-                 std::unique_ptr<VoxelBlockMap> map, const MapSession& session, bool continues_map);
+                 std::unique_ptr<VoxelBlockMap> map, const MapSession& session, bool continues_map,
+                 std::unique_ptr<DeviceLoop> loop);
 };
 
 }  // namespace hivox

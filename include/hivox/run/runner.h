@@ -143,6 +143,14 @@ struct RunCallbacks {
   std::function<bool()> stop_requested;
 };
 
+/// A reconstruction on `params.device`: the CPU's, or in builds with -DHIVOX_WITH_CUDA=ON the
+/// CUDA loop's (hivox::cuda::make_reconstruction); with `map`, continuing it from `session`.
+/// Throws `Error(Unsupported)` naming the device when it cannot run here.
+std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& params,
+                                                    const CameraRig& rig,
+                                                    std::unique_ptr<VoxelBlockMap> map = nullptr,
+                                                    const MapSession& session = {});
+
 /// Runs `reader`'s frames through a reconstruction with `params` and writes the results. Throws
 /// `Error` for bad settings (naming them), a pose source the dataset cannot serve, an output
 /// folder that holds files (without `overwrite`), a first frame it cannot read, and files it

@@ -1,0 +1,38 @@
+#pragma once
+/// @file
+/// The per-frame loop on another device than the CPU, behind a Reconstruction: frames go in,
+/// stats come out, and the map and the model raycast come back to the host when read. The CUDA
+/// loop implements it (hivox::cuda::make_reconstruction, in builds with -DHIVOX_WITH_CUDA=ON).
+
+#include <cstdint>
+#include <vector>
+
+#include "hivox/core/dataset.h"
+#include "hivox/core/pose.h"
+#include "hivox/map/voxel_block_map.h"
+#include "hivox/raycast/raycaster.h"
+#include "hivox/track/tracker.h"
+
+namespace hivox {
+
+struct FrameStats;
+
+class DeviceLoop {
+ public:
+  virtual ~DeviceLoop() = default;
+  /// Fuses `frame` at `T_wc` (refines, raycasts the model); fills the stage fields of `*s`.
+  virtual void integrate(const RgbdFrame& frame, const Pose& T_wc, FrameStats* s) = 0;
+  /// Tracks `frame` against the last model (the first frame of a new map is fused at
+  /// `T_wc_first`), fuses it unless tracking is lost; fills `*s` and `*track`, returns the pose
+  /// the frame keeps (the previous one when lost).
+  virtual Pose track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first, FrameStats* s,
+                                   TrackResult* track) = 0;
+  /// Allocated blocks per level (finest first), without copying the map.
+  virtual std::vector<int64_t> blocks_per_level() const = 0;
+  /// Copies the device's map into `map` (a map of the same parameters on the host).
+  virtual void download_map(VoxelBlockMap& map) const = 0;
+  /// The last model raycast, copied to the host.
+  virtual RaycastResult model() const = 0;
+};
+
+}  // namespace hivox
