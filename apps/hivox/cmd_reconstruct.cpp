@@ -395,8 +395,8 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--device", o.device,
-                  "where the stages run: cpu (a GPU runs the online loop through the "
-                  "library's hivox::cuda::GpuReconstruction, docs/cuda.md)")
+                  "where the frames run: cpu, or cuda / cuda:N (builds with the CUDA loop; "
+                  "docs/cuda.md)")
       ->capture_default_str();
 }
 

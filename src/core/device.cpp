@@ -26,9 +26,9 @@ std::string Device::to_string() const {
 void Device::require_available() const {
   if (is_cpu()) return;
   fail(ErrorCode::Unsupported,
-       "device {}: this part of hivox runs on the CPU only; the online loop on a GPU is "
-       "hivox::cuda::GpuReconstruction (builds with -DHIVOX_WITH_CUDA=ON, docs/cuda.md); "
-       "use --device cpu",
+       "device {}: this operation runs on the CPU only; runs on a GPU go through "
+       "hivox::make_reconstruction in builds with -DHIVOX_WITH_CUDA=ON (docs/cuda.md); use "
+       "--device cpu",
        to_string());
 }
 
