@@ -67,7 +67,10 @@ void check_device(const Device& device) {
          "--device cpu",
          device.to_string());
 #else
-  device.require_available();
+  fail(ErrorCode::Unsupported,
+       "device {}: this build of hivox has no CUDA loop (build it with -DHIVOX_WITH_CUDA=ON, "
+       "docs/cuda.md); use --device cpu",
+       device.to_string());
 #endif
 }
 }  // namespace
