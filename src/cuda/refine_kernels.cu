@@ -27,81 +27,119 @@ __device__ float depth_of(const RefineConstants& k, const MapView& map, const Ve
   return (k.T_cw * centre).z;
 }
 
-__device__ float complexity(const RefineConstants& k, const TsdfVoxel* v, float* mean_weight) {
-  return k.det_cov ? kernels::block_det_cov(v, k.min_weight)
-                   : kernels::block_detail_m(v, k.mu_m, k.min_weight, k.min_samples, mean_weight);
+constexpr unsigned kFullWarp = 0xFFFFFFFFu;
+
+/// Lane 0's sum of `x` over the warp, handed to every lane (the same value in all of them).
+template <typename T>
+__device__ T warp_sum(T x) {
+  for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(kFullWarp, x, o);
+  return __shfl_sync(kFullWarp, x, 0);
 }
 
-__global__ void split_candidates_kernel(MapView map, const BlockRef* visible,
-                                        const AllocCounters* counters, RefineConstants k,
-                                        RefineLists lists) {
-  const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  bool split = false;
-  BlockRef b{};
-  if (i < counters->visible) {
-    b = visible[i];
-    if (b.level < map.levels - 1)
-      add_unique(lists.parents, b.level + 1, parent_block_pos(b.pos), &lists.counts[1]);
-    if (b.ptr >= 0 && b.level > 0 && map.meta[b.ptr].updates >= k.min_updates) {
-      const TsdfVoxel* v = map.tsdf + static_cast<int64_t>(b.ptr) * kBlockVoxels;
-      float w = 0.0f;
-      const float c = complexity(k, v, &w);
-      const float level =
-          kernels::split_level(k.levels, k.noise.sigma_m(depth_of(k, map, b.pos, b.level)), w);
-      split = c > level ||
-              (k.unmeshable_cells > 0 &&
-               kernels::block_unmeshable_cells(v, k.unmeshable_min_weight) >= k.unmeshable_cells);
-    }
+/// The block's complexity by one whole warp: the detail criterion's samples
+/// (kernels::detail_sample) shared out among the lanes and summed; the DetCov criterion on lane
+/// 0 alone. Every lane gets the same value.
+__device__ float warp_complexity(const RefineConstants& k, const TsdfVoxel* v, float* mean_weight) {
+  const int lane = static_cast<int>(threadIdx.x & 31);
+  if (k.det_cov) {
+    const float c = lane == 0 ? kernels::block_det_cov(v, k.min_weight) : 0.0f;
+    return __shfl_sync(kFullWarp, c, 0);
   }
-  const int32_t slot = append_index(split, &lists.counts[0]);
-  if (split && slot < lists.capacity) lists.splits[slot] = b;
+  float sum = 0.0f, weights = 0.0f;
+  int n = 0;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int i = lane; i < kBlockVoxels; i += 32) {
+      float d2, w;
+      if (!kernels::detail_sample(v, axis, i, k.min_weight, &d2, &w)) continue;
+      sum += d2;
+      weights += w;
+      ++n;
+    }
+  return kernels::detail_from_sums(warp_sum(sum), warp_sum(weights), warp_sum(n), k.mu_m,
+                                   k.min_samples, mean_weight);
 }
 
-constexpr int kParentsPerBlock = kThreads / kBlockChildren;
+/// kernels::block_unmeshable_cells by one whole warp (the 7^3 cells shared out).
+__device__ int warp_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
+  constexpr int kInner = kBlockSide - 1;
+  int n = 0;
+  for (int cell = static_cast<int>(threadIdx.x & 31); cell < kInner * kInner * kInner; cell += 32)
+    n += kernels::unmeshable_cell(v, cell % kInner, (cell / kInner) % kInner,
+                                  cell / (kInner * kInner), min_weight);
+  return warp_sum(n);
+}
 
-/// Eight threads per parent, one per child: each judges its child (kernels' complexity), then
-/// the parent's first thread decides (the CPU Refiner's merge test).
+constexpr int kWarpsPerBlock = kThreads / 32;
+
+/// One warp per visible block: the CPU Refiner's split test, and the block's parent into the
+/// set of merge candidates.
 __global__ void __launch_bounds__(kThreads)
+    split_candidates_kernel(MapView map, const BlockRef* visible, const AllocCounters* counters,
+                            RefineConstants k, RefineLists lists) {
+  const int32_t i = blockIdx.x * kWarpsPerBlock + static_cast<int32_t>(threadIdx.x / 32);
+  const bool lead = (threadIdx.x & 31) == 0;
+  if (i >= counters->visible) return;  // the whole warp
+  const BlockRef b = visible[i];
+  if (lead && b.level < map.levels - 1)
+    add_unique(lists.parents, b.level + 1, parent_block_pos(b.pos), &lists.counts[1]);
+  if (b.ptr < 0 || b.level == 0 || map.meta[b.ptr].updates < k.min_updates) return;
+  const TsdfVoxel* v = map.tsdf + static_cast<int64_t>(b.ptr) * kBlockVoxels;
+  float w = 0.0f;
+  const float c = warp_complexity(k, v, &w);
+  const float level =
+      kernels::split_level(k.levels, k.noise.sigma_m(depth_of(k, map, b.pos, b.level)), w);
+  const bool split =
+      c > level || (k.unmeshable_cells > 0 &&
+                    warp_unmeshable_cells(v, k.unmeshable_min_weight) >= k.unmeshable_cells);
+  if (!split || !lead) return;
+  const int32_t slot = atomicAdd(&lists.counts[0], 1);
+  if (slot < lists.capacity) lists.splits[slot] = b;
+}
+
+/// One CUDA block per parent, one warp per child: each warp judges its child, then the first
+/// warp decides (the CPU Refiner's merge test), checking the merged block on voxels the whole
+/// block gathered.
+__global__ void __launch_bounds__(kBlockChildren * 32)
     merge_candidates_kernel(MapView map, RefineConstants k, RefineLists lists) {
-  const int local = threadIdx.x / kBlockChildren, c = threadIdx.x % kBlockChildren;
-  const int32_t i = blockIdx.x * kParentsPerBlock + local;
-  __shared__ int32_t children[kParentsPerBlock][kBlockChildren];
-  __shared__ int32_t verdict[kParentsPerBlock][kBlockChildren];
-  const bool in_range = i < lists.counts[1] && i < lists.parents.capacity;
-  BlockKey p{};
+  const int32_t i = blockIdx.x;
+  const int c = static_cast<int>(threadIdx.x / 32);
+  __shared__ int32_t children[kBlockChildren];
+  __shared__ int32_t verdict[kBlockChildren];
+  __shared__ TsdfVoxel merged[kBlockVoxels];
+  if (i >= lists.counts[1] || i >= lists.parents.capacity) return;  // the whole block
+  const BlockKey p = lists.parents.list[i];
+  if (find_block_ptr(map.level[p.level], p.pos) != kPtrSplit) return;  // the whole block
+  const int32_t ptr = find_block_ptr(map.level[p.level - 1], child_block_pos(p.pos, c));
   bool ok = false;
-  if (in_range) {
-    p = lists.parents.list[i];
-    if (find_block_ptr(map.level[p.level], p.pos) == kPtrSplit) {
-      const int32_t ptr = find_block_ptr(map.level[p.level - 1], child_block_pos(p.pos, c));
-      children[local][c] = ptr;
-      if (ptr >= 0) {
-        const float level =
-            kernels::merge_level(k.levels, k.noise.sigma_m(depth_of(k, map, p.pos, p.level)));
-        float w = 0.0f;
-        const float x = complexity(k, map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels, &w);
-        // A child with too little surface to judge holds nothing a merge could lose (see the
-        // CPU's).
-        ok = x < 0.0f || (map.meta[ptr].updates >= k.min_updates && x < level);
-      }
-    }
+  if (ptr >= 0) {
+    const float level =
+        kernels::merge_level(k.levels, k.noise.sigma_m(depth_of(k, map, p.pos, p.level)));
+    float w = 0.0f;
+    const float x = warp_complexity(k, map.tsdf + static_cast<int64_t>(ptr) * kBlockVoxels, &w);
+    // A child with too little surface to judge holds nothing a merge could lose (see the CPU's).
+    ok = x < 0.0f || (map.meta[ptr].updates >= k.min_updates && x < level);
   }
-  verdict[local][c] = ok;
+  if ((threadIdx.x & 31) == 0) {
+    children[c] = ptr;
+    verdict[c] = ok;
+  }
   __syncthreads();
-  if (!in_range || c != 0) return;
   for (int j = 0; j < kBlockChildren; ++j)
-    if (!verdict[local][j]) return;
+    if (!verdict[j]) return;  // the whole block
   if (k.unmeshable_cells > 0) {
     // The parent the merge would make must mesh its surface.
-    TsdfVoxel merged[kBlockVoxels];
-    for (int j = 0; j < kBlockVoxels; ++j) {
+    for (int j = threadIdx.x; j < kBlockVoxels; j += blockDim.x) {
       int from;
       const int src = kernels::merged_voxel_source(j, &from);
-      merged[j] = map.tsdf[static_cast<int64_t>(children[local][from]) * kBlockVoxels + src];
+      merged[j] = map.tsdf[static_cast<int64_t>(children[from]) * kBlockVoxels + src];
     }
-    if (kernels::block_unmeshable_cells(merged, k.unmeshable_min_weight) >= k.unmeshable_cells)
-      return;
+    __syncthreads();
+    if (c != 0) return;
+    if (warp_unmeshable_cells(merged, k.unmeshable_min_weight) >= k.unmeshable_cells) return;
+  } else if (c != 0) {
+    return;
   }
+  if ((threadIdx.x & 31) != 0) return;
   const int32_t slot = atomicAdd(&lists.counts[2], 1);
   if (slot < lists.capacity) lists.merges[slot] = p;
 }
@@ -280,16 +318,16 @@ void split_candidates(const MapView& map, const BlockRef* visible, int32_t max_v
                       const AllocCounters* counters, const RefineConstants& k,
                       const RefineLists& lists) {
   if (max_visible <= 0) return;
-  split_candidates_kernel<<<grid_for(max_visible), kThreads>>>(map, visible, counters, k, lists);
+  const auto blocks = static_cast<unsigned>((max_visible + kWarpsPerBlock - 1) / kWarpsPerBlock);
+  split_candidates_kernel<<<blocks, kThreads>>>(map, visible, counters, k, lists);
   check_last("refinement (split candidates)");
 }
 
 void merge_candidates(const MapView& map, int32_t max_parents, const RefineConstants& k,
                       const RefineLists& lists) {
   if (max_parents <= 0) return;
-  const unsigned blocks =
-      static_cast<unsigned>((max_parents + kParentsPerBlock - 1) / kParentsPerBlock);
-  merge_candidates_kernel<<<blocks, kThreads>>>(map, k, lists);
+  merge_candidates_kernel<<<static_cast<unsigned>(max_parents), kBlockChildren * 32>>>(map, k,
+                                                                                       lists);
   check_last("refinement (merge candidates)");
 }
 

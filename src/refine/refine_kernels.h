@@ -18,6 +18,33 @@ namespace hivox::kernels {
 /// detail (on the synthetic desk, a flat table top seen at ~60 degrees stayed split for it).
 constexpr float kDetailBand = 0.75f;
 
+/// One sample of the detail criterion (block_detail_m): voxel `i`'s squared second difference
+/// along `axis` and its weight; false where voxel `i` gives none.
+HIVOX_HD inline bool detail_sample(const TsdfVoxel* v, int axis, int i, int min_weight, float* d2,
+                                   float* weight) {
+  const int stride = axis == 0 ? 1 : (axis == 1 ? kBlockSide : kBlockSide * kBlockSide);
+  const Vec3i c = voxel_coords(i);
+  const int along = c[axis];
+  if ((along & 1) == 0 || along == kBlockSide - 1) return false;  // odd, with both neighbours
+  const TsdfVoxel a = v[i - stride], m = v[i], b = v[i + stride];
+  if (a.weight < min_weight || m.weight < min_weight || b.weight < min_weight) return false;
+  const float fa = tsdf_to_float(a.tsdf), fm = tsdf_to_float(m.tsdf), fb = tsdf_to_float(b.tsdf);
+  if (fabsf(fm) >= kDetailBand || fabsf(fa) >= kDetailBand || fabsf(fb) >= kDetailBand)
+    return false;
+  const float d = fm - 0.5f * (fa + fb);
+  *d2 = d * d;
+  *weight = static_cast<float>(m.weight);
+  return true;
+}
+
+/// The detail criterion from its sums over the block's `n` samples (see block_detail_m).
+HIVOX_HD inline float detail_from_sums(float sum, float weights, int n, float mu_m, int min_samples,
+                                       float* mean_weight) {
+  if (mean_weight != nullptr) *mean_weight = n > 0 ? weights / static_cast<float>(n) : 0.0f;
+  if (n < min_samples || n == 0) return -1.0f;
+  return sqrtf(sum / static_cast<float>(n)) * mu_m;
+}
+
 /// Detail criterion: RMS, in metres, of F(v) - (F(v - e) + F(v + e)) / 2 over voxels v with an
 /// odd coordinate along axis e (what subsampling to the coarser level loses), counting only
 /// voxels whose three voxels are observed `min_weight` times and lie within `kDetailBand` of the
@@ -29,26 +56,15 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
   float sum = 0.0f, weights = 0.0f;
   int n = 0;
   for (int axis = 0; axis < 3; ++axis) {
-    const int stride = axis == 0 ? 1 : (axis == 1 ? kBlockSide : kBlockSide * kBlockSide);
     for (int i = 0; i < kBlockVoxels; ++i) {
-      const Vec3i c = voxel_coords(i);
-      const int along = c[axis];
-      if ((along & 1) == 0 || along == kBlockSide - 1) continue;  // odd, with both neighbours
-      const TsdfVoxel a = v[i - stride], m = v[i], b = v[i + stride];
-      if (a.weight < min_weight || m.weight < min_weight || b.weight < min_weight) continue;
-      const float fa = tsdf_to_float(a.tsdf), fm = tsdf_to_float(m.tsdf),
-                  fb = tsdf_to_float(b.tsdf);
-      if (fabsf(fm) >= kDetailBand || fabsf(fa) >= kDetailBand || fabsf(fb) >= kDetailBand)
-        continue;
-      const float d = fm - 0.5f * (fa + fb);
-      sum += d * d;
-      weights += static_cast<float>(m.weight);
+      float d2, w;
+      if (!detail_sample(v, axis, i, min_weight, &d2, &w)) continue;
+      sum += d2;
+      weights += w;
       ++n;
     }
   }
-  if (mean_weight != nullptr) *mean_weight = n > 0 ? weights / static_cast<float>(n) : 0.0f;
-  if (n < min_samples || n == 0) return -1.0f;
-  return sqrtf(sum / static_cast<float>(n)) * mu_m;
+  return detail_from_sums(sum, weights, n, mu_m, min_samples, mean_weight);
 }
 
 /// Surface this level cannot mesh: the block's inner cells (7^3, within the block) that have a
@@ -60,6 +76,16 @@ HIVOX_HD inline float block_detail_m(const TsdfVoxel* v, float mu_m, int min_wei
 HIVOX_HD inline bool observed_in_band_front(const TsdfVoxel& v, int min_weight) {
   return v.weight >= min_weight && v.tsdf > 0 && v.tsdf < static_cast<int16_t>(kTsdfScale);
 }
+/// Whether the cell with lowest corner (x, y, z) (each < 7) is unmeshable (see above).
+HIVOX_HD inline bool unmeshable_cell(const TsdfVoxel* v, int x, int y, int z, int min_weight) {
+  bool front = false, unobserved = false;
+  for (int c = 0; c < 8; ++c) {
+    const TsdfVoxel w = v[voxel_index(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
+    unobserved |= w.weight == 0;
+    front |= observed_in_band_front(w, min_weight);
+  }
+  return front && unobserved;
+}
 HIVOX_HD inline int block_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
   bool any_unobserved = false, any_front = false;  // most blocks have none of one or the other
   for (int i = 0; i < kBlockVoxels; ++i) {
@@ -70,15 +96,7 @@ HIVOX_HD inline int block_unmeshable_cells(const TsdfVoxel* v, int min_weight) {
   int n = 0;
   for (int z = 0; z + 1 < kBlockSide; ++z)
     for (int y = 0; y + 1 < kBlockSide; ++y)
-      for (int x = 0; x + 1 < kBlockSide; ++x) {
-        bool front = false, unobserved = false;
-        for (int c = 0; c < 8; ++c) {
-          const TsdfVoxel w = v[voxel_index(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
-          unobserved |= w.weight == 0;
-          front |= observed_in_band_front(w, min_weight);
-        }
-        n += front && unobserved;
-      }
+      for (int x = 0; x + 1 < kBlockSide; ++x) n += unmeshable_cell(v, x, y, z, min_weight);
   return n;
 }
 
