@@ -61,4 +61,22 @@ __device__ inline void add_unique(const MissingSet& set, int level, const Vec3i&
   atomicAdd(count, 1);  // the set is full: counted, dropped by the caller
 }
 
+/// A block's surface summary (BlockSurface) built by its threads, one voxel each, in shared
+/// memory: clear() by one thread, a barrier, add() by each, a barrier, then get().
+struct SharedSurface {
+  unsigned observed, surface;
+  __device__ void clear() { observed = surface = 0; }
+  /// Takes in voxel `i` of the block when observed (`weight` > 0) with TSDF `tsdf`.
+  __device__ void add(int i, int weight, int tsdf) {
+    if (weight == 0) return;
+    const Vec3i q = voxel_coords(i);
+    const unsigned octants = voxel_octants(q.x, q.y, q.z);
+    atomicOr(&observed, octants);
+    if (tsdf <= 0) atomicOr(&surface, octants);
+  }
+  __device__ BlockSurface get() const {
+    return BlockSurface{static_cast<uint8_t>(observed), static_cast<uint8_t>(surface)};
+  }
+};
+
 }  // namespace hivox::cuda

@@ -116,8 +116,8 @@ __global__ void __launch_bounds__(kBlockVoxels)
                      kernels::DepthFrameView depth, kernels::ColorFrameView color,
                      kernels::IntegrationConstants k) {
   if (static_cast<int32_t>(blockIdx.x) >= counters->visible) return;
-  __shared__ unsigned observed_octants, surface_octants;
-  if (threadIdx.x == 0) observed_octants = surface_octants = 0;
+  __shared__ SharedSurface summary;
+  if (threadIdx.x == 0) summary.clear();
   __syncthreads();
   const BlockRef b = blocks[blockIdx.x];
   const int i = threadIdx.x;  // voxel_index(x, y, z) = x + 8 y + 64 z
@@ -151,11 +151,7 @@ __global__ void __launch_bounds__(kBlockVoxels)
     result = kernels::fuse_tsdf_word(result, eta, k.inv_mu, k.max_weight);
     *word = result;
   }
-  if ((result >> 16) != 0u) {
-    const unsigned octants = voxel_octants(x, y, z);
-    atomicOr(&observed_octants, octants);
-    if (tsdf_of_word(result) <= 0) atomicOr(&surface_octants, octants);
-  }
+  summary.add(i, static_cast<int>(result >> 16), tsdf_of_word(result));
   if (map.color != nullptr && !color.image.empty() && observed && eta < k.mu_m) {
     ColorVoxel* c = map.color + static_cast<int64_t>(b.ptr) * kBlockVoxels + i;
     if (color.packed != nullptr) {
@@ -170,8 +166,7 @@ __global__ void __launch_bounds__(kBlockVoxels)
   __syncthreads();
   if (threadIdx.x == 0) {
     BlockMeta& meta = map.meta[b.ptr];
-    meta.surface.observed = static_cast<uint8_t>(observed_octants);
-    meta.surface.surface = static_cast<uint8_t>(surface_octants);
+    meta.surface = summary.get();
     if (meta.updates < 65535) ++meta.updates;
   }
 }

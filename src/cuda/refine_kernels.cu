@@ -170,11 +170,11 @@ __global__ void __launch_bounds__(kBlockVoxels)
     merge_fill_kernel(MutableMapView map, MergeJob* jobs) {
   MergeJob& m = jobs[blockIdx.x];
   __shared__ int32_t block;
-  __shared__ unsigned observed, surface;
+  __shared__ SharedSurface summary;
   if (threadIdx.x == 0) {
     block = kernels::take_block(map);
     m.block = block;
-    observed = surface = 0;
+    summary.clear();
   }
   __syncthreads();
   const int i = threadIdx.x;
@@ -185,15 +185,9 @@ __global__ void __launch_bounds__(kBlockVoxels)
   const TsdfVoxel v = map.tsdf[at];
   map.tsdf[to] = v;
   if (map.color != nullptr) map.color[to] = map.color[at];
-  if (v.weight != 0) {
-    const Vec3i q = voxel_coords(i);
-    const unsigned octants = voxel_octants(q.x, q.y, q.z);
-    atomicOr(&observed, octants);
-    if (v.tsdf <= 0) atomicOr(&surface, octants);
-  }
+  summary.add(i, v.weight, v.tsdf);
   __syncthreads();
-  if (threadIdx.x == 0)
-    m.surface = BlockSurface{static_cast<uint8_t>(observed), static_cast<uint8_t>(surface)};
+  if (threadIdx.x == 0) m.surface = summary.get();
 }
 
 __global__ void merge_publish_kernel(MutableMapView map, MergeJob* jobs, int32_t n) {
@@ -240,17 +234,7 @@ __global__ void split_sources_kernel(MapView map, SplitJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   SplitJob& s = jobs[i];
-  const BlockRef& p = s.parent;
-  const LevelView& lv = map.level[p.level];
-  const LevelView& fine = map.level[p.level - 1];
-  for (int d = 0; d < kBlockChildren; ++d) {
-    const Vec3i nb{p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)};
-    const int32_t ptr = d == 0 ? p.ptr : find_block_ptr(lv, nb);
-    s.parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
-    for (int c = 0; c < kBlockChildren; ++c)
-      s.neighbour_children[d][c] =
-          ptr == kPtrSplit ? find_block_ptr(fine, child_block_pos(nb, c)) : kPtrEmpty;
-  }
+  kernels::split_sources(map, s.parent, s.parents, s.neighbour_children);
 }
 
 /// One CUDA block per child, one thread per voxel: the first thread claims the child's entry
@@ -261,12 +245,12 @@ __global__ void __launch_bounds__(kBlockVoxels)
   const int c = static_cast<int>(blockIdx.x % kBlockChildren);
   const BlockRef& p = s.parent;
   __shared__ int32_t block;
-  __shared__ unsigned observed, surface;
+  __shared__ SharedSurface summary;
   if (threadIdx.x == 0) {
     s.child_entry[c] = kernels::reserve_entry(map, p.level - 1, child_block_pos(p.pos, c));
     block = kernels::take_block(map);
     s.child_block[c] = block;
-    observed = surface = 0;
+    summary.clear();
   }
   __syncthreads();
   const int i = threadIdx.x;
@@ -276,16 +260,9 @@ __global__ void __launch_bounds__(kBlockVoxels)
                                  map.color != nullptr ? &color : nullptr);
   map.tsdf[static_cast<int64_t>(block) * kBlockVoxels + i] = v;
   if (map.color != nullptr) map.color[static_cast<int64_t>(block) * kBlockVoxels + i] = color;
-  if (v.weight != 0) {
-    const Vec3i q = voxel_coords(i);
-    const unsigned octants = voxel_octants(q.x, q.y, q.z);
-    atomicOr(&observed, octants);
-    if (v.tsdf <= 0) atomicOr(&surface, octants);
-  }
+  summary.add(i, v.weight, v.tsdf);
   __syncthreads();
-  if (threadIdx.x == 0)
-    s.child_surface[c] =
-        BlockSurface{static_cast<uint8_t>(observed), static_cast<uint8_t>(surface)};
+  if (threadIdx.x == 0) s.child_surface[c] = summary.get();
 }
 
 __global__ void split_publish_kernel(MutableMapView map, SplitJob* jobs, int32_t n) {

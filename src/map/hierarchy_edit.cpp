@@ -80,17 +80,8 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
     std::vector<Sources> sources(static_cast<std::size_t>(m));
     parallel_for(m, [&](int64_t k) {
       const BlockRef& p = go[static_cast<std::size_t>(at_level[static_cast<std::size_t>(k)])];
-      const LevelView& lv = view.read.level[p.level];
-      const LevelView& fine = view.read.level[p.level - 1];
       Sources& src = sources[static_cast<std::size_t>(k)];
-      for (int d = 0; d < kBlockChildren; ++d) {
-        const Vec3i n{p.pos.x + (d & 1), p.pos.y + ((d >> 1) & 1), p.pos.z + (d >> 2)};
-        const int32_t ptr = d == 0 ? p.ptr : find_block_ptr(lv, n);
-        src.parents[d] = ptr >= 0 ? ptr : kPtrEmpty;
-        for (int c = 0; c < kBlockChildren; ++c)
-          src.neighbour_children[d][c] =
-              ptr == kPtrSplit ? find_block_ptr(fine, child_block_pos(n, c)) : kPtrEmpty;
-      }
+      kernels::split_sources(view.read, p, src.parents, src.neighbour_children);
     });
     // Pass 2: claim blocks and entries one level down, fill the children.
     parallel_for(m, [&](int64_t k) {

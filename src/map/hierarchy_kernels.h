@@ -5,6 +5,7 @@
 
 #include "hivox/core/atomic.h"
 #include "hivox/core/hd.h"
+#include "hivox/map/hierarchy_edit.h"
 #include "hivox/map/map_view.h"
 
 namespace hivox::kernels {
@@ -101,6 +102,23 @@ HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map,
     out[i] = split_child_voxel(map, parent_blocks, neighbour_children, child, i, weight_scale,
                                out_c != nullptr ? out_c + i : nullptr);
   return block_surface(out);
+}
+
+/// The blocks a split of `parent` reads (fill_split_child's `parent_blocks` and
+/// `neighbour_children`): its block and its +x/+y/+z neighbours at its level, and the children
+/// one level down of the neighbours that are split.
+HIVOX_HD inline void split_sources(const MapView& map, const BlockRef& parent,
+                                   int32_t parent_blocks[8], int32_t neighbour_children[8][8]) {
+  const LevelView& lv = map.level[parent.level];
+  const LevelView& fine = map.level[parent.level - 1];
+  for (int d = 0; d < kBlockChildren; ++d) {
+    const Vec3i n{parent.pos.x + (d & 1), parent.pos.y + ((d >> 1) & 1), parent.pos.z + (d >> 2)};
+    const int32_t ptr = d == 0 ? parent.ptr : find_block_ptr(lv, n);
+    parent_blocks[d] = ptr >= 0 ? ptr : kPtrEmpty;
+    for (int c = 0; c < kBlockChildren; ++c)
+      neighbour_children[d][c] =
+          ptr == kPtrSplit ? find_block_ptr(fine, child_block_pos(n, c)) : kPtrEmpty;
+  }
 }
 
 // ---- merge: the parent from its children -----------------------------------------------------
