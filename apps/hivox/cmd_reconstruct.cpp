@@ -235,12 +235,12 @@ void run_reconstruct(const ReconstructOptions& options) {
     const std::size_t done = i + 1 - run.first_frame;
     if (options.quiet || !(tty || done % 50 == 0 || done == total)) return;
     const double fps = static_cast<double>(rec.frame_stats().size()) / (wall.elapsed_ms() / 1e3);
-    fmt::print(
-        "{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "", done, total,
-        fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"), rec.map().dropped_blocks(),
-        run.poses.source == PoseSource::Icp ? fmt::format("  lost {}", rec.tracking_counts().lost)
-                                            : std::string(),
-        tty ? "   " : "\n");
+    fmt::print("{}frame {}/{}  {:.1f} fps  blocks {} ({})  dropped {}{}{}", tty ? "\r" : "", done,
+               total, fps, s.blocks_total, fmt::join(s.blocks_per_level, "/"), rec.dropped_blocks(),
+               run.poses.source == PoseSource::Icp
+                   ? fmt::format("  lost {}", rec.tracking_counts().lost)
+                   : std::string(),
+               tty ? "   " : "\n");
     std::fflush(stdout);
   };
   callbacks.stop_requested = [] { return g_stop_signal != 0; };

@@ -75,6 +75,7 @@ struct GpuReconstruction::Impl {
   MutableMapView view;
   int32_t high_water = 0;  ///< the device's, as of the last frame's end
   int64_t blocks = 0;
+  int64_t dropped = 0;  ///< blocks dropped so far (the continued map's included)
 
   // Allocation.
   Buffer<int32_t> stamps;
@@ -196,6 +197,7 @@ struct GpuReconstruction::Impl {
     view.read.meta = view.meta;
     high_water = host.block_high_water();
     blocks = host.blocks_in_use();
+    dropped = host.dropped_blocks();
     total_bytes += map_bytes;
   }
 
@@ -487,6 +489,7 @@ struct GpuReconstruction::Impl {
     s.visible_blocks = c->visible;
     s.new_blocks = c->inserted;
     s.dropped_blocks = c->hash_full + c->pool_full + beyond;
+    dropped += s.dropped_blocks;
     blocks += c->inserted;
     const int32_t visible_count = c->visible;
     int32_t hw = 0;
@@ -668,6 +671,9 @@ const MapParams& GpuReconstruction::map_params() const {
 int64_t GpuReconstruction::blocks_in_use() const {
   return impl_->blocks;
 }
+int64_t GpuReconstruction::dropped_blocks() const {
+  return impl_->dropped;
+}
 int64_t GpuReconstruction::map_memory_bytes() const {
   return impl_->map_bytes + impl_->pool_bytes();
 }
@@ -692,6 +698,7 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
          hp.shape_difference(m.map_params).empty() ? "its capacities"
                                                    : hp.shape_difference(m.map_params));
   const MutableMapView h = MapAccess::storage(host);
+  MapAccess::add_dropped_blocks(host, m.dropped - host.dropped_blocks());
   int32_t c[kCounters];
   m.counters.download(c, kCounters);
   for (int l = 0; l < m.map_params.levels; ++l) {
@@ -771,6 +778,8 @@ class CudaLoop final : public DeviceLoop {
     return gpu_->trajectory().back().T_wc;
   }
   std::vector<int64_t> blocks_per_level() const override { return gpu_->blocks_per_level(); }
+  int64_t dropped_blocks() const override { return gpu_->dropped_blocks(); }
+  int64_t map_memory_bytes() const override { return gpu_->map_memory_bytes(); }
   void download_map(VoxelBlockMap& map) const override { gpu_->download_map(map); }
   RaycastResult model() const override { return gpu_->download_model(); }
 

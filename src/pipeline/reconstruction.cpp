@@ -106,6 +106,14 @@ const RaycastResult& Reconstruction::last_raycast() const {
   return device_model_;
 }
 
+int64_t Reconstruction::dropped_blocks() const {
+  return loop_ ? loop_->dropped_blocks() : map_->dropped_blocks();
+}
+
+int64_t Reconstruction::map_memory_bytes() const {
+  return loop_ ? loop_->map_memory_bytes() : map_->memory_bytes();
+}
+
 MapSession Reconstruction::session() const {
   MapSession s = resumed_;
   s.frames_fused = resumed_.frames_fused +

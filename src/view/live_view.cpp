@@ -273,8 +273,8 @@ void LiveView::frame(std::size_t i, const FrameStats& s, const Reconstruction& r
     st.counts = rec.tracking_counts();
     st.blocks_total = s.blocks_total;
     st.peak_blocks = rec.peak_blocks();
-    st.dropped_blocks = rec.map().dropped_blocks();
-    st.memory_bytes = static_cast<int64_t>(rec.map().memory_bytes());
+    st.dropped_blocks = rec.dropped_blocks();
+    st.memory_bytes = rec.map_memory_bytes();
   }
   if (params_.render_hz > 0.0 &&
       (!st.rendered || st.since_render.elapsed_ms() >= 1e3 / params_.render_hz))

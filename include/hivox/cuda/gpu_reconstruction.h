@@ -80,6 +80,8 @@ class GpuReconstruction {
   RaycastResult download_model() const;
   /// Blocks allocated on the device (all levels).
   int64_t blocks_in_use() const;
+  /// Blocks dropped so far because a capacity ran out (the continued map's included).
+  int64_t dropped_blocks() const;
   /// Device memory held by the map, and by the whole loop (map, frame and pyramid buffers).
   int64_t map_memory_bytes() const;
   int64_t device_memory_bytes() const;

@@ -29,6 +29,10 @@ class DeviceLoop {
                                    TrackResult* track) = 0;
   /// Allocated blocks per level (finest first), without copying the map.
   virtual std::vector<int64_t> blocks_per_level() const = 0;
+  /// Blocks dropped so far because a capacity ran out (the continued map's included).
+  virtual int64_t dropped_blocks() const = 0;
+  /// Device memory the map holds, in bytes.
+  virtual int64_t map_memory_bytes() const = 0;
   /// Copies the device's map into `map` (a map of the same parameters on the host).
   virtual void download_map(VoxelBlockMap& map) const = 0;
   /// The last model raycast, copied to the host.

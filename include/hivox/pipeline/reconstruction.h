@@ -157,6 +157,10 @@ class Reconstruction {
   const std::vector<FrameStats>& frame_stats() const { return frames_; }
   const std::vector<StampedPose>& trajectory() const { return trajectory_; }
   int64_t peak_blocks() const { return peak_blocks_; }
+  /// Blocks dropped so far because a capacity ran out, and the map's memory in bytes (cheap on
+  /// every device: the host's copy of a device map is not refreshed for them).
+  int64_t dropped_blocks() const;
+  int64_t map_memory_bytes() const;
   /// Where the reconstruction stands, the map's earlier frames included: what a map file keeps
   /// beside the voxels to continue it.
   MapSession session() const;
