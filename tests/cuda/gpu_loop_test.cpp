@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +20,7 @@
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/fusion/integrator.h"
 #include "hivox/io/dataset.h"
+#include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
@@ -139,6 +142,32 @@ void expect_same_raycast(const RaycastResult& cpu, const RaycastResult& gpu) {
   EXPECT_LE(normal_far, both / 200);
 }
 
+/// The meshes of the two maps (extract_mesh, default settings): nearly the same triangles.
+void expect_same_mesh(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu) {
+  const TriangleMesh a = extract_mesh(cpu), b = extract_mesh(gpu);
+  auto centroid = [](const TriangleMesh& m) {
+    double x = 0, y = 0, z = 0;
+    for (const Vec3f& p : m.positions_w) {
+      x += p.x;
+      y += p.y;
+      z += p.z;
+    }
+    const double n = static_cast<double>(std::max<int64_t>(m.vertex_count(), 1));
+    return std::array<double, 3>{x / n, y / n, z / n};
+  };
+  const std::array<double, 3> ca = centroid(a), cb = centroid(b);
+  const double shift =
+      std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) +
+                (ca[2] - cb[2]) * (ca[2] - cb[2]));
+  std::printf("[ mesh     ] %lld / %lld triangles (CPU / GPU map), centroids %.3f mm apart\n",
+              static_cast<long long>(a.triangle_count()),
+              static_cast<long long>(b.triangle_count()), 1e3 * shift);
+  ASSERT_GT(a.triangle_count(), 10000);
+  EXPECT_NEAR(static_cast<double>(b.triangle_count()), static_cast<double>(a.triangle_count()),
+              0.01 * static_cast<double>(a.triangle_count()));
+  EXPECT_LT(shift, 1e-3);
+}
+
 ReconstructionParams params_for(int levels, float voxel_m, float truncation_m) {
   ReconstructionParams p;
   p.device = Device::cuda();
@@ -182,6 +211,7 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
   expect_same_map(map, *downloaded, spec.c_str());
+  expect_same_mesh(map, *downloaded);
 
   // The CPU raycast with the start hint the GPU takes: the last frame's depth.
   RaycastParams rp;
@@ -278,6 +308,7 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
     EXPECT_NEAR(static_cast<double>(b[l]), static_cast<double>(a[l]), 10.0 + 0.02 * a[l])
         << "level " << l;
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
+  expect_same_mesh(cpu.map(), *downloaded);
   // The surface: the models of the last frame.
   RaycastParams rp;
   Raycaster raycaster(rp);
