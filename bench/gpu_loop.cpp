@@ -17,6 +17,7 @@
 #include <memory>
 #include <numeric>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -31,33 +32,24 @@ namespace {
 
 using namespace hivox;
 
+/// The mean stage times of the frames after the first `warmup`, and the median frame time.
 struct Means {
-  double upload = 0, track = 0, allocate = 0, integrate = 0, refine = 0, raycast = 0, total = 0;
-  double median_total = 0;
+  StageTimes mean;
+  double median_total_ms = 0;
   int frames = 0;
 };
 
-Means means_of(const std::vector<cuda::GpuFrameStats>& frames, int warmup) {
+Means means_of(const std::vector<FrameStats>& frames, int warmup) {
   Means m;
+  const std::span<const FrameStats> timed =
+      std::span(frames).subspan(std::min(frames.size(), static_cast<std::size_t>(warmup)));
+  m.mean = mean_stage_times(timed);
+  m.frames = static_cast<int>(timed.size());
   std::vector<double> totals;
-  for (std::size_t i = static_cast<std::size_t>(warmup); i < frames.size(); ++i) {
-    const cuda::GpuFrameStats& f = frames[i];
-    m.upload += f.upload_ms;
-    m.track += f.track_ms;
-    m.allocate += f.allocate_ms;
-    m.integrate += f.integrate_ms;
-    m.refine += f.refine_ms;
-    m.raycast += f.raycast_ms;
-    m.total += f.total_ms;
-    totals.push_back(f.total_ms);
-    ++m.frames;
-  }
-  if (m.frames == 0) return m;
-  for (double* v :
-       {&m.upload, &m.track, &m.allocate, &m.integrate, &m.refine, &m.raycast, &m.total})
-    *v /= m.frames;
+  for (const FrameStats& f : timed) totals.push_back(f.total_ms);
+  if (totals.empty()) return m;
   std::nth_element(totals.begin(), totals.begin() + totals.size() / 2, totals.end());
-  m.median_total = totals[totals.size() / 2];
+  m.median_total_ms = totals[totals.size() / 2];
   return m;
 }
 
@@ -164,7 +156,7 @@ int main(int argc, char** argv) {
     }
     const Means g = means_of(gpu->frames(), warmup);
     int64_t lost = 0, splits = 0, merges = 0;
-    for (const cuda::GpuFrameStats& f : gpu->frames()) {
+    for (const FrameStats& f : gpu->frames()) {
       lost += !f.fused;
       splits += f.splits;
       merges += f.merges;
@@ -177,12 +169,12 @@ int main(int argc, char** argv) {
         "total %.3f (median %.3f)\n"
         "  %.0f fps (mean), %.0f fps (median); %lld blocks (%lld splits, %lld merges); map %.1f "
         "MiB, all device buffers %.1f MiB; %lld frames lost; ATE %s\n",
-        g.frames, warmup, poses.c_str(), levels, voxel_m * 1e3, g.upload, g.track, g.allocate,
-        g.integrate, g.refine, g.raycast, g.total, g.median_total, 1e3 / g.total,
-        1e3 / g.median_total, static_cast<long long>(gpu->blocks_in_use()),
-        static_cast<long long>(splits), static_cast<long long>(merges),
-        gpu->map_memory_bytes() / 1048576.0, gpu->device_memory_bytes() / 1048576.0,
-        static_cast<long long>(lost), mm(gpu_ate).c_str());
+        g.frames, warmup, poses.c_str(), levels, voxel_m * 1e3, g.mean.upload_ms, g.mean.track_ms,
+        g.mean.allocate_ms, g.mean.integrate_ms, g.mean.refine_ms, g.mean.raycast_ms,
+        g.mean.total_ms, g.median_total_ms, 1e3 / g.mean.total_ms, 1e3 / g.median_total_ms,
+        static_cast<long long>(gpu->blocks_in_use()), static_cast<long long>(splits),
+        static_cast<long long>(merges), gpu->map_memory_bytes() / 1048576.0,
+        gpu->device_memory_bytes() / 1048576.0, static_cast<long long>(lost), mm(gpu_ate).c_str());
 
     double cpu_ms = 0;
     std::optional<double> cpu_ate;
@@ -205,17 +197,18 @@ int main(int argc, char** argv) {
           "GPU/CPU speed-up %.1fx\n",
           cpu_ms, 1e3 / cpu_ms, levels > 1 ? "on" : "n/a",
           static_cast<long long>(cpu_loop.map().blocks_in_use()), cpu_map_bytes / 1048576.0,
-          mm(cpu_ate).c_str(), cpu_ms / g.total);
+          mm(cpu_ate).c_str(), cpu_ms / g.mean.total_ms);
     }
     if (!json.empty()) {
       std::ofstream out(json);
       out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
           << poses << "\", \"handover\": " << k << ", \"frames_timed\": " << g.frames
-          << ", \"mean_ms\": {\"upload\": " << g.upload << ", \"track\": " << g.track
-          << ", \"allocate\": " << g.allocate << ", \"integrate\": " << g.integrate
-          << ", \"refine\": " << g.refine << ", \"raycast\": " << g.raycast
-          << ", \"total\": " << g.total << "}, \"median_total_ms\": " << g.median_total
+          << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
+          << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms
+          << ", \"integrate\": " << g.mean.integrate_ms << ", \"refine\": " << g.mean.refine_ms
+          << ", \"raycast\": " << g.mean.raycast_ms << ", \"total\": " << g.mean.total_ms
+          << "}, \"median_total_ms\": " << g.median_total_ms
           << ", \"blocks\": " << gpu->blocks_in_use()
           << ", \"map_bytes\": " << gpu->map_memory_bytes()
           << ", \"device_bytes\": " << gpu->device_memory_bytes() << ", \"lost\": " << lost

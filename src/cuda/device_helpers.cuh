@@ -44,7 +44,7 @@ __device__ inline unsigned long long pack_key(int level, const Vec3i& p) {
 
 /// Adds block key (level, pos) to `set` once: the first thread to add it appends it to the list
 /// (when there is room) and counts it in `*count`; a full set counts it too, and drops it.
-__device__ inline void add_unique(const MissingSet& set, int level, const Vec3i& pos,
+__device__ inline void add_unique(const BlockKeySet& set, int level, const Vec3i& pos,
                                   int32_t* count) {
   const unsigned long long key = pack_key(level, pos);
   uint32_t slot = static_cast<uint32_t>((key * 0x9E3779B97F4A7C15ull) >> 32) & set.mask;

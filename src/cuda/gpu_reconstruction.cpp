@@ -15,6 +15,7 @@
 #include "hivox/core/log.h"
 #include "hivox/core/timer.h"
 #include "hivox/map/hierarchy_edit.h"
+#include "map/hierarchy_kernels.h"
 #include "map/map_access.h"
 #include "track/icp_solver.h"
 
@@ -22,12 +23,8 @@ namespace hivox::cuda {
 
 namespace {
 
-void check(cudaError_t e, const char* what) {
-  check_status(e, what);
-}
-
 void synchronize(const char* stage) {
-  check(cudaDeviceSynchronize(), stage);
+  check_status(cudaDeviceSynchronize(), stage);
 }
 
 /// The counters of a device map, laid out as one array (see MutableMapView's pointers).
@@ -116,7 +113,8 @@ struct GpuReconstruction::Impl {
   int64_t refine_calls = 0;
 
   std::vector<StampedPose> trajectory;
-  std::vector<GpuFrameStats> frames;
+  std::vector<FrameStats> frames;
+  TrackResult last_track;
   Pose motion = Pose::Identity();
   std::optional<Pose> resume_pose;  ///< the handed-over map's last pose: track from it
 
@@ -135,14 +133,14 @@ struct GpuReconstruction::Impl {
     if (name.empty())
       fail(ErrorCode::Unsupported, "device {}: no such CUDA device here (no driver or no GPU)",
            params.device.to_string());
-    check(cudaSetDevice(params.device.index), "selecting the device");
+    check_status(cudaSetDevice(params.device.index), "selecting the device");
     // The walk through the levels recurses (kernels::walk_segment_in): its depth grows with the
     // levels, so the compiler cannot size the stack; 1 KB a thread (the default) is too little
     // for four levels, or for three under compute-sanitizer.
     std::size_t stack = 0;
-    check(cudaDeviceGetLimit(&stack, cudaLimitStackSize), "reading the stack size");
+    check_status(cudaDeviceGetLimit(&stack, cudaLimitStackSize), "reading the stack size");
     if (stack < kStackBytes)
-      check(cudaDeviceSetLimit(cudaLimitStackSize, kStackBytes), "setting the stack size");
+      check_status(cudaDeviceSetLimit(cudaLimitStackSize, kStackBytes), "setting the stack size");
     upload_map(host);
     allocate_frame_buffers();
   }
@@ -173,11 +171,12 @@ struct GpuReconstruction::Impl {
     view.tsdf = static_cast<TsdfVoxel*>(tsdf.get());
     view.color = h.color != nullptr ? static_cast<ColorVoxel*>(color.get()) : nullptr;
     const auto voxels = static_cast<std::size_t>(used) * kBlockVoxels;
-    check(cudaMemcpy(view.tsdf, h.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyHostToDevice),
-          "uploading the map's voxels");
+    check_status(cudaMemcpy(view.tsdf, h.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyHostToDevice),
+                 "uploading the map's voxels");
     if (view.color != nullptr)
-      check(cudaMemcpy(view.color, h.color, voxels * sizeof(ColorVoxel), cudaMemcpyHostToDevice),
-            "uploading the map's colours");
+      check_status(
+          cudaMemcpy(view.color, h.color, voxels * sizeof(ColorVoxel), cudaMemcpyHostToDevice),
+          "uploading the map's colours");
     counters.reset(kCounters, &map_bytes);
     int32_t c[kCounters] = {};
     for (int l = 0; l < mp.levels; ++l) c[kExcessCount + l] = *h.level[l].excess.count;
@@ -218,7 +217,7 @@ struct GpuReconstruction::Impl {
     const auto pixels = static_cast<std::size_t>(cam.width) * cam.height;
     const auto capacity = static_cast<std::size_t>(map_params.max_blocks);
     stamps.reset(capacity, &total_bytes);
-    check(cudaMemset(stamps.get(), 0xFF, capacity * sizeof(int32_t)), "clearing stamps");
+    check_status(cudaMemset(stamps.get(), 0xFF, capacity * sizeof(int32_t)), "clearing stamps");
     // The missing set: twice the slots of its list, which holds what the pool could take in
     // one frame up to 2^20 blocks.
     const std::size_t list = std::min<std::size_t>(capacity, std::size_t{1} << 20);
@@ -263,7 +262,7 @@ struct GpuReconstruction::Impl {
                        &total_bytes);
     icp_sums.reset(32, &total_bytes);
     icp_done.reset(1, &total_bytes);
-    check(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
+    check_status(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
     host_sums.reserve(32);
     if (map_params.levels > 1) {
       // At most every visible block splits; their parents (each once) may merge.
@@ -289,7 +288,7 @@ struct GpuReconstruction::Impl {
 
   /// The CPU Refiner's refinement of the blocks this frame touched (the first `visible` of the
   /// visible list), on the device: decisions per block, then merges, then splits.
-  void refine(const Pose& T_wc, int32_t visible_count, GpuFrameStats& s) {
+  void refine(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
     if (map_params.levels < 2 || (refine_calls++ % params.refine.every_n_frames) != 0) return;
     Stopwatch stage;
     const RefineParams& rp = params.refine;
@@ -304,14 +303,14 @@ struct GpuReconstruction::Impl {
     k.unmeshable_min_weight = rp.unmeshable_min_weight;
     k.noise = rp.noise.value_or(rig.depth_noise);
     k.T_cw = to_rigid3f(T_wc.inverse());
-    check(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t)), "clearing counters");
-    check(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t)),
-          "clearing the parent set");
+    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t)), "clearing counters");
+    check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t)),
+                 "clearing the parent set");
     const auto capacity = static_cast<int32_t>(split_list.size());
     const RefineLists lists{
         split_list.get(), merge_list.get(), capacity,
-        MissingSet{parent_keys.get(), static_cast<uint32_t>(parent_keys.size() - 1),
-                   parent_list.get(), static_cast<int32_t>(parent_list.size())},
+        BlockKeySet{parent_keys.get(), static_cast<uint32_t>(parent_keys.size() - 1),
+                    parent_list.get(), static_cast<int32_t>(parent_list.size())},
         refine_counts.get()};
     split_candidates(view.read, visible.get(), visible_count, alloc_counters.get(), k, lists);
     int32_t counts[3];
@@ -359,22 +358,16 @@ struct GpuReconstruction::Impl {
       split_check(view.read, split_jobs.get(), static_cast<int32_t>(sj.size()));
       split_jobs.download(sj.data(), sj.size());
       std::erase_if(sj, [](const SplitJob& j) { return j.ok == 0; });
-      // Room: 8 pool blocks per split and, at worst, 8 overflow entries at the child level.
       int32_t c[kCounters];
       counters.download(c, kCounters);
-      int64_t free_blocks = c[kBlockFreeCount];
-      std::array<int64_t, kMaxLevels> free_excess{};
-      for (int l = 0; l < map_params.levels; ++l) free_excess[l] = c[kExcessCount + l];
+      kernels::SplitRoom room{c[kBlockFreeCount], {}};
+      for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
       std::vector<SplitJob> go;
       for (const SplitJob& j : sj) {
-        const int cl = j.parent.level - 1;
-        if (free_blocks >= kBlockChildren && free_excess[cl] >= kBlockChildren) {
-          free_blocks -= kBlockChildren;
-          free_excess[cl] -= kBlockChildren;
+        if (room.take(j.parent.level))
           go.push_back(j);
-        } else {
+        else
           ++s.refine_waiting;
-        }
       }
       if (s.refine_waiting > 0)
         log::warn_once("cuda.split_waiting",
@@ -423,8 +416,9 @@ struct GpuReconstruction::Impl {
     const std::size_t pixels = f.depth_m.size();
     float* staged = staged_depth.reserve(pixels);
     std::memcpy(staged, f.depth_m.data(), pixels * sizeof(float));
-    check(cudaMemcpyAsync(depth.get(), staged, pixels * sizeof(float), cudaMemcpyHostToDevice),
-          "uploading the depth");
+    check_status(
+        cudaMemcpyAsync(depth.get(), staged, pixels * sizeof(float), cudaMemcpyHostToDevice),
+        "uploading the depth");
     frame.depth.depth_m.data = depth.get();
     if (color_image.size() > 0 && in.color != nullptr) {
       const PinholeCamera& cc = rig.color_camera;
@@ -435,8 +429,9 @@ struct GpuReconstruction::Impl {
       const std::size_t n = f.color.size();
       Rgb8* staged_c = staged_color.reserve(n);
       std::memcpy(staged_c, f.color.data(), n * sizeof(Rgb8));
-      check(cudaMemcpyAsync(color_image.get(), staged_c, n * sizeof(Rgb8), cudaMemcpyHostToDevice),
-            "uploading the colour");
+      check_status(
+          cudaMemcpyAsync(color_image.get(), staged_c, n * sizeof(Rgb8), cudaMemcpyHostToDevice),
+          "uploading the colour");
       kernels::ColorFrameView& color = frame.color;
       color.image = {color_image.get(), cc.width, cc.height};
       color.camera = cc;
@@ -450,26 +445,28 @@ struct GpuReconstruction::Impl {
     return frame;
   }
 
-  void fuse(const IntegrationFrame& f, const Pose& T_wc, GpuFrameStats& s) {
+  void fuse(const IntegrationFrame& f, const Pose& T_wc, FrameStats& s) {
     Stopwatch stage;
     if (++frame == INT32_MAX) {
-      check(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)), "clearing stamps");
+      check_status(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)),
+                   "clearing stamps");
       frame = 0;
     }
-    check(cudaMemsetAsync(alloc_counters.get(), 0, sizeof(AllocCounters)), "clearing counters");
-    check(cudaMemsetAsync(missing_keys.get(), 0xFF, missing_keys.size() * sizeof(uint64_t)),
-          "clearing the missing set");
+    check_status(cudaMemsetAsync(alloc_counters.get(), 0, sizeof(AllocCounters)),
+                 "clearing counters");
+    check_status(cudaMemsetAsync(missing_keys.get(), 0xFF, missing_keys.size() * sizeof(uint64_t)),
+                 "clearing the missing set");
     const int64_t free_blocks = map_params.max_blocks - blocks;
-    MissingSet missing{missing_keys.get(), static_cast<uint32_t>(missing_keys.size() - 1),
-                       missing_list.get(),
-                       static_cast<int32_t>(std::min<int64_t>(
-                           free_blocks, static_cast<int64_t>(missing_list.size())))};
+    BlockKeySet missing{missing_keys.get(), static_cast<uint32_t>(missing_keys.size() - 1),
+                        missing_list.get(),
+                        static_cast<int32_t>(std::min<int64_t>(
+                            free_blocks, static_cast<int64_t>(missing_list.size())))};
     const Rigid3f T = to_rigid3f(T_wc);
     find_blocks(view.read, f.depth, T, map_params.truncation_m, stamps.get(), frame, missing,
                 visible.get(), alloc_counters.get());
     AllocCounters* c = host_counters.reserve(1);
-    check(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
-          "allocation (reading the counters)");
+    check_status(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+                 "allocation (reading the counters)");
     const int32_t found = c->visible;
     const int32_t to_insert = std::min(c->missing, missing.capacity);
     const int64_t beyond = c->missing - to_insert;
@@ -483,8 +480,8 @@ struct GpuReconstruction::Impl {
                     f.constants);
     synchronize("integration");
     s.integrate_ms = stage.lap_ms();
-    check(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
-          "reading the counters");
+    check_status(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+                 "reading the counters");
     s.valid_pixels = c->valid_pixels;
     s.visible_blocks = c->visible;
     s.new_blocks = c->inserted;
@@ -493,8 +490,8 @@ struct GpuReconstruction::Impl {
     blocks += c->inserted;
     const int32_t visible_count = c->visible;
     int32_t hw = 0;
-    check(cudaMemcpy(&hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
-          "reading the high-water mark");
+    check_status(cudaMemcpy(&hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
+                 "reading the high-water mark");
     high_water = hw;
     refine(T_wc, visible_count, s);
     if (s.dropped_blocks > 0)
@@ -506,7 +503,7 @@ struct GpuReconstruction::Impl {
 
   /// Raycasts the model at `T_wc`; `frame_hint`: the frame on the device was taken there, its
   /// depth tells the rays where to start.
-  void raycast_model(const Pose& T_wc, bool frame_hint, GpuFrameStats& s) {
+  void raycast_model(const Pose& T_wc, bool frame_hint, FrameStats& s) {
     Stopwatch stage;
     const ImageLevel& m0 = model[0];
     kernels::RangeTiles tiles =
@@ -517,17 +514,17 @@ struct GpuReconstruction::Impl {
         kernels::march_constants(params.raycast, view.read, kernels::CoarseOccupancy{});
     const kernels::RaycastOutputView out{m0.depth.get(), m0.points.get(), m0.normals.get(),
                                          model_colors.get(), model_levels.get()};
-    check(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),
-          "clearing counters");
+    check_status(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),
+                 "clearing counters");
     const DepthRange& range = params.fusion.depth_range;
     StartHint hint;
     if (frame_hint) hint = {depth.get(), rig.depth_camera.width, params.track.model_subsample};
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
                   tiles, k, hint, out, alloc_counters.get());
     int32_t hits = 0;
-    check(cudaMemcpy(&hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t),
-                     cudaMemcpyDeviceToHost),
-          "raycast");
+    check_status(cudaMemcpy(&hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t),
+                            cudaMemcpyDeviceToHost),
+                 "raycast");
     s.raycast_hits = hits;
     model_T_wc = T_wc;
     has_model = true;
@@ -546,7 +543,7 @@ struct GpuReconstruction::Impl {
     filter_depth(depth.get(), pyramid[0].depth.get(), cam.width, cam.height, tp.bilateral_radius_px,
                  inv_px, inv_d, lo, range.max_m);
     int32_t* valid = &alloc_counters.get()->icp_valid_pixels;
-    check(cudaMemsetAsync(valid, 0, sizeof(int32_t)), "clearing counters");
+    check_status(cudaMemsetAsync(valid, 0, sizeof(int32_t)), "clearing counters");
     for (std::size_t l = 0; l < pyramid.size(); ++l) {
       ImageLevel& P = pyramid[l];
       if (l > 0)
@@ -563,8 +560,8 @@ struct GpuReconstruction::Impl {
       }
     }
     int32_t valid_pixels = 0;
-    check(cudaMemcpy(&valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
-          "tracking (preprocessing)");
+    check_status(cudaMemcpy(&valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
+                 "tracking (preprocessing)");
     result.preprocess_ms = watch.lap_ms();
     const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
     double* sums = host_sums.reserve(32);
@@ -577,14 +574,7 @@ struct GpuReconstruction::Impl {
                  static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
                  M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(), sums);
       icp::System sys;
-      sys.r2 = sums[27];
-      sys.distance = sums[28];
-      sys.inliers = static_cast<int64_t>(sums[29]);
-      int k = 0;
-      for (int i = 0; i < 6; ++i) {
-        for (int j = i; j < 6; ++j) sys.A(i, j) = sums[k++];
-        sys.b(i) = sums[21 + i];
-      }
+      sys.add(sums, sums + 21, sums[27], sums[28], static_cast<int64_t>(sums[29]));
       sys.symmetrize();
       return sys;
     };
@@ -593,9 +583,10 @@ struct GpuReconstruction::Impl {
     return result;
   }
 
-  const GpuFrameStats& record(const RgbdFrame& f, const Pose& T_wc, const Stopwatch& total,
-                              GpuFrameStats& s) {
-    s.index = static_cast<int64_t>(f.index);
+  const FrameStats& record(const RgbdFrame& f, const Pose& T_wc, const Stopwatch& total,
+                           FrameStats& s) {
+    s.index = f.index;
+    s.timestamp_s = f.timestamp_s;
     s.total_ms = total.elapsed_ms();
     trajectory.push_back({f.timestamp_s, T_wc});
     frames.push_back(s);
@@ -614,11 +605,12 @@ GpuReconstruction::GpuReconstruction(const ReconstructionParams& params, const C
 
 GpuReconstruction::~GpuReconstruction() = default;
 
-const GpuFrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc) {
+const FrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc) {
   Impl& m = *impl_;
-  GpuFrameStats s;
-  s.track.quality = TrackingQuality::Good;  // a given pose
-  s.track.T_wc = T_wc;
+  FrameStats s;
+  m.last_track = TrackResult{};
+  m.last_track.quality = TrackingQuality::Good;  // a given pose
+  m.last_track.T_wc = T_wc;
   Stopwatch total;
   const IntegrationFrame f = m.upload_frame(frame, T_wc);
   s.upload_ms = total.elapsed_ms();
@@ -627,14 +619,14 @@ const GpuFrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const 
   return m.record(frame, T_wc, total, s);
 }
 
-const GpuFrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
-                                                            const Pose& T_wc_first) {
+const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
+                                                         const Pose& T_wc_first) {
   Impl& m = *impl_;
   if (m.trajectory.empty() && !m.resume_pose) {
     m.motion = Pose::Identity();
     return integrate(frame, T_wc_first);
   }
-  GpuFrameStats s;
+  FrameStats s;
   Stopwatch total;
   const Pose T_prev = m.trajectory.empty() ? *m.resume_pose : m.trajectory.back().T_wc;
   const IntegrationFrame f0 = m.upload_frame(frame, T_prev);
@@ -642,14 +634,15 @@ const GpuFrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& fra
   Stopwatch stage;
   if (!m.has_model || !m.model_T_wc.isApprox(T_prev)) m.raycast_model(T_prev, false, s);
   const Pose T_init = m.params.track.constant_velocity ? Pose(T_prev * m.motion) : T_prev;
-  s.track = m.track(T_init);
+  m.last_track = m.track(T_init);
+  s.take_track(m.last_track);
   s.track_ms = stage.lap_ms();
-  if (s.track.quality == TrackingQuality::Lost) {
+  if (m.last_track.quality == TrackingQuality::Lost) {
     s.fused = false;
     m.motion = Pose::Identity();
     return m.record(frame, T_prev, total, s);
   }
-  const Pose T_wc = s.track.T_wc;
+  const Pose T_wc = m.last_track.T_wc;
   m.motion = T_prev.inverse() * T_wc;
   // The integration constants at the tracked pose (the images are already on the device).
   IntegrationFrame f = f0;
@@ -662,8 +655,11 @@ const GpuFrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& fra
 const std::vector<StampedPose>& GpuReconstruction::trajectory() const {
   return impl_->trajectory;
 }
-const std::vector<GpuFrameStats>& GpuReconstruction::frames() const {
+const std::vector<FrameStats>& GpuReconstruction::frames() const {
   return impl_->frames;
+}
+const TrackResult& GpuReconstruction::last_track() const {
+  return impl_->last_track;
 }
 const MapParams& GpuReconstruction::map_params() const {
   return impl_->map_params;
@@ -712,13 +708,13 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
   *h.block_high_water = c[kHighWater];
   const auto used = static_cast<std::size_t>(c[kHighWater]);
   m.meta.download(h.meta, m.meta.size());
-  check(cudaMemcpy(h.tsdf, m.view.tsdf, used * kBlockVoxels * sizeof(TsdfVoxel),
-                   cudaMemcpyDeviceToHost),
-        "downloading the voxels");
+  check_status(cudaMemcpy(h.tsdf, m.view.tsdf, used * kBlockVoxels * sizeof(TsdfVoxel),
+                          cudaMemcpyDeviceToHost),
+               "downloading the voxels");
   if (h.color != nullptr && m.view.color != nullptr)
-    check(cudaMemcpy(h.color, m.view.color, used * kBlockVoxels * sizeof(ColorVoxel),
-                     cudaMemcpyDeviceToHost),
-          "downloading the colours");
+    check_status(cudaMemcpy(h.color, m.view.color, used * kBlockVoxels * sizeof(ColorVoxel),
+                            cudaMemcpyDeviceToHost),
+                 "downloading the colours");
 }
 
 std::vector<int64_t> GpuReconstruction::blocks_per_level() const {
@@ -754,7 +750,7 @@ RaycastResult GpuReconstruction::download_model() const {
 
 namespace {
 
-/// The GPU loop behind a Reconstruction (DeviceLoop): its stats in the CPU loop's terms.
+/// The GPU loop behind a Reconstruction (DeviceLoop).
 class CudaLoop final : public DeviceLoop {
  public:
   CudaLoop(const ReconstructionParams& params, const CameraRig& rig, const VoxelBlockMap* map,
@@ -762,20 +758,15 @@ class CudaLoop final : public DeviceLoop {
       : gpu_(map != nullptr ? std::make_unique<GpuReconstruction>(params, rig, *map, last_pose)
                             : std::make_unique<GpuReconstruction>(params, rig)) {}
 
-  void integrate(const RgbdFrame& frame, const Pose& T_wc, FrameStats* s) override {
-    copy(gpu_->integrate(frame, T_wc), s);
+  FrameStats integrate(const RgbdFrame& frame, const Pose& T_wc) override {
+    return gpu_->integrate(frame, T_wc);
   }
-  Pose track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first, FrameStats* s,
-                           TrackResult* track) override {
-    const GpuFrameStats& g = gpu_->track_and_integrate(frame, T_wc_first);
-    copy(g, s);
-    *track = g.track;
-    s->tracking = g.track.quality;
-    s->track_inlier_ratio = g.track.inlier_ratio;
-    s->track_rms_m = g.track.rms_m;
-    s->track_condition = g.track.condition;
-    s->track_iterations = g.track.iterations;
-    return gpu_->trajectory().back().T_wc;
+  FrameStats track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first, TrackResult* track,
+                                 Pose* T_wc) override {
+    const FrameStats s = gpu_->track_and_integrate(frame, T_wc_first);
+    *track = gpu_->last_track();
+    *T_wc = gpu_->trajectory().back().T_wc;
+    return s;
   }
   std::vector<int64_t> blocks_per_level() const override { return gpu_->blocks_per_level(); }
   int64_t dropped_blocks() const override { return gpu_->dropped_blocks(); }
@@ -784,22 +775,6 @@ class CudaLoop final : public DeviceLoop {
   RaycastResult model() const override { return gpu_->download_model(); }
 
  private:
-  static void copy(const GpuFrameStats& g, FrameStats* s) {
-    s->track_ms = g.track_ms;
-    s->allocate_ms = g.upload_ms + g.allocate_ms;  // the frame's upload counts as allocation's
-    s->integrate_ms = g.integrate_ms;
-    s->refine_ms = g.refine_ms;
-    s->raycast_ms = g.raycast_ms;
-    s->valid_pixels = g.valid_pixels;
-    s->visible_blocks = g.visible_blocks;
-    s->new_blocks = g.new_blocks;
-    s->dropped_blocks = g.dropped_blocks;
-    s->splits = g.splits;
-    s->merges = g.merges;
-    s->refine_waiting = g.refine_waiting;
-    s->raycast_hits = g.raycast_hits;
-    s->fused = g.fused;
-  }
   std::unique_ptr<GpuReconstruction> gpu_;
 };
 

@@ -32,7 +32,7 @@ struct FindVisitor {
   const MapView& map;
   int32_t* stamps;
   int32_t frame;
-  const MissingSet& missing;
+  const BlockKeySet& missing;
   BlockRef* visible;
   AllocCounters* counters;
   // The last block looked up: neighbouring steps of a band cross the same block.
@@ -62,7 +62,7 @@ struct FindVisitor {
 };
 
 __global__ void find_blocks_kernel(MapView map, kernels::DepthFrameView depth, Rigid3f T_wc,
-                                   float mu_m, int32_t* stamps, int32_t frame, MissingSet missing,
+                                   float mu_m, int32_t* stamps, int32_t frame, BlockKeySet missing,
                                    BlockRef* visible, AllocCounters* counters) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
@@ -77,7 +77,7 @@ __global__ void find_blocks_kernel(MapView map, kernels::DepthFrameView depth, R
 
 /// One CUDA block per missing key: its first thread inserts the block (kernels::allocate_block),
 /// then all its threads clear the block's voxels together (coalesced).
-__global__ void insert_blocks_kernel(MutableMapView map, MissingSet missing, BlockRef* visible,
+__global__ void insert_blocks_kernel(MutableMapView map, BlockKeySet missing, BlockRef* visible,
                                      int32_t* stamps, int32_t frame, AllocCounters* counters) {
   __shared__ int32_t block;
   if (threadIdx.x == 0) {
@@ -376,7 +376,7 @@ dim3 image_grid(int w, int h, dim3 threads) {
 }  // namespace
 
 void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
-                 float mu_m, int32_t* stamps, int32_t frame, const MissingSet& missing,
+                 float mu_m, int32_t* stamps, int32_t frame, const BlockKeySet& missing,
                  BlockRef* visible, AllocCounters* counters) {
   const dim3 threads(16, 8);
   find_blocks_kernel<<<image_grid(depth.depth_m.width, depth.depth_m.height, threads), threads>>>(
@@ -384,7 +384,7 @@ void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const
   check_last("allocation (finding blocks)");
 }
 
-void insert_blocks(const MutableMapView& map, const MissingSet& missing, int32_t count,
+void insert_blocks(const MutableMapView& map, const BlockKeySet& missing, int32_t count,
                    BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters) {
   if (count <= 0) return;
   insert_blocks_kernel<<<static_cast<unsigned>(count), 128>>>(map, missing, visible, stamps, frame,

@@ -32,8 +32,9 @@ struct AllocCounters {
   int32_t icp_valid_pixels = 0;  ///< finest pyramid level: pixels with a normal
 };
 
-/// The frame's missing blocks, de-duplicated in an open-addressing set of packed keys.
-struct MissingSet {
+/// Block keys, each once: an open-addressing set of packed keys and the list of the distinct
+/// keys (allocation's missing blocks, refinement's merge parents).
+struct BlockKeySet {
   unsigned long long* keys = nullptr;  ///< `mask + 1` slots, all ones = empty
   uint32_t mask = 0;
   BlockKey* list = nullptr;  ///< the distinct keys, in no order
@@ -44,12 +45,12 @@ struct MissingSet {
 /// blocks found are stamped with `frame` and listed as visible once, missing ones go into the
 /// set. `missing.keys` must be cleared (all ones) before.
 void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
-                 float mu_m, int32_t* stamps, int32_t frame, const MissingSet& missing,
+                 float mu_m, int32_t* stamps, int32_t frame, const BlockKeySet& missing,
                  BlockRef* visible, AllocCounters* counters);
 
 /// Stage two: inserts the `count` distinct missing blocks (lock-free, kernels::allocate_block)
 /// and appends the new ones to the visible list, stamped.
-void insert_blocks(const MutableMapView& map, const MissingSet& missing, int32_t count,
+void insert_blocks(const MutableMapView& map, const BlockKeySet& missing, int32_t count,
                    BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters);
 
 /// Integrates the frame into the visible blocks (the first `counters->visible` of at most
@@ -121,7 +122,7 @@ struct RefineLists {
   BlockRef* splits = nullptr;
   BlockKey* merges = nullptr;
   int32_t capacity = 0;  ///< of `splits` and `merges`
-  MissingSet parents;
+  BlockKeySet parents;
   int32_t* counts = nullptr;
 };
 

@@ -37,20 +37,14 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
   todo.erase(std::unique(todo.begin(), todo.end(),
                          [](const BlockRef& a, const BlockRef& b) { return a.ptr == b.ptr; }),
              todo.end());
-  // Room: 8 pool blocks per split (the parent's block comes back only afterwards) and, in the
-  // worst case, 8 overflow entries at the child level.
-  int64_t free_blocks = *view.blocks.count;
-  std::array<int64_t, kMaxLevels> free_excess{};
-  for (int l = 0; l < view.read.levels; ++l) free_excess[l] = *view.level[l].excess.count;
+  kernels::SplitRoom room{*view.blocks.count, {}};
+  for (int l = 0; l < view.read.levels; ++l) room.free_excess[l] = *view.level[l].excess.count;
   std::vector<BlockRef> go;
   for (const BlockRef& b : todo) {
-    if (free_blocks >= kBlockChildren && free_excess[b.level - 1] >= kBlockChildren) {
-      free_blocks -= kBlockChildren;
-      free_excess[b.level - 1] -= kBlockChildren;
+    if (room.take(b.level))
       go.push_back(b);
-    } else {
+    else
       ++result.waiting;
-    }
   }
   if (result.waiting > 0)
     log::warn_once("refine.split_waiting",

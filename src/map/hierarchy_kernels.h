@@ -3,6 +3,9 @@
 // splitting parent, a merged parent from its children, and chains shortened when a child's entry
 // empties.
 
+#include <array>
+#include <cstdint>
+
 #include "hivox/core/atomic.h"
 #include "hivox/core/hd.h"
 #include "hivox/map/hierarchy_edit.h"
@@ -120,6 +123,22 @@ HIVOX_HD inline void split_sources(const MapView& map, const BlockRef& parent,
           ptr == kPtrSplit ? find_block_ptr(fine, child_block_pos(n, c)) : kPtrEmpty;
   }
 }
+
+/// The room splits take, handed out in order (host code): 8 pool blocks a split (the parent's
+/// block comes back only afterwards) and, in the worst case, 8 overflow entries at the child
+/// level. A split that finds too little waits.
+struct SplitRoom {
+  int64_t free_blocks = 0;
+  std::array<int64_t, kMaxLevels> free_excess{};  ///< per level
+  /// Takes the room of splitting a block of `level`; false (nothing taken) when it lacks.
+  bool take(int level) {
+    int64_t& excess = free_excess[static_cast<std::size_t>(level - 1)];
+    if (free_blocks < kBlockChildren || excess < kBlockChildren) return false;
+    free_blocks -= kBlockChildren;
+    excess -= kBlockChildren;
+    return true;
+  }
+};
 
 // ---- merge: the parent from its children -----------------------------------------------------
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 #include <utility>
 
@@ -11,6 +12,14 @@
 #include "hivox/core/timer.h"
 
 namespace hivox {
+
+void FrameStats::take_track(const TrackResult& t) {
+  tracking = t.quality;
+  track_inlier_ratio = t.inlier_ratio;
+  track_rms_m = t.rms_m;
+  track_condition = t.condition;
+  track_iterations = t.iterations;
+}
 
 void ReconstructionParams::validate() const {
   map.validate();
@@ -130,7 +139,8 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
   s.read_ms = read_ms;
   Stopwatch total;
   if (loop_) {
-    loop_->integrate(frame, T_wc, &s);
+    s = loop_->integrate(frame, T_wc);
+    s.read_ms = read_ms;
     map_stale_ = model_stale_ = true;
   } else {
     fuse(frame, T_wc, s);
@@ -141,10 +151,10 @@ const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& 
 const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, double read_ms,
                                                       const Pose& T_wc_first) {
   if (loop_) {
-    FrameStats s;
-    s.read_ms = read_ms;
     Stopwatch total;
-    const Pose T_wc = loop_->track_and_integrate(frame, T_wc_first, &s, &last_track_);
+    Pose T_wc;
+    FrameStats s = loop_->track_and_integrate(frame, T_wc_first, &last_track_, &T_wc);
+    s.read_ms = read_ms;
     map_stale_ = model_stale_ = true;
     return record(frame, T_wc, total, s);
   }
@@ -169,11 +179,7 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
   const Pose T_init = params_.track.constant_velocity ? Pose(T_prev * motion_) : T_prev;
   last_track_ = tracker_.track(frame.depth_m, rig_.depth_camera, raycaster_.result(), T_init);
   s.track_ms = total.elapsed_ms();
-  s.tracking = last_track_.quality;
-  s.track_inlier_ratio = last_track_.inlier_ratio;
-  s.track_rms_m = last_track_.rms_m;
-  s.track_condition = last_track_.condition;
-  s.track_iterations = last_track_.iterations;
+  s.take_track(last_track_);
   if (last_track_.quality == TrackingQuality::Lost) {
     s.fused = false;
     s.valid_pixels = last_track_.valid_pixels;
@@ -190,12 +196,11 @@ const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_w
                                          const Stopwatch& total, FrameStats& s) {
   s.index = frame.index;
   s.timestamp_s = frame.timestamp_s;
+  // On a device, its counts: the host's copy of the map is refreshed only when read.
   s.blocks_per_level = loop_ ? loop_->blocks_per_level() : map_->blocks_per_level();
-  s.blocks_total = map_->blocks_in_use();
-  if (loop_) {  // the device's counts (the host's copy is refreshed only when read)
-    s.blocks_total = 0;
-    for (const int64_t n : s.blocks_per_level) s.blocks_total += n;
-  }
+  s.blocks_total =
+      loop_ ? std::accumulate(s.blocks_per_level.begin(), s.blocks_per_level.end(), int64_t{0})
+            : map_->blocks_in_use();
   peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
   s.total_ms = total.elapsed_ms();
   switch (s.tracking) {
@@ -305,6 +310,7 @@ StageTimes mean_stage_times(std::span<const FrameStats> frames) {
   if (frames.empty()) return t;
   for (const FrameStats& f : frames) {
     t.read_ms += f.read_ms;
+    t.upload_ms += f.upload_ms;
     t.track_ms += f.track_ms;
     t.allocate_ms += f.allocate_ms;
     t.integrate_ms += f.integrate_ms;
@@ -313,8 +319,8 @@ StageTimes mean_stage_times(std::span<const FrameStats> frames) {
     t.total_ms += f.total_ms;
   }
   const double n = static_cast<double>(frames.size());
-  for (double* v : {&t.read_ms, &t.track_ms, &t.allocate_ms, &t.integrate_ms, &t.refine_ms,
-                    &t.raycast_ms, &t.total_ms})
+  for (double* v : {&t.read_ms, &t.upload_ms, &t.track_ms, &t.allocate_ms, &t.integrate_ms,
+                    &t.refine_ms, &t.raycast_ms, &t.total_ms})
     *v /= n;
   return t;
 }

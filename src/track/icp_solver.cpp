@@ -10,18 +10,6 @@
 
 namespace hivox::icp {
 
-void System::add(const float* A_upper, const float* b6, double r2_sum, double distance_sum,
-                 int64_t inlier_count) {
-  int k = 0;
-  for (int i = 0; i < 6; ++i) {
-    for (int j = i; j < 6; ++j) A(i, j) += A_upper[k++];
-    b(i) += b6[i];
-  }
-  r2 += r2_sum;
-  distance += distance_sum;
-  inliers += inlier_count;
-}
-
 void System::symmetrize() {
   A.triangularView<Eigen::StrictlyLower>() = A.transpose();
 }

@@ -24,8 +24,18 @@ struct System {
   int64_t inliers = 0;
 
   /// Adds partial sums in the reductions' layout: the upper triangle of A row-major (21), b (6).
-  void add(const float* A_upper, const float* b6, double r2_sum, double distance_sum,
-           int64_t inlier_count);
+  template <typename T>
+  void add(const T* A_upper, const T* b6, double r2_sum, double distance_sum,
+           int64_t inlier_count) {
+    int k = 0;
+    for (int i = 0; i < 6; ++i) {
+      for (int j = i; j < 6; ++j) A(i, j) += A_upper[k++];
+      b(i) += b6[i];
+    }
+    r2 += r2_sum;
+    distance += distance_sum;
+    inliers += inlier_count;
+  }
   /// Mirrors the upper triangle into the lower (after the last `add`).
   void symmetrize();
 };

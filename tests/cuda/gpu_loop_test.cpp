@@ -168,6 +168,20 @@ void expect_same_mesh(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu) {
   EXPECT_LT(shift, 1e-3);
 }
 
+/// The GPU's model raycast (after fusing `frame` at `T_wc`) against the CPU's raycast of
+/// `cpu_map` from there, with the start hint the GPU takes: the frame's depth.
+void expect_same_model(const VoxelBlockMap& cpu_map, const RaycastResult& gpu_model,
+                       const RgbdFrame& frame, const Pose& T_wc, const ReconstructionParams& p,
+                       const CameraRig& rig) {
+  Raycaster raycaster(p.raycast);
+  FrameHints hints;
+  expect_same_raycast(
+      raycaster.raycast(cpu_map, gpu_model.camera, T_wc, p.fusion.depth_range,
+                        hints.build(frame.depth_m, rig.depth_camera, p.track.model_subsample, T_wc,
+                                    nullptr, p.map.truncation_m)),
+      gpu_model);
+}
+
 ReconstructionParams params_for(int levels, float voxel_m, float truncation_m) {
   ReconstructionParams p;
   p.device = Device::cuda();
@@ -204,7 +218,7 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
     const RgbdFrame f = data.read(static_cast<std::size_t>(i));
     const Allocation a = integrator.fuse(map, fusion_input(rig, f, *f.T_wc_gt));
     if (levels > 1) after.refine(map, a.visible_blocks, *f.T_wc_gt);
-    const cuda::GpuFrameStats& s = gpu.integrate(f, *f.T_wc_gt);
+    const FrameStats& s = gpu.integrate(f, *f.T_wc_gt);
     EXPECT_EQ(s.dropped_blocks, 0);
     last_pose = *f.T_wc_gt;
   }
@@ -213,17 +227,8 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
   expect_same_map(map, *downloaded, spec.c_str());
   expect_same_mesh(map, *downloaded);
 
-  // The CPU raycast with the start hint the GPU takes: the last frame's depth.
-  RaycastParams rp;
-  Raycaster raycaster(rp);
-  FrameHints hints;
-  const RgbdFrame last_frame = data.read(static_cast<std::size_t>(last - 1));
-  const RaycastResult gpu_model = gpu.download_model();
-  const RaycastResult& cpu_model =
-      raycaster.raycast(map, gpu_model.camera, last_pose, p.fusion.depth_range,
-                        hints.build(last_frame.depth_m, rig.depth_camera, p.track.model_subsample,
-                                    last_pose, nullptr, p.map.truncation_m));
-  expect_same_raycast(cpu_model, gpu_model);
+  expect_same_model(map, gpu.download_model(), data.read(static_cast<std::size_t>(last - 1)),
+                    last_pose, p, rig);
 }
 
 TEST(GpuLoop, FusesTheCpusMapOnAFixedGrid) {
@@ -250,7 +255,7 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
     const RgbdFrame f = data.read(i);
     gt.push_back({f.timestamp_s, *f.T_wc_gt});
     cpu.track_and_integrate(f, 0.0, first);
-    const cuda::GpuFrameStats& s = gpu.track_and_integrate(f, first);
+    const FrameStats& s = gpu.track_and_integrate(f, first);
     EXPECT_TRUE(s.fused) << "frame " << i;
   }
   double max_dt = 0, max_dr = 0;
@@ -286,7 +291,7 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
   for (std::size_t i = 0; i < data.size(); ++i) {
     const RgbdFrame f = data.read(i);
     const FrameStats& c = cpu.integrate(f, *f.T_wc_gt);
-    const cuda::GpuFrameStats& g = gpu.integrate(f, *f.T_wc_gt);
+    const FrameStats& g = gpu.integrate(f, *f.T_wc_gt);
     cpu_splits += c.splits;
     cpu_merges += c.merges;
     gpu_splits += g.splits;
@@ -309,27 +314,8 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
         << "level " << l;
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
   expect_same_mesh(cpu.map(), *downloaded);
-  // The surface: the models of the last frame.
-  RaycastParams rp;
-  Raycaster raycaster(rp);
-  FrameHints hints;
   const RgbdFrame last = data.read(data.size() - 1);
-  const RaycastResult gpu_model = gpu.download_model();
-  const RaycastResult& cpu_model =
-      raycaster.raycast(cpu.map(), gpu_model.camera, *last.T_wc_gt, p.fusion.depth_range,
-                        hints.build(last.depth_m, rig.depth_camera, p.track.model_subsample,
-                                    *last.T_wc_gt, nullptr, p.map.truncation_m));
-  int64_t both = 0, far = 0;
-  for (int y = 0; y < cpu_model.depth_m.height(); ++y)
-    for (int x = 0; x < cpu_model.depth_m.width(); ++x)
-      if (cpu_model.hit(x, y) && gpu_model.hit(x, y)) {
-        ++both;
-        far += std::abs(cpu_model.depth_m(x, y) - gpu_model.depth_m(x, y)) > 1e-3f;
-      }
-  std::printf("[ refine   ] model: %lld hits in both, %lld depths > 1 mm apart\n",
-              static_cast<long long>(both), static_cast<long long>(far));
-  EXPECT_GT(both, 60000);
-  EXPECT_LE(far, both / 100);
+  expect_same_model(cpu.map(), gpu.download_model(), last, *last.T_wc_gt, p, rig);
 }
 
 /// The CLI's and the bindings' way onto the GPU: a Reconstruction on `cuda` (its frames on the

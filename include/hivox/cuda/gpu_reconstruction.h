@@ -27,24 +27,6 @@ namespace hivox::cuda {
 /// The name of CUDA device `index`, or empty when there is none (no driver, no such device).
 std::string device_name(int index = 0);
 
-/// One frame of the device loop. Stage times are wall-clock on the host around each stage, the
-/// device synchronised at its end.
-struct GpuFrameStats {
-  int64_t index = -1;
-  bool fused = true;
-  TrackResult track;  ///< default (Good, no iterations) for frames with a given pose
-  int64_t valid_pixels = 0;
-  int64_t visible_blocks = 0;
-  int64_t new_blocks = 0;
-  int64_t dropped_blocks = 0;
-  int64_t raycast_hits = 0;
-  int64_t splits = 0, merges = 0;
-  int64_t refine_waiting = 0;  ///< splits or merges postponed for lack of room
-  double upload_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0;
-  double raycast_ms = 0;
-  double total_ms = 0;
-};
-
 class GpuReconstruction {
  public:
   /// A new, empty map. `params.device` must be a CUDA device that is present (else
@@ -58,15 +40,18 @@ class GpuReconstruction {
   GpuReconstruction(const GpuReconstruction&) = delete;
   GpuReconstruction& operator=(const GpuReconstruction&) = delete;
 
-  /// Fuses `frame` at the given pose (no tracking), then raycasts the model at it.
-  const GpuFrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc);
+  /// Fuses `frame` at the given pose (no tracking), then raycasts the model at it. Stage times
+  /// are wall-clock on the host around each stage, the device synchronised at its end.
+  const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc);
   /// Tracks `frame` against the last model (the first frame of a new map takes `T_wc_first`),
   /// fuses it unless tracking is lost, and raycasts the model at the new pose.
-  const GpuFrameStats& track_and_integrate(const RgbdFrame& frame,
-                                           const Pose& T_wc_first = Pose::Identity());
+  const FrameStats& track_and_integrate(const RgbdFrame& frame,
+                                        const Pose& T_wc_first = Pose::Identity());
 
   const std::vector<StampedPose>& trajectory() const;
-  const std::vector<GpuFrameStats>& frames() const;
+  const std::vector<FrameStats>& frames() const;
+  /// The last frame's tracking (Good, with no ICP numbers, for a frame fused at a given pose).
+  const TrackResult& last_track() const;
   const MapParams& map_params() const;
 
   /// A host copy of the device map (same parameters, same tables and pool indices).

@@ -15,18 +15,18 @@
 
 namespace hivox {
 
-struct FrameStats;
+struct FrameStats;  // reconstruction.h
 
 class DeviceLoop {
  public:
   virtual ~DeviceLoop() = default;
-  /// Fuses `frame` at `T_wc` (refines, raycasts the model); fills the stage fields of `*s`.
-  virtual void integrate(const RgbdFrame& frame, const Pose& T_wc, FrameStats* s) = 0;
+  /// Fuses `frame` at `T_wc` (refines, raycasts the model); its stage statistics.
+  virtual FrameStats integrate(const RgbdFrame& frame, const Pose& T_wc) = 0;
   /// Tracks `frame` against the last model (the first frame of a new map is fused at
-  /// `T_wc_first`), fuses it unless tracking is lost; fills `*s` and `*track`, returns the pose
-  /// the frame keeps (the previous one when lost).
-  virtual Pose track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first, FrameStats* s,
-                                   TrackResult* track) = 0;
+  /// `T_wc_first`) and fuses it unless tracking is lost; its stage statistics, the tracking in
+  /// `*track` and the pose the frame keeps (the previous one when lost) in `*T_wc`.
+  virtual FrameStats track_and_integrate(const RgbdFrame& frame, const Pose& T_wc_first,
+                                         TrackResult* track, Pose* T_wc) = 0;
   /// Allocated blocks per level (finest first), without copying the map.
   virtual std::vector<int64_t> blocks_per_level() const = 0;
   /// Blocks dropped so far because a capacity ran out (the continued map's included).

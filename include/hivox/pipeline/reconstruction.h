@@ -58,7 +58,8 @@ struct ReconstructionParams {
 struct FrameStats {
   std::size_t index = 0;
   double timestamp_s = 0;
-  double read_ms = 0;  ///< decoding the frame (measured by the caller)
+  double read_ms = 0;    ///< decoding the frame (measured by the caller)
+  double upload_ms = 0;  ///< copying the frame to the device (0 on the CPU)
   double track_ms = 0;
   double allocate_ms = 0;
   double integrate_ms = 0;
@@ -83,11 +84,14 @@ struct FrameStats {
   double track_rms_m = 0;
   double track_condition = 0;
   int track_iterations = 0;
+
+  /// Takes in the tracking's verdict and numbers.
+  void take_track(const TrackResult& t);
 };
 
 /// Mean milliseconds per frame of each stage over a run (zeros for no frame).
 struct StageTimes {
-  double read_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0,
+  double read_ms = 0, upload_ms = 0, track_ms = 0, allocate_ms = 0, integrate_ms = 0, refine_ms = 0,
          raycast_ms = 0, total_ms = 0;
   /// Frames per second of processing (reading excluded); 0 for no frame.
   double fps() const { return total_ms > 0 ? 1000.0 / total_ms : 0.0; }
