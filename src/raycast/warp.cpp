@@ -8,6 +8,7 @@
 #include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/raycast/raycaster.h"
+#include "raycast/warp_kernels.h"
 
 namespace hivox {
 
@@ -23,9 +24,11 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
   // (the first thread's is `nearest`), merged row by row afterwards: an atomic minimum per hit
   // cost most of the warp.
   DepthImage& nearest = s.nearest;
-  const Rigid3f T_cw = to_rigid3f(T_wc.inverse());
+  // camera.project and camera.ray are written out in warp_landing on these copies: called on the
+  // camera object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
+  const kernels::WarpView view{
+      to_rigid3f(T_wc.inverse()), camera.fx, camera.fy, camera.cx, camera.cy, w, h, max_gap_m};
   const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
-  const float plane_limit_m = 0.5f * max_gap_m;
   int threads = 1;
   parallel_team([&](const ThreadTeam& team) {
     team.single([&] {
@@ -40,38 +43,15 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     std::vector<float> landing_u(static_cast<std::size_t>(from_w));
     std::vector<float> landing_v(static_cast<std::size_t>(from_w));
     std::vector<float> landing_z(static_cast<std::size_t>(from_w));  // 0: lands nowhere
-    // camera.project and camera.ray written out on these copies below: called on the camera
-    // object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
-    const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
     const ThreadTeam::Share rows = team.static_share(from_h);
     for (int y = static_cast<int>(rows.begin); y < static_cast<int>(rows.end); ++y) {
       const float* depth = &from.depth_m(0, y);
       const Vec3f* points = &from.points_w(0, y);
       const Vec3f* normals = &from.normals_w(0, y);
 #pragma omp simd
-      for (int x = 0; x < from_w; ++x) {
-        const Vec3f p = T_cw * points[x];
-        // The nearest pixel, floor(coordinate + 1/2) (the hit lands nowhere where that is
-        // negative or beyond the image).
-        const float inv_z = 1.0f / p.z;
-        const float u_half = fx * p.x * inv_z + cx + 0.5f;
-        const float v_half = fy * p.y * inv_z + cy + 0.5f;
-        const float uf = floor_nonnegative(u_half), vf = floor_nonnegative(v_half);
-        const bool lands = (depth[x] > 0.0f) & (p.z > 0.0f) & (u_half >= 0.0f) & (v_half >= 0.0f) &
-                           (u_half < static_cast<float>(w)) & (v_half < static_cast<float>(h));
-        landing_u[x] = uf;
-        landing_v[x] = vf;
-        // The depth at the pixel's centre on the hit's tangent plane (up to half a pixel from
-        // the hit: at an oblique surface the hit's own depth is off by up to a voxel or more
-        // there), at most half the gap from the hit's depth (grazing planes).
-        const Vec3f n = T_cw.rotate(normals[x]);
-        const Vec3f ray{(uf - cx) / fx, (vf - cy) / fy, 1.0f};
-        const float n_ray = dot(n, ray);
-        const bool oblique = std::abs(n_ray) > 1e-6f;  // else the hit's own depth
-        const float z = oblique ? dot(n, p) / (oblique ? n_ray : 1.0f) : p.z;
-        const float z_lo = p.z - plane_limit_m, z_hi = p.z + plane_limit_m;
-        landing_z[x] = lands ? (z < z_lo ? z_lo : (z > z_hi ? z_hi : z)) : 0.0f;
-      }
+      for (int x = 0; x < from_w; ++x)
+        landing_z[x] = kernels::warp_landing(view, depth[x], points[x], normals[x], &landing_u[x],
+                                             &landing_v[x]);
       float* m = mine.data();
       for (int x = 0; x < from_w; ++x) {
         if (!(landing_z[x] > 0.0f)) continue;
@@ -108,27 +88,11 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
     const float* row = &row_min(0, y);
     const float* below = y + 1 < h ? &row_min(0, y + 1) : no_row.data();
     float* o = &(*out)(0, y);
-    // A depth stays unless a pixel within one pixel holds a surface nearer by more than the gap
-    // (a surface that may show through a gap in the warped foreground).
-    auto kept = [&](int x, float z) {
-      const float front = std::min(above[x], std::min(row[x], below[x]));
-      return z < FLT_MAX && z - front <= max_gap_m ? z : 0.0f;
-    };
-    for (int x = 0; x < w; ++x) o[x] = kept(x, n[x]);
-    for (int x = 0; x < w; ++x) {
-      if (n[x] < FLT_MAX) continue;
-      // No hit landed here, but on both sides of the pixel (the new view magnifies the surface,
-      // or its pixels sample it elsewhere): the nearer of the two, where they agree. A pixel
-      // beside a silhouette has hits on one side only and stays empty.
-      constexpr int kOpposite[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-      float z = FLT_MAX;
-      for (const auto& d : kOpposite) {
-        const float a = landed(x - d[0], y - d[1]), b = landed(x + d[0], y + d[1]);
-        if (a < FLT_MAX && b < FLT_MAX && std::abs(a - b) <= max_gap_m)
-          z = std::min(z, std::min(a, b));
-      }
-      o[x] = kept(x, z);
-    }
+    auto front = [&](int x) { return std::min(above[x], std::min(row[x], below[x])); };
+    for (int x = 0; x < w; ++x) o[x] = kernels::warp_keep(n[x], front(x), max_gap_m);
+    for (int x = 0; x < w; ++x)
+      if (!(n[x] < FLT_MAX))
+        o[x] = kernels::warp_keep(kernels::warp_hole(landed, x, y, max_gap_m), front(x), max_gap_m);
   });
 }
 
