@@ -64,8 +64,10 @@ HIVOX_HD inline int32_t locate_block(const MapView& map, BlockLookupCache& cache
 /// Sample 0 is moved to the origin, which gives a8 = F0 and leaves a 7x7 system, solved by
 /// Gaussian elimination with partial pivoting. Returns false (and leaves the outputs untouched)
 /// when the positions are degenerate (a pivot below 1e-6): the caller falls back.
-HIVOX_HD inline bool interpolate_irregular(const Vec3f pos[8], const float value[8], const Vec3f& p,
-                                           float* f, Vec3f* gradient) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool interpolate_irregular(const Vec3f pos[8],
+                                                                 const float value[8],
+                                                                 const Vec3f& p, float* f,
+                                                                 Vec3f* gradient) {
   float a[7][8];  // augmented rows: 7 coefficients (a1..a7) and the right-hand side
   for (int i = 0; i < 7; ++i) {
     const Vec3f q = pos[i + 1] - pos[0];
@@ -338,9 +340,11 @@ HIVOX_HD inline int lattice_voxel(const MapView& map, BlockLookupCache& cache, i
 /// coordinates of `level`), when its block is not stored at `level`: lattice_voxel's voxel of
 /// another level, on the corner's side; `pos` receives its position in voxel units of `level`
 /// (`g` itself for a finer level, but for the split-block case of lattice_voxel).
-HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCache& cache, int level,
-                                             const Vec3i& g, int corner, int32_t* ptr, int* index,
-                                             Vec3f* pos) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool corner_from_other_level(const MapView& map,
+                                                                   BlockLookupCache& cache,
+                                                                   int level, const Vec3i& g,
+                                                                   int corner, int32_t* ptr,
+                                                                   int* index, Vec3f* pos) {
   Vec3i voxel;
   const int l2 = lattice_voxel(map, cache, level, g, ptr, &voxel, corner);
   if (l2 < 0 || (l2 == level && voxel == g)) return false;
@@ -353,8 +357,10 @@ HIVOX_HD inline bool corner_from_other_level(const MapView& map, BlockLookupCach
 /// The blocks of `level` that voxels `block`'s origin + [0, 8 + 8 * span) reach into, one or
 /// two per axis (`span` 0 or 1 per axis): `ptrs[neighbour_slot(x, y, z)]` holds the block of
 /// the voxel at (x, y, z) from that origin; slots beyond the span are kPtrEmpty.
-HIVOX_HD inline void neighbour_blocks(const MapView& map, BlockLookupCache& cache, int level,
-                                      const Vec3i& block, const Vec3i& span, int32_t ptrs[8]) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline void neighbour_blocks(const MapView& map,
+                                                            BlockLookupCache& cache, int level,
+                                                            const Vec3i& block, const Vec3i& span,
+                                                            int32_t ptrs[8]) {
   for (int d = 0; d < 8; ++d) {
     const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
     ptrs[d] = ((dx > span.x) | (dy > span.y) | (dz > span.z))
@@ -417,9 +423,11 @@ enum class CellRead { Sampled, Unobserved, Absent };
 /// neighbour_blocks) when all 8 voxels are stored there: Sampled (`out` filled, see sample_cell
 /// for `dv`), Unobserved (a voxel has fewer than `min_weight` observations) or Absent (a corner's
 /// block is not stored at this level).
-HIVOX_HD inline CellRead read_trilinear(const MapView& map, const int32_t blocks[8],
-                                        const CellCoords& cell, int min_weight, TsdfSample* out,
-                                        const Vec3f* dv = nullptr) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline CellRead read_trilinear(const MapView& map,
+                                                              const int32_t blocks[8],
+                                                              const CellCoords& cell,
+                                                              int min_weight, TsdfSample* out,
+                                                              const Vec3f* dv = nullptr) {
   float v[8];
   int min_w;
   if (!read_cell(map, blocks, cell.local, v, &min_w)) return CellRead::Absent;
@@ -491,12 +499,10 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
 /// must never look like surface. Given the direction `ray_d` (metres per unit of ray parameter)
 /// of a ray through `p_w`, a trilinear cell also gives the ray's crossing inside it (see
 /// TsdfSample::crossing_dz).
-HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cache, int level,
-                                      const Vec3f& p_w, int min_weight, TsdfSample* out,
-                                      const Vec3i& known_block = Vec3i{INT_MIN, 0, 0},
-                                      int32_t known_ptr = kPtrEmpty,
-                                      NeighbourBlocks* neighbours = nullptr,
-                                      const Vec3f* ray_d = nullptr) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_trilinear(
+    const MapView& map, BlockLookupCache& cache, int level, const Vec3f& p_w, int min_weight,
+    TsdfSample* out, const Vec3i& known_block = Vec3i{INT_MIN, 0, 0}, int32_t known_ptr = kPtrEmpty,
+    NeighbourBlocks* neighbours = nullptr, const Vec3f* ray_d = nullptr) {
   const CellCoords cell = cell_at(map.level[level], p_w);
   Vec3f dv;
   if (ray_d != nullptr) dv = *ray_d * map.level[level].inv_voxel_size;
@@ -537,8 +543,10 @@ HIVOX_HD inline bool sample_trilinear(const MapView& map, BlockLookupCache& cach
 /// one look-up per block, when every voxel they need is stored at `level`. Returns false
 /// otherwise (the caller samples one by one, across levels) or when a needed voxel has fewer
 /// than `min_weight` observations.
-HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCache& cache, int level,
-                                             const Vec3f& p_w, int min_weight, Vec3f* ahead) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool samples_one_voxel_ahead(const MapView& map,
+                                                                   BlockLookupCache& cache,
+                                                                   int level, const Vec3f& p_w,
+                                                                   int min_weight, Vec3f* ahead) {
   const CellCoords cell = cell_at(map.level[level], p_w);
   const Vec3i& local = cell.local;
   // The voxels base + [0, 2]^3 span one or two blocks per axis.
@@ -564,10 +572,9 @@ HIVOX_HD inline bool samples_one_voxel_ahead(const MapView& map, BlockLookupCach
 /// Corners inside finer regions are read there exactly. Fails when a corner that contributes
 /// is not stored or has fewer than `min_weight` observations; `nearest_ptr`/`nearest_index`
 /// receive the contributing voxel of the largest interpolation weight.
-HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCache& cache,
-                                               int level, const Vec3i& g, int coarse,
-                                               float min_weight, float* f, int32_t* nearest_ptr,
-                                               int* nearest_index) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_on_coarser_lattice(
+    const MapView& map, BlockLookupCache& cache, int level, const Vec3i& g, int coarse,
+    float min_weight, float* f, int32_t* nearest_ptr, int* nearest_index) {
   const int k = 1 << (coarse - level);
   const Vec3i base{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
   const float inv_k = 1.0f / static_cast<float>(k);  // exact: k is a power of two
@@ -602,9 +609,10 @@ HIVOX_HD inline bool sample_on_coarser_lattice(const MapView& map, BlockLookupCa
 }
 
 /// The TSDF at `p_w`, at whatever level stores it (with `ray_d`: see sample_trilinear).
-HIVOX_HD inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
-                                 int min_weight, TsdfSample* out, int* level,
-                                 const Vec3f* ray_d = nullptr) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache,
+                                                       const Vec3f& p_w, int min_weight,
+                                                       TsdfSample* out, int* level,
+                                                       const Vec3f* ray_d = nullptr) {
   Vec3i pos;
   const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
   if (ptr < 0) return false;

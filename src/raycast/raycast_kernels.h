@@ -74,8 +74,9 @@ HIVOX_HD HIVOX_NOINLINE inline Vec3f tsdf_normal_across_levels(const MapView& ma
 /// only 3 samples; spanning a voxel they are smoother than the gradient of a single
 /// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
 /// unknown.
-HIVOX_HD inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
-                                  float f_at_p, int level, int min_weight, const Vec3f& fallback) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache,
+                                                        const Vec3f& p_w, float f_at_p, int level,
+                                                        int min_weight, const Vec3f& fallback) {
   Vec3f ahead;
   if (samples_one_voxel_ahead(map, cache, level, p_w, min_weight, &ahead))
     return normal_from_ahead(ahead, f_at_p);
@@ -198,9 +199,10 @@ HIVOX_HD inline void bracket_hit(const CrossingBracket& b, const Vec3f& o, const
 }
 
 /// Refines bracket `b` with secant steps (see CrossingBracket) and fills the hit.
-HIVOX_HD inline void refine_bracket(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                                    const Vec3f& d, CrossingBracket b, const RayMarchConstants& k,
-                                    RayHit* hit) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_bracket(const MapView& map,
+                                                          BlockLookupCache& cache, const Vec3f& o,
+                                                          const Vec3f& d, CrossingBracket b,
+                                                          const RayMarchConstants& k, RayHit* hit) {
   while (!b.exact) {
     const float zm = bracket_secant(b);
     TsdfSample sm;
@@ -216,10 +218,10 @@ HIVOX_HD inline void refine_bracket(const MapView& map, BlockLookupCache& cache,
 /// Refines a crossing bracketed by z_lo (TSDF > 0) and z_hi (<= 0) with secant steps until the
 /// bracket spans at most a voxel, and fills the hit. `fallback` is the sample at z_hi (used if
 /// refinement samples fail).
-HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                                     const Vec3f& d, float z_lo, float f_lo, float z_hi, float f_hi,
-                                     const TsdfSample& fallback, int fallback_level,
-                                     const RayMarchConstants& k, RayHit* hit) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_crossing(
+    const MapView& map, BlockLookupCache& cache, const Vec3f& o, const Vec3f& d, float z_lo,
+    float f_lo, float z_hi, float f_hi, const TsdfSample& fallback, int fallback_level,
+    const RayMarchConstants& k, RayHit* hit) {
   CrossingBracket b;
   make_bracket(map, d, z_lo, f_lo, z_hi, f_hi, fallback, fallback_level, &b);
   refine_bracket(map, cache, o, d, b, k, hit);
@@ -234,10 +236,11 @@ HIVOX_HD inline void refine_crossing(const MapView& map, BlockLookupCache& cache
 /// `z_first` (when > z_start): where the march begins, the ray in front of it known to cross no
 /// cell with a surface (RayStretch); a sample just behind a surface still searches back into it
 /// (as far as z_start). The march finds what it would find from z_start.
-HIVOX_HD inline bool march_ray(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                               const Vec3f& d, float z_start, float z_end,
-                               const RayMarchConstants& k, RayHit* hit,
-                               bool* started_behind = nullptr, float z_first = 0.0f) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLookupCache& cache,
+                                                     const Vec3f& o, const Vec3f& d, float z_start,
+                                                     float z_end, const RayMarchConstants& k,
+                                                     RayHit* hit, bool* started_behind = nullptr,
+                                                     float z_first = 0.0f) {
   bool seen_known = false;
   const float inv_len = 1.0f / norm(d);
   const Vec3f inv_d{d.x != 0.0f ? 1.0f / d.x : 0.0f, d.y != 0.0f ? 1.0f / d.y : 0.0f,
@@ -455,9 +458,10 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
 /// Finds the surface at a ray's measured depth `z_hint` (see HintSearch) and refines it by the
 /// secant method. Returns false when no bracket is found within a few samples (the caller
 /// marches instead).
-HIVOX_HD inline bool hit_near_hint(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
-                                   const Vec3f& d, float z_hint, const RayMarchConstants& k,
-                                   RayHit* hit) {
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool hit_near_hint(const MapView& map,
+                                                         BlockLookupCache& cache, const Vec3f& o,
+                                                         const Vec3f& d, float z_hint,
+                                                         const RayMarchConstants& k, RayHit* hit) {
   TsdfSample s;
   int l;
   if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l, &d)) return false;
