@@ -8,6 +8,7 @@
 #include <limits>
 #include <utility>
 
+#include "core/parallel.h"
 #include "cuda/device_memory.h"
 #include "cuda/loop_kernels.h"
 #include "fusion/integration_frame.h"
@@ -22,6 +23,18 @@
 namespace hivox::cuda {
 
 namespace {
+
+/// memcpy across the CPU's threads in 256 KB chunks: one thread copying a frame into pinned
+/// memory takes longer than the transfer that follows.
+void parallel_copy(void* dst, const void* src, std::size_t bytes) {
+  constexpr std::size_t kChunk = std::size_t{256} << 10;
+  const auto chunks = static_cast<int64_t>((bytes + kChunk - 1) / kChunk);
+  parallel_for(chunks, [&](int64_t c) {
+    const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
+    std::memcpy(static_cast<char*>(dst) + begin, static_cast<const char*>(src) + begin,
+                std::min(kChunk, bytes - begin));
+  });
+}
 
 void synchronize(const char* stage) {
   check_status(cudaDeviceSynchronize(), stage);
@@ -82,6 +95,7 @@ struct GpuReconstruction::Impl {
   Buffer<BlockRef> visible;
   Buffer<AllocCounters> alloc_counters;
   PinnedBuffer<AllocCounters> host_counters;
+  PinnedBuffer<int32_t> host_high_water;
 
   // The frame.
   PinnedBuffer<float> staged_depth;
@@ -94,6 +108,8 @@ struct GpuReconstruction::Impl {
   Buffer<float> tile_z_min, tile_z_max;
   Buffer<Rgb8> model_colors;
   Buffer<int8_t> model_levels;
+  Buffer<uint32_t> warp_nearest;  ///< the warp's nearest landings (float bits)
+  Buffer<float> warped;           ///< the previous raycast seen from the new pose: fallback hints
   std::vector<ImageLevel> model, pyramid;
   Pose model_T_wc = Pose::Identity();
   bool has_model = false;
@@ -228,6 +244,7 @@ struct GpuReconstruction::Impl {
     visible.reset(capacity, &total_bytes);
     alloc_counters.reset(1, &total_bytes);
     host_counters.reserve(1);
+    host_high_water.reserve(1);
     depth.reset(pixels, &total_bytes);
     if (map_params.store_color && params.fusion.integrate_color) {
       color_image.reset(static_cast<std::size_t>(rig.color_camera.width) * rig.color_camera.height,
@@ -254,6 +271,8 @@ struct GpuReconstruction::Impl {
     const auto model_pixels = static_cast<std::size_t>(m0.width) * m0.height;
     model_colors.reset(model_pixels, &total_bytes);
     model_levels.reset(model_pixels, &total_bytes);
+    warp_nearest.reset(model_pixels, &total_bytes);
+    warped.reset(model_pixels, &total_bytes);
     const kernels::RangeTiles tiles =
         kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0);
     tile_z_min.reset(static_cast<std::size_t>(tiles.count()), &total_bytes);
@@ -415,7 +434,7 @@ struct GpuReconstruction::Impl {
     IntegrationFrame frame = integration_frame(depth_only, params.fusion, map_params, &unused);
     const std::size_t pixels = f.depth_m.size();
     float* staged = staged_depth.reserve(pixels);
-    std::memcpy(staged, f.depth_m.data(), pixels * sizeof(float));
+    parallel_copy(staged, f.depth_m.data(), pixels * sizeof(float));
     check_status(
         cudaMemcpyAsync(depth.get(), staged, pixels * sizeof(float), cudaMemcpyHostToDevice),
         "uploading the depth");
@@ -428,7 +447,7 @@ struct GpuReconstruction::Impl {
              f.color.width(), f.color.height(), cc.width, cc.height);
       const std::size_t n = f.color.size();
       Rgb8* staged_c = staged_color.reserve(n);
-      std::memcpy(staged_c, f.color.data(), n * sizeof(Rgb8));
+      parallel_copy(staged_c, f.color.data(), n * sizeof(Rgb8));
       check_status(
           cudaMemcpyAsync(color_image.get(), staged_c, n * sizeof(Rgb8), cudaMemcpyHostToDevice),
           "uploading the colour");
@@ -480,8 +499,16 @@ struct GpuReconstruction::Impl {
                     f.constants);
     synchronize("integration");
     s.integrate_ms = stage.lap_ms();
-    check_status(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
-                 "reading the counters");
+    // The counters and the high-water mark in one round trip.
+    int32_t* hw = host_high_water.reserve(1);
+    check_status(
+        cudaMemcpyAsync(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+        "reading the counters");
+    check_status(
+        cudaMemcpyAsync(hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
+        "reading the high-water mark");
+    synchronize("reading the counters");
+    high_water = *hw;
     s.valid_pixels = c->valid_pixels;
     s.visible_blocks = c->visible;
     s.new_blocks = c->inserted;
@@ -489,10 +516,6 @@ struct GpuReconstruction::Impl {
     dropped += s.dropped_blocks;
     blocks += c->inserted;
     const int32_t visible_count = c->visible;
-    int32_t hw = 0;
-    check_status(cudaMemcpy(&hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
-                 "reading the high-water mark");
-    high_water = hw;
     refine(T_wc, visible_count, s);
     if (s.dropped_blocks > 0)
       log::warn_once("cuda.dropped",
@@ -517,8 +540,19 @@ struct GpuReconstruction::Impl {
     check_status(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),
                  "clearing counters");
     const DepthRange& range = params.fusion.depth_range;
-    StartHint hint;
+    RayHintImages hint;
     if (frame_hint) hint = {depth.get(), rig.depth_camera.width, params.track.model_subsample};
+    if (has_model && params.previous_raycast_hints) {
+      // The previous raycast (still in the model's images) seen from here: where the frame has
+      // no depth, or the search at it fails, the surface is usually where the last raycast saw it.
+      const PinholeCamera& c = m0.camera;
+      const kernels::WarpView wv{
+          to_rigid3f(T_wc.inverse()), c.fx, c.fy, c.cx, c.cy, c.width, c.height,
+          map_params.truncation_m};
+      warp_depth(wv, m0.depth.get(), m0.points.get(), m0.normals.get(),
+                 static_cast<int64_t>(c.width) * c.height, warp_nearest.get(), warped.get());
+      hint.fallback_m = warped.get();
+    }
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
                   tiles, k, hint, out, alloc_counters.get());
     int32_t hits = 0;
@@ -639,6 +673,7 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   s.track_ms = stage.lap_ms();
   if (m.last_track.quality == TrackingQuality::Lost) {
     s.fused = false;
+    s.valid_pixels = m.last_track.valid_pixels;
     m.motion = Pose::Identity();
     return m.record(frame, T_prev, total, s);
   }

@@ -12,6 +12,7 @@
 #include "hivox/map/map_view.h"
 #include "hivox/map/voxel_block_map.h"
 #include "raycast/raycast_kernels.h"
+#include "raycast/warp_kernels.h"
 #include "refine/refine_kernels.h"
 #include "track/track_kernels.h"
 
@@ -65,18 +66,30 @@ void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n);
 /// Where each ray starts searching (kernels::ray_hints): the depth of a frame taken from the
 /// raycast's pose, at pixel (n x + n/2, n y + n/2) for ray (x, y) with n = `subsample`, as the
 /// CPU's FrameHints takes it; null: no hint.
-struct StartHint {
+/// The raycast's hints (kernels::RayHints): the start hint, the frame's depth (`width` pixels a
+/// row) sampled at the centre of each `subsample` x `subsample` square; the fallback, one depth
+/// per raycast pixel (e.g. the previous raycast warped into this view). Either may be null.
+struct RayHintImages {
   const float* depth_m = nullptr;
   int width = 0;
   int subsample = 1;
+  const float* fallback_m = nullptr;
 };
 
 /// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
-/// then one ray per pixel; counts hits into `counters->raycast_hits`.
+/// then one ray per pixel; counts hits into `counters->raycast_hits`. (Queuing the rays whose
+/// hints fail for a second, marching pass was slower: a warp of marching rays diverges on every
+/// step, where a warp of mostly hinted rays waits on a few.)
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
-             const kernels::RayMarchConstants& k, const StartHint& hint,
+             const kernels::RayMarchConstants& k, const RayHintImages& hint,
              const kernels::RaycastOutputView& out, AllocCounters* counters);
+
+/// warp_raycast_depth on the device: the raycast (`depth`, `points`, `normals`, `from_pixels`
+/// each) seen from `view`, into `out` (one depth per pixel of the view); `nearest` is scratch of
+/// one element per pixel.
+void warp_depth(const kernels::WarpView& view, const float* depth, const Vec3f* points,
+                const Vec3f* normals, int64_t from_pixels, uint32_t* nearest, float* out);
 
 /// Depth preprocessing for tracking (the CPU's build_pyramid, per pixel): the bilateral filter
 /// (radius 0: range check only), 2x2 downsampling within a surface, points and normals.

@@ -15,6 +15,8 @@
 #include <tuple>
 #include <vector>
 
+#include "cuda/device_memory.h"
+#include "cuda/loop_kernels.h"
 #include "hivox/core/error.h"
 #include "hivox/cuda/gpu_reconstruction.h"
 #include "hivox/eval/trajectory_eval.h"
@@ -24,6 +26,7 @@
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
+#include "hivox/raycast/warp.h"
 #include "hivox/refine/refiner.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
@@ -169,16 +172,17 @@ void expect_same_mesh(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu) {
 }
 
 /// The GPU's model raycast (after fusing `frame` at `T_wc`) against the CPU's raycast of
-/// `cpu_map` from there, with the start hint the GPU takes: the frame's depth.
+/// `cpu_map` from there, with the hints the GPU takes: the frame's depth, and the GPU's previous
+/// raycast `previous` warped into this view (the CPU's warp: the device's is tested with it).
 void expect_same_model(const VoxelBlockMap& cpu_map, const RaycastResult& gpu_model,
-                       const RgbdFrame& frame, const Pose& T_wc, const ReconstructionParams& p,
-                       const CameraRig& rig) {
+                       const RaycastResult& previous, const RgbdFrame& frame, const Pose& T_wc,
+                       const ReconstructionParams& p, const CameraRig& rig) {
   Raycaster raycaster(p.raycast);
   FrameHints hints;
   expect_same_raycast(
       raycaster.raycast(cpu_map, gpu_model.camera, T_wc, p.fusion.depth_range,
                         hints.build(frame.depth_m, rig.depth_camera, p.track.model_subsample, T_wc,
-                                    nullptr, p.map.truncation_m)),
+                                    &previous, p.map.truncation_m)),
       gpu_model);
 }
 
@@ -214,7 +218,9 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
   // From the handover on both refine, counting their calls from there.
   Refiner after(p.refine, rig.depth_noise);
   Pose last_pose = Pose::Identity();
+  RaycastResult previous;  // the GPU's raycast before the last frame
   for (int i = first; i < last; ++i) {
+    if (i == last - 1) previous = gpu.download_model();
     const RgbdFrame f = data.read(static_cast<std::size_t>(i));
     const Allocation a = integrator.fuse(map, fusion_input(rig, f, *f.T_wc_gt));
     if (levels > 1) after.refine(map, a.visible_blocks, *f.T_wc_gt);
@@ -227,8 +233,8 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
   expect_same_map(map, *downloaded, spec.c_str());
   expect_same_mesh(map, *downloaded);
 
-  expect_same_model(map, gpu.download_model(), data.read(static_cast<std::size_t>(last - 1)),
-                    last_pose, p, rig);
+  expect_same_model(map, gpu.download_model(), previous,
+                    data.read(static_cast<std::size_t>(last - 1)), last_pose, p, rig);
 }
 
 TEST(GpuLoop, FusesTheCpusMapOnAFixedGrid) {
@@ -279,6 +285,63 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
 
 /// Fusing at the true poses with refinement on both: the same splits and merges but where
 /// rounding tips a decision at a threshold, so the same blocks per level within a little.
+TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  // A raycast of the desk fused on the CPU, seen from 3 cm and 3 degrees away: the device's warp
+  // (the fallback hints of its raycasts) against warp_raycast_depth.
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=6"));
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(1, 0.004f, 0.02f);
+  VoxelBlockMap map(p.map);
+  TsdfIntegrator integrator(p.fusion);
+  Pose T_wc = Pose::Identity();
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const RgbdFrame f = data.read(i);
+    integrator.fuse(map, fusion_input(rig, f, *f.T_wc_gt));
+    T_wc = *f.T_wc_gt;
+  }
+  const PinholeCamera cam = rig.depth_camera.subsampled(2);
+  Raycaster raycaster(p.raycast);
+  const RaycastResult r = raycaster.raycast(map, cam, T_wc, p.fusion.depth_range);
+  Pose moved = T_wc;
+  moved.translate(Eigen::Vector3d(0.03, -0.01, 0.0));
+  moved.rotate(Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d(0.3, 1.0, 0.0).normalized()));
+  DepthImage expected;
+  warp_raycast_depth(r, cam, moved, p.map.truncation_m, &expected);
+
+  const auto n = static_cast<std::size_t>(cam.width) * cam.height;
+  int64_t bytes = 0;
+  cuda::Buffer<float> depth, out;
+  cuda::Buffer<Vec3f> points, normals;
+  cuda::Buffer<uint32_t> nearest;
+  depth.reset(n, &bytes);
+  points.reset(n, &bytes);
+  normals.reset(n, &bytes);
+  nearest.reset(n, &bytes);
+  out.reset(n, &bytes);
+  depth.upload(r.depth_m.data(), n);
+  points.upload(r.points_w.data(), n);
+  normals.upload(r.normals_w.data(), n);
+  const kernels::WarpView view{
+      to_rigid3f(moved.inverse()), cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height,
+      p.map.truncation_m};
+  cuda::warp_depth(view, depth.get(), points.get(), normals.get(), static_cast<int64_t>(n),
+                   nearest.get(), out.get());
+  std::vector<float> got(n);
+  out.download(got.data(), n);
+  int64_t with_depth = 0, differ = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float a = expected.data()[i], b = got[i];
+    with_depth += a > 0.0f;
+    differ += (a > 0.0f) != (b > 0.0f) || std::abs(a - b) > 1e-5f * a;
+  }
+  std::printf("[ warp     ] %lld pixels with a warped depth, %lld differ\n",
+              static_cast<long long>(with_depth), static_cast<long long>(differ));
+  ASSERT_GT(with_depth, static_cast<int64_t>(n / 2));
+  // Rounding (the GPU's fused multiply-adds) can move a landing across a pixel's edge.
+  EXPECT_LE(differ, with_depth / 1000);
+}
+
 TEST(GpuLoop, RefinesAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
@@ -288,7 +351,9 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
   p.device = Device::cpu();
   Reconstruction cpu(p, rig);
   int64_t cpu_splits = 0, cpu_merges = 0, gpu_splits = 0, gpu_merges = 0;
+  RaycastResult previous;  // the GPU's raycast before the last frame
   for (std::size_t i = 0; i < data.size(); ++i) {
+    if (i + 1 == data.size()) previous = gpu.download_model();
     const RgbdFrame f = data.read(i);
     const FrameStats& c = cpu.integrate(f, *f.T_wc_gt);
     const FrameStats& g = gpu.integrate(f, *f.T_wc_gt);
@@ -315,7 +380,7 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
   expect_same_mesh(cpu.map(), *downloaded);
   const RgbdFrame last = data.read(data.size() - 1);
-  expect_same_model(cpu.map(), gpu.download_model(), last, *last.T_wc_gt, p, rig);
+  expect_same_model(cpu.map(), gpu.download_model(), previous, last, *last.T_wc_gt, p, rig);
 }
 
 /// The CLI's and the bindings' way onto the GPU: a Reconstruction on `cuda` (its frames on the
