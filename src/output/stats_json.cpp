@@ -37,6 +37,7 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
                          {"track_iterations", f.track_iterations},
                          {"timing_ms",
                           {{"read", f.read_ms},
+                           {"upload", f.upload_ms},
                            {"track", f.track_ms},
                            {"allocate", f.allocate_ms},
                            {"integrate", f.integrate_ms},
@@ -67,10 +68,10 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   const StageTimes t = mean_stage_times(frames);
   j["fps"] = t.fps();
   j["fps_wall"] = run.wall_s > 0 ? static_cast<double>(frames.size()) / run.wall_s : 0.0;
-  j["timing_ms"] = {{"read", t.read_ms},         {"track", t.track_ms},
-                    {"allocate", t.allocate_ms}, {"integrate", t.integrate_ms},
-                    {"refine", t.refine_ms},     {"raycast", t.raycast_ms},
-                    {"total", t.total_ms}};
+  j["timing_ms"] = {{"read", t.read_ms},           {"upload", t.upload_ms},
+                    {"track", t.track_ms},         {"allocate", t.allocate_ms},
+                    {"integrate", t.integrate_ms}, {"refine", t.refine_ms},
+                    {"raycast", t.raycast_ms},     {"total", t.total_ms}};
   j["blocks_total"] = map.blocks_in_use();
   j["blocks_per_level"] = map.blocks_per_level();
   j["peak_blocks_total"] = rec.peak_blocks();

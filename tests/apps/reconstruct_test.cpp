@@ -39,7 +39,8 @@ void expect_complete_stats(const nlohmann::json& s, std::size_t frames, int leve
   EXPECT_GT(s["fps"].get<double>(), 0.0);
   EXPECT_GT(s["fps_wall"].get<double>(), 0.0);
   EXPECT_LE(s["fps_wall"].get<double>(), s["fps"].get<double>());
-  for (const char* stage : {"read", "track", "allocate", "integrate", "refine", "raycast", "total"})
+  for (const char* stage :
+       {"read", "upload", "track", "allocate", "integrate", "refine", "raycast", "total"})
     ASSERT_TRUE(s["timing_ms"].contains(stage)) << "timing_ms lacks " << stage;
   EXPECT_GT(s["timing_ms"]["integrate"].get<double>(), 0.0);
   EXPECT_GE(s["timing_ms"]["total"].get<double>(), s["timing_ms"]["integrate"].get<double>());

@@ -32,7 +32,8 @@ struct RunInfo {
 
 /// Writes `stats.json` (atomically) with: frames (processed), frames_fused, skipped_frames,
 /// bad_frames, end, warnings, unusable, fps (processing, reading excluded), fps_wall (everything),
-/// timing_ms (mean per stage: read, track, allocate, integrate, refine, raycast, total),
+/// timing_ms (mean per stage: read, upload (to a GPU; 0 on the CPU), track, allocate, integrate,
+/// refine, raycast, total),
 /// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
 /// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known),
 /// hivox_version, camera (the depth camera's intrinsics), depth_scale, config (when given), and
