@@ -143,7 +143,7 @@ int main(int argc, char** argv) {
     std::unique_ptr<cuda::GpuReconstruction> gpu =
         k > 0 ? std::make_unique<cuda::GpuReconstruction>(
                     params, rig, cpu_loop.map(),
-                    std::optional<Pose>(cpu_loop.trajectory().back().T_wc))
+                    MapSession{static_cast<int64_t>(k), cpu_loop.trajectory().back().T_wc, {}})
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
     std::printf("device: %s\n", cuda::device_name(0).c_str());
     std::vector<StampedPose> gt;

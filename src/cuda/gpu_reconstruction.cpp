@@ -632,9 +632,12 @@ GpuReconstruction::GpuReconstruction(const ReconstructionParams& params, const C
     : GpuReconstruction(params, rig, VoxelBlockMap(params.map)) {}
 
 GpuReconstruction::GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig,
-                                     const VoxelBlockMap& map, std::optional<Pose> last_pose)
+                                     const VoxelBlockMap& map, const MapSession& session)
     : impl_(std::make_unique<Impl>(params, rig, map)) {
-  impl_->resume_pose = last_pose;
+  if (session.frames_fused < 0)
+    fail(ErrorCode::InvalidArgument, "a map session of {} frames", session.frames_fused);
+  impl_->resume_pose = session.last_pose;
+  impl_->refine_calls = session.frames_fused;
 }
 
 GpuReconstruction::~GpuReconstruction() = default;
@@ -789,8 +792,8 @@ namespace {
 class CudaLoop final : public DeviceLoop {
  public:
   CudaLoop(const ReconstructionParams& params, const CameraRig& rig, const VoxelBlockMap* map,
-           const std::optional<Pose>& last_pose)
-      : gpu_(map != nullptr ? std::make_unique<GpuReconstruction>(params, rig, *map, last_pose)
+           const MapSession& session)
+      : gpu_(map != nullptr ? std::make_unique<GpuReconstruction>(params, rig, *map, session)
                             : std::make_unique<GpuReconstruction>(params, rig)) {}
 
   FrameStats integrate(const RgbdFrame& frame, const Pose& T_wc) override {
@@ -819,9 +822,7 @@ std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& 
                                                     const CameraRig& rig,
                                                     std::unique_ptr<VoxelBlockMap> map,
                                                     const MapSession& session) {
-  std::optional<Pose> last_pose;
-  if (map != nullptr) last_pose = session.last_pose;
-  auto loop = std::make_unique<CudaLoop>(params, rig, map.get(), last_pose);
+  auto loop = std::make_unique<CudaLoop>(params, rig, map.get(), session);
   return std::make_unique<Reconstruction>(params, rig, std::move(loop), std::move(map), session);
 }
 

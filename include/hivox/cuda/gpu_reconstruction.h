@@ -17,6 +17,7 @@
 
 #include "hivox/core/camera_rig.h"
 #include "hivox/core/dataset.h"
+#include "hivox/map/stored_map.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/raycaster.h"
@@ -32,10 +33,12 @@ class GpuReconstruction {
   /// A new, empty map. `params.device` must be a CUDA device that is present (else
   /// `Error(Unsupported)` naming it).
   GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig);
-  /// Continues `map` (copied to the device; its parameters replace `params.map`). With
-  /// `last_pose` (the camera's pose at the map's last frame) the first frame is tracked from it.
+  /// Continues `map` (copied to the device; its parameters replace `params.map`) as the CPU's
+  /// Reconstruction continues a map: with `session.last_pose` (the camera's pose at the map's
+  /// last frame) the first frame is tracked from it, and the refinement's cadence counts on from
+  /// `session.frames_fused`.
   GpuReconstruction(const ReconstructionParams& params, const CameraRig& rig,
-                    const VoxelBlockMap& map, std::optional<Pose> last_pose = std::nullopt);
+                    const VoxelBlockMap& map, const MapSession& session = {});
   ~GpuReconstruction();
   GpuReconstruction(const GpuReconstruction&) = delete;
   GpuReconstruction& operator=(const GpuReconstruction&) = delete;
