@@ -15,95 +15,30 @@ namespace hivox {
 
 namespace {
 
-/// A triangle corner before global vertex indices exist: the vertex on edge `edge` (local edge
-/// id) of block `block` (index in the sorted block list). When the edge belongs to the block
-/// that made the triangle, it is resolved at once and `edge` holds kResolved | its rank there.
-struct EdgeRef {
-  int32_t block;
-  uint16_t edge;
-};
-constexpr uint16_t kResolved = 0x8000;
+using kernels::EdgeRef;
+using kernels::kResolvedEdge;
 
 /// What one block contributes: the vertices on the edges it owns (ascending local edge id),
 /// then those on edges of a level boundary that no block of its level owns, and its triangles
-/// (3 corners each).
+/// (3 corners each). Filled by kernels::mesh_block.
 struct BlockMesh {
+  static constexpr bool kVertices = true;
   std::vector<uint16_t> edges;
   std::vector<kernels::EdgeVertex> vertices;
   std::vector<EdgeRef> corners;
-};
 
-/// Edge ids over the padded block (pad_index * 3 + axis), for edges owned by no block.
-constexpr int kPadEdges = kernels::kPadVoxels * 3;
-static_assert(kernels::kEdgesPerBlock + kPadEdges < kResolved);
+  void owned_vertex(uint16_t edge, const kernels::EdgeVertex& v) {
+    edges.push_back(edge);
+    vertices.push_back(v);
+  }
+  void boundary_vertex(const kernels::EdgeVertex& v) { vertices.push_back(v); }
+  void corner(const EdgeRef& r) { corners.push_back(r); }
+};
 
 struct BlockScratch {
   kernels::BlockLookupCache cache;
-  kernels::PaddedBlock padded;
-  int16_t rank[kernels::kEdgesPerBlock];  ///< own edge id -> index in BlockMesh::edges, or -1
-  int16_t boundary_rank[kPadEdges];       ///< padded edge id -> index in BlockMesh::vertices
+  kernels::MeshBlockScratch mesh;
 };
-
-/// Marching cubes over one block: vertices on its owned edges, triangles of its owned cells
-/// (unless `cells` is false: the vertices only).
-void mesh_block(const MapView& view, const BlockRef& b, int32_t self,
-                const std::vector<int32_t>& index_of_ptr, const MeshParams& params, bool with_color,
-                bool cells, BlockScratch& scratch, BlockMesh& out) {
-  kernels::PaddedBlock& pb = scratch.padded;
-  kernels::gather_padded_block(view, scratch.cache, b.level, b.pos, b.ptr, params.min_weight,
-                               with_color, pb);
-  if (pb.other_levels)
-    std::fill(std::begin(scratch.boundary_rank), std::end(scratch.boundary_rank), int16_t{-1});
-  const float voxel_m = view.level[b.level].voxel_size_m;
-  std::fill(std::begin(scratch.rank), std::end(scratch.rank), int16_t{-1});
-  for (int z = 0; z < kBlockSide; ++z)
-    for (int y = 0; y < kBlockSide; ++y)
-      for (int x = 0; x < kBlockSide; ++x)
-        for (int axis = 0; axis < 3; ++axis) {
-          if (!kernels::edge_has_vertex(pb, x, y, z, axis)) continue;
-          const int id = voxel_index(x, y, z) * 3 + axis;
-          scratch.rank[id] = static_cast<int16_t>(out.edges.size());
-          out.edges.push_back(static_cast<uint16_t>(id));
-          out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, x, y, z, axis,
-                                                      params.compute_normals, with_color));
-        }
-  if (!cells) return;
-  for (int z = 0; z < kBlockSide; ++z)
-    for (int y = 0; y < kBlockSide; ++y)
-      for (int x = 0; x < kBlockSide; ++x) {
-        if (!pb.cell_valid[kernels::pad_index(x, y, z)]) continue;
-        const int c = kernels::cell_case(pb, x, y, z);
-        if (c == 0 || c == 255) continue;
-        const mc::McCase& mcase = mc::kMcTable.cases[c];
-        for (int t = 0; t < mcase.triangle_count; ++t)
-          for (int k = 0; k < 3; ++k) {
-            const int e = mcase.triangles[t][k];
-            const Vec3i p = Vec3i{x, y, z} + kernels::corner_offset(mc::mc_edge_corner(e, 0));
-            const int axis = mc::mc_edge_axis(e);
-            const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + axis;
-            if (((p.x | p.y | p.z) >> 3) == 0) {
-              out.corners.push_back({self, static_cast<uint16_t>(kResolved | scratch.rank[id])});
-            } else if (const int32_t nb =
-                           pb.neighbour_ptr[kernels::pad_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
-                       nb >= 0) {
-              // The edge starts in a +x/+y/+z neighbour of this level, which owns it.
-              out.corners.push_back(
-                  {index_of_ptr[static_cast<std::size_t>(nb)], static_cast<uint16_t>(id)});
-            } else {
-              // The edge starts in a region stored at another level: no block of this level
-              // owns it, so every block whose cells use it makes the vertex (the same one:
-              // same samples, same arithmetic) and the copies are merged at the end.
-              int16_t& r = scratch.boundary_rank[kernels::pad_index(p.x, p.y, p.z) * 3 + axis];
-              if (r < 0) {
-                r = static_cast<int16_t>(out.vertices.size());
-                out.vertices.push_back(kernels::edge_vertex(pb, b.pos, voxel_m, p.x, p.y, p.z, axis,
-                                                            params.compute_normals, with_color));
-              }
-              out.corners.push_back({self, static_cast<uint16_t>(kResolved | r)});
-            }
-          }
-      }
-}
 
 /// Merges the vertices listed in `candidates` that sit at exactly the same position (copies of
 /// one vertex made by several blocks) into the first copy, and compacts the mesh.
@@ -205,9 +140,16 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
     team.for_each(
         n,
         [&](int64_t i) {
-          mesh_block(view, blocks[i], static_cast<int32_t>(i), index_of_ptr, params, with_color,
-                     mesh_cells[static_cast<std::size_t>(i)] != 0, *scratch,
-                     parts[static_cast<std::size_t>(i)]);
+          kernels::MeshBlockInput in;
+          in.block = blocks[i];
+          in.self = static_cast<int32_t>(i);
+          in.index_of_ptr = index_of_ptr.data();
+          in.min_weight = params.min_weight;
+          in.normals = params.compute_normals;
+          in.color = with_color;
+          in.cells = mesh_cells[static_cast<std::size_t>(i)] != 0;
+          kernels::mesh_block(view, scratch->cache, in, scratch->mesh,
+                              parts[static_cast<std::size_t>(i)]);
         },
         CpuSchedule::dynamic(16));
   });
@@ -249,8 +191,8 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
     for (std::size_t k = 0; k < p.corners.size(); ++k) {
       const EdgeRef r = p.corners[k];
       int64_t index;
-      if (r.edge & kResolved) {
-        index = vertex_offset[r.block] + (r.edge & ~kResolved);
+      if (r.edge & kResolvedEdge) {
+        index = vertex_offset[r.block] + (r.edge & ~kResolvedEdge);
       } else {
         const std::vector<uint16_t>& owner = parts[static_cast<std::size_t>(r.block)].edges;
         const auto it = std::lower_bound(owner.begin(), owner.end(), r.edge);

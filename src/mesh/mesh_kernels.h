@@ -279,4 +279,101 @@ HIVOX_HD inline EdgeVertex edge_vertex(const PaddedBlock& b, const Vec3i& block_
   return v;
 }
 
+/// A triangle corner before global vertex indices exist: the vertex on edge `edge` (local edge
+/// id) of block `block` (index in the sorted block list). When the vertex belongs to the block
+/// that made the triangle, it is resolved at once and `edge` holds kResolvedEdge | its rank
+/// there.
+struct EdgeRef {
+  int32_t block;
+  uint16_t edge;
+};
+inline constexpr uint16_t kResolvedEdge = 0x8000;
+
+/// Edge ids over the padded block (pad_index * 3 + axis), for edges owned by no block.
+inline constexpr int kPadEdges = kPadVoxels * 3;
+static_assert(kEdgesPerBlock + kPadEdges < kResolvedEdge);
+
+/// What marching cubes over one block needs besides its look-up cache.
+struct MeshBlockScratch {
+  PaddedBlock padded;
+  int16_t rank[kEdgesPerBlock];      ///< own edge id -> its vertex's rank in the block, or -1
+  int16_t boundary_rank[kPadEdges];  ///< padded edge id -> its vertex's rank in the block
+};
+
+/// What a block's marching cubes read besides the map.
+struct MeshBlockInput {
+  BlockRef block;
+  int32_t self = 0;                       ///< the block's index in the sorted block list
+  const int32_t* index_of_ptr = nullptr;  ///< pool index -> index in the sorted block list
+  int min_weight = 1;
+  bool normals = true, color = false;
+  bool cells = true;  ///< false: the vertices on its owned edges only (no triangles)
+};
+
+/// Marching cubes over one block, written once for every driver: `emit` receives the vertices
+/// on the edges the block owns, in ascending local edge id (`owned_vertex(edge, vertex)`; ranks
+/// 0, 1, ...), then, mixed with the triangles' corners (`corner(EdgeRef)`, three a triangle),
+/// the vertices on level-boundary edges that no block of its level owns (`boundary_vertex`,
+/// ranks following; every block whose cells use such an edge makes the same vertex, and the
+/// copies are merged afterwards). `Emit::kVertices` false: the vertices are not computed (a
+/// counting pass).
+template <typename Emit>
+HIVOX_HD void mesh_block(const MapView& view, BlockLookupCache& cache, const MeshBlockInput& in,
+                         MeshBlockScratch& scratch, Emit& emit) {
+  const BlockRef& b = in.block;
+  PaddedBlock& pb = scratch.padded;
+  gather_padded_block(view, cache, b.level, b.pos, b.ptr, in.min_weight, in.color, pb);
+  if (pb.other_levels)
+    for (int i = 0; i < kPadEdges; ++i) scratch.boundary_rank[i] = -1;
+  for (int i = 0; i < kEdgesPerBlock; ++i) scratch.rank[i] = -1;
+  const float voxel_m = view.level[b.level].voxel_size_m;
+  auto vertex = [&](int x, int y, int z, int axis) {
+    return Emit::kVertices ? edge_vertex(pb, b.pos, voxel_m, x, y, z, axis, in.normals, in.color)
+                           : EdgeVertex{};
+  };
+  int16_t vertices = 0;
+  for (int z = 0; z < kBlockSide; ++z)
+    for (int y = 0; y < kBlockSide; ++y)
+      for (int x = 0; x < kBlockSide; ++x)
+        for (int axis = 0; axis < 3; ++axis) {
+          if (!edge_has_vertex(pb, x, y, z, axis)) continue;
+          const int id = voxel_index(x, y, z) * 3 + axis;
+          scratch.rank[id] = vertices++;
+          emit.owned_vertex(static_cast<uint16_t>(id), vertex(x, y, z, axis));
+        }
+  if (!in.cells) return;
+  for (int z = 0; z < kBlockSide; ++z)
+    for (int y = 0; y < kBlockSide; ++y)
+      for (int x = 0; x < kBlockSide; ++x) {
+        if (!pb.cell_valid[pad_index(x, y, z)]) continue;
+        const int c = cell_case(pb, x, y, z);
+        if (c == 0 || c == 255) continue;
+        const mc::McCase& mcase = mc::kMcTable.cases[c];
+        for (int t = 0; t < mcase.triangle_count; ++t)
+          for (int k = 0; k < 3; ++k) {
+            const int e = mcase.triangles[t][k];
+            const Vec3i p = Vec3i{x, y, z} + corner_offset(mc::mc_edge_corner(e, 0));
+            const int axis = mc::mc_edge_axis(e);
+            const int id = voxel_index(p.x & 7, p.y & 7, p.z & 7) * 3 + axis;
+            if (((p.x | p.y | p.z) >> 3) == 0) {
+              emit.corner({in.self, static_cast<uint16_t>(kResolvedEdge | scratch.rank[id])});
+            } else if (const int32_t nb = pb.neighbour_ptr[pad_slot(p.x >> 3, p.y >> 3, p.z >> 3)];
+                       nb >= 0) {
+              // The edge starts in a +x/+y/+z neighbour of this level, which owns it.
+              emit.corner({in.index_of_ptr[nb], static_cast<uint16_t>(id)});
+            } else {
+              // The edge starts in a region stored at another level: no block of this level
+              // owns it, so every block whose cells use it makes the vertex (the same one:
+              // same samples, same arithmetic).
+              int16_t& r = scratch.boundary_rank[pad_index(p.x, p.y, p.z) * 3 + axis];
+              if (r < 0) {
+                r = vertices++;
+                emit.boundary_vertex(vertex(p.x, p.y, p.z, axis));
+              }
+              emit.corner({in.self, static_cast<uint16_t>(kResolvedEdge | r)});
+            }
+          }
+      }
+}
+
 }  // namespace hivox::kernels
