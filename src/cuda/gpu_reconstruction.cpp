@@ -546,10 +546,8 @@ struct GpuReconstruction::Impl {
       // The previous raycast (still in the model's images) seen from here: where the frame has
       // no depth, or the search at it fails, the surface is usually where the last raycast saw it.
       const PinholeCamera& c = m0.camera;
-      const kernels::WarpView wv{
-          to_rigid3f(T_wc.inverse()), c.fx, c.fy, c.cx, c.cy, c.width, c.height,
-          map_params.truncation_m};
-      warp_depth(wv, m0.depth.get(), m0.points.get(), m0.normals.get(),
+      warp_depth(kernels::WarpView::of(to_rigid3f(T_wc.inverse()), c, map_params.truncation_m),
+                 m0.depth.get(), m0.points.get(), m0.normals.get(),
                  static_cast<int64_t>(c.width) * c.height, warp_nearest.get(), warped.get());
       hint.fallback_m = warped.get();
     }

@@ -63,12 +63,10 @@ void integrate(const MutableMapView& map, const BlockRef* blocks, int32_t max_bl
 /// Registered colour packed as 32-bit words (kernels::pack_rgb).
 void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n);
 
-/// Where each ray starts searching (kernels::ray_hints): the depth of a frame taken from the
-/// raycast's pose, at pixel (n x + n/2, n y + n/2) for ray (x, y) with n = `subsample`, as the
-/// CPU's FrameHints takes it; null: no hint.
-/// The raycast's hints (kernels::RayHints): the start hint, the frame's depth (`width` pixels a
-/// row) sampled at the centre of each `subsample` x `subsample` square; the fallback, one depth
-/// per raycast pixel (e.g. the previous raycast warped into this view). Either may be null.
+/// The raycast's hints (kernels::ray_hints), as the CPU's FrameHints gives them: the start hint,
+/// the depth of a frame taken from the raycast's pose (`width` pixels a row) at pixel
+/// (n x + n/2, n y + n/2) for ray (x, y) with n = `subsample`; the fallback, one depth per
+/// raycast pixel (the previous raycast warped into this view). Either may be null: no hint.
 struct RayHintImages {
   const float* depth_m = nullptr;
   int width = 0;

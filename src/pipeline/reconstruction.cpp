@@ -136,15 +136,14 @@ MapSession Reconstruction::session() const {
 const FrameStats& Reconstruction::integrate(const RgbdFrame& frame, const Pose& T_wc,
                                             double read_ms) {
   FrameStats s;
-  s.read_ms = read_ms;
   Stopwatch total;
   if (loop_) {
     s = loop_->integrate(frame, T_wc);
-    s.read_ms = read_ms;
     map_stale_ = model_stale_ = true;
   } else {
     fuse(frame, T_wc, s);
   }
+  s.read_ms = read_ms;
   return record(frame, T_wc, total, s);
 }
 

@@ -26,8 +26,8 @@ void warp_raycast_depth(const RaycastResult& from, const PinholeCamera& camera, 
   DepthImage& nearest = s.nearest;
   // camera.project and camera.ray are written out in warp_landing on these copies: called on the
   // camera object, they keep GCC from vectorizing the loop (its fields stay loads through memory).
-  const kernels::WarpView view{
-      to_rigid3f(T_wc.inverse()), camera.fx, camera.fy, camera.cx, camera.cy, w, h, max_gap_m};
+  const kernels::WarpView view =
+      kernels::WarpView::of(to_rigid3f(T_wc.inverse()), camera, max_gap_m);
   const int from_w = from.depth_m.width(), from_h = from.depth_m.height();
   int threads = 1;
   parallel_team([&](const ThreadTeam& team) {

@@ -1,10 +1,12 @@
 #pragma once
 // The forward warp of a raycast's surface into another view (warp_raycast_depth), per element:
 // written once for the CPU and CUDA drivers. A hit lands on its nearest pixel (warp_landing),
-// the nearest landing wins, then each pixel keeps its depth or fills a hole (warp_resolve).
+// the nearest landing wins, then a pixel keeps its depth or fills a hole from its neighbours
+// (warp_hole), unless a nearer surface may show through (warp_keep).
 
 #include <cfloat>
 
+#include "hivox/core/camera.h"
 #include "hivox/core/hd.h"
 #include "hivox/core/math.h"
 
@@ -16,6 +18,12 @@ struct WarpView {
   float fx = 0, fy = 0, cx = 0, cy = 0;
   int width = 0, height = 0;
   float max_gap_m = 0;
+
+  /// `camera` seen from pose `T_cw` (world to camera).
+  static WarpView of(const Rigid3f& T_cw, const PinholeCamera& camera, float max_gap_m) {
+    return {T_cw,      camera.fx,    camera.fy,     camera.cx,
+            camera.cy, camera.width, camera.height, max_gap_m};
+  }
 };
 
 /// Where hit `p_w` (normal `n_w`; `depth` its raycast depth, 0: no hit) lands: the pixel

@@ -283,8 +283,6 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
   expect_same_map(cpu.map(), *downloaded, "tracked desk, fixed 4 mm", true);
 }
 
-/// Fusing at the true poses with refinement on both: the same splits and merges but where
-/// rounding tips a decision at a threshold, so the same blocks per level within a little.
 TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
   // A raycast of the desk fused on the CPU, seen from 3 cm and 3 degrees away: the device's warp
@@ -322,9 +320,8 @@ TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
   depth.upload(r.depth_m.data(), n);
   points.upload(r.points_w.data(), n);
   normals.upload(r.normals_w.data(), n);
-  const kernels::WarpView view{
-      to_rigid3f(moved.inverse()), cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height,
-      p.map.truncation_m};
+  const kernels::WarpView view =
+      kernels::WarpView::of(to_rigid3f(moved.inverse()), cam, p.map.truncation_m);
   cuda::warp_depth(view, depth.get(), points.get(), normals.get(), static_cast<int64_t>(n),
                    nearest.get(), out.get());
   std::vector<float> got(n);
@@ -342,6 +339,8 @@ TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
   EXPECT_LE(differ, with_depth / 1000);
 }
 
+/// Fusing at the true poses with refinement on both: the same splits and merges but where
+/// rounding tips a decision at a threshold, so the same blocks per level within a little.
 TEST(GpuLoop, RefinesAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
