@@ -3,6 +3,9 @@
 //
 //   hivox_gpu_loop synthetic:desk?frames=300 --levels 1            # fixed 2 mm, tracked
 //   hivox_gpu_loop data/tum_fr1_rpy --handover 50 --cpu           # 3 levels from a CPU-refined map
+//   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --mesh    # then mesh on the device and
+//                                                                 # on the host (the map
+//                                                                 downloaded)
 //
 // `--handover K` runs frames [0, K) through the CPU reconstruction, copies its map to the device
 // and times frames [K, N) there (the device refines the hierarchy from then on). Times are the
@@ -26,6 +29,7 @@
 #include "hivox/cuda/gpu_reconstruction.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/io/dataset.h"
+#include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
 
 namespace {
@@ -75,7 +79,7 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false;
+  bool cpu = false, mesh = false;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -89,6 +93,8 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "timed frames left out of the means");
   app.add_option("--max-blocks", max_blocks, "block pool capacity");
   app.add_flag("--cpu", cpu, "also run the CPU loop on the same frames (same handover)");
+  app.add_flag("--mesh", mesh,
+               "after the loop, time meshing the map on the device and, downloaded, on the host");
   app.add_option("--json", json, "write the results here");
   CLI11_PARSE(app, argc, argv);
 
@@ -176,6 +182,28 @@ int main(int argc, char** argv) {
         static_cast<long long>(merges), gpu->map_memory_bytes() / 1048576.0,
         gpu->device_memory_bytes() / 1048576.0, static_cast<long long>(lost), mm(gpu_ate).c_str());
 
+    // Meshing the final map: on the device (its second call timed: the first loads the kernels),
+    // and downloaded, on the host.
+    double mesh_ms = 0, mesh_download_ms = 0, mesh_host_ms = 0;
+    int64_t mesh_triangles = 0;
+    if (mesh) {
+      gpu->extract_mesh();
+      Stopwatch watch;
+      const TriangleMesh on_device = gpu->extract_mesh();
+      mesh_ms = watch.lap_ms();
+      const std::unique_ptr<VoxelBlockMap> host_map = gpu->download_map();
+      mesh_download_ms = watch.lap_ms();
+      const TriangleMesh on_host = extract_mesh(*host_map);
+      mesh_host_ms = watch.lap_ms();
+      mesh_triangles = on_device.triangle_count();
+      std::printf(
+          "mesh: %lld triangles, %lld vertices on the device in %.1f ms; the map downloaded in "
+          "%.1f ms and meshed on the host in %.1f ms (%lld triangles)\n",
+          static_cast<long long>(mesh_triangles), static_cast<long long>(on_device.vertex_count()),
+          mesh_ms, mesh_download_ms, mesh_host_ms,
+          static_cast<long long>(on_host.triangle_count()));
+    }
+
     double cpu_ms = 0;
     std::optional<double> cpu_ate;
     int64_t cpu_map_bytes = 0;
@@ -213,6 +241,8 @@ int main(int argc, char** argv) {
           << ", \"map_bytes\": " << gpu->map_memory_bytes()
           << ", \"device_bytes\": " << gpu->device_memory_bytes() << ", \"lost\": " << lost
           << ", \"ate_m\": " << (gpu_ate ? std::to_string(*gpu_ate) : "null")
+          << ", \"mesh_ms\": " << mesh_ms << ", \"mesh_download_ms\": " << mesh_download_ms
+          << ", \"mesh_host_ms\": " << mesh_host_ms << ", \"mesh_triangles\": " << mesh_triangles
           << ", \"cpu_ms\": " << cpu_ms << ", \"cpu_map_bytes\": " << cpu_map_bytes
           << ", \"cpu_ate_m\": " << (cpu_ate ? std::to_string(*cpu_ate) : "null") << "}\n";
     }

@@ -753,6 +753,125 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
                  "downloading the colours");
 }
 
+TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
+                                             RemovedPieces* removed) const {
+  params.validate();
+  const Impl& m = *impl_;
+  const float join_m = m.map_params.voxel_size_m;
+  // The blocks in key order: their metadata comes to the host to be sorted.
+  int32_t c[kCounters];
+  m.counters.download(c, kCounters);
+  const auto high_water = static_cast<std::size_t>(c[kHighWater]);
+  std::vector<BlockMeta> meta(high_water);
+  m.meta.download(meta.data(), high_water);
+  std::vector<BlockRef> listed;
+  for (std::size_t ptr = 0; ptr < high_water; ++ptr)
+    if (meta[ptr].level >= 0)
+      listed.push_back(
+          {meta[ptr].pos, meta[ptr].level, meta[ptr].entry, static_cast<int32_t>(ptr)});
+  const std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(std::move(listed));
+  const auto n = static_cast<int32_t>(blocks.size());
+  if (n == 0) return detail::finish_mesh({}, params, join_m, removed);
+  std::vector<int32_t> index_of_ptr(high_water, -1);
+  for (int32_t i = 0; i < n; ++i) index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = i;
+
+  Buffer<BlockRef> d_blocks;
+  Buffer<int32_t> d_index_of_ptr;
+  Buffer<mc::McTable> table;
+  d_blocks.reset(blocks.size(), nullptr);
+  d_blocks.upload(blocks.data(), blocks.size());
+  d_index_of_ptr.reset(high_water, nullptr);
+  d_index_of_ptr.upload(index_of_ptr.data(), high_water);
+  table.reset(1, nullptr);
+  table.upload(&mc::kMcTable, 1);
+  kernels::MeshPassInput in;
+  in.blocks = d_blocks.get();
+  in.index_of_ptr = d_index_of_ptr.get();
+  in.block_count = n;
+  in.min_weight = static_cast<int>(params.min_weight);
+  in.normals = params.compute_normals;
+  in.color = params.with_color && m.view.color != nullptr;
+  in.table = table.get();
+
+  // Pass one: each block's counts; the layout on the host.
+  constexpr int kMostThreads = 4096;  // ~110 MB of scratch (mesh_scratch_bytes() each)
+  const int threads = mesh_thread_count(n, kMostThreads);
+  Buffer<unsigned char> scratch;
+  scratch.reset(static_cast<std::size_t>(threads) * mesh_scratch_bytes(), nullptr);
+  Buffer<kernels::BlockMeshCount> d_counts;
+  d_counts.reset(blocks.size(), nullptr);
+  count_meshes(m.view.read, in, scratch.get(), threads, d_counts.get());
+  check_last("meshing (counting)");
+  std::vector<kernels::BlockMeshCount> counts(blocks.size());
+  d_counts.download(counts.data(), counts.size());
+  const detail::MeshLayout layout = detail::mesh_layout(counts.data(), n);
+  const auto vertices = static_cast<std::size_t>(layout.vertices());
+  const auto corners = static_cast<std::size_t>(layout.corners());
+  Buffer<int64_t> vertex_offset, corner_offset;
+  vertex_offset.reset(layout.vertex_offset.size(), nullptr);
+  vertex_offset.upload(layout.vertex_offset.data(), layout.vertex_offset.size());
+  corner_offset.reset(layout.corner_offset.size(), nullptr);
+  corner_offset.upload(layout.corner_offset.data(), layout.corner_offset.size());
+  in.counts = d_counts.get();
+  in.vertex_offset = vertex_offset.get();
+  in.corner_offset = corner_offset.get();
+
+  // Pass two: the vertices and corners; pass three: the corners' vertex indices.
+  Buffer<Vec3f> positions, normals;
+  Buffer<Rgb8> colors;
+  Buffer<uint8_t> levels;
+  Buffer<uint16_t> edges;
+  Buffer<kernels::EdgeRef> corner_refs;
+  Buffer<int32_t> triangles;
+  Buffer<unsigned long long> unresolved;
+  positions.reset(vertices, nullptr);
+  if (in.normals) normals.reset(vertices, nullptr);
+  if (in.color) colors.reset(vertices, nullptr);
+  levels.reset(vertices, nullptr);
+  edges.reset(vertices, nullptr);
+  corner_refs.reset(corners, nullptr);
+  triangles.reset(corners, nullptr);
+  unresolved.reset(1, nullptr);
+  check_status(cudaMemset(unresolved.get(), 0, sizeof(unsigned long long)), "meshing");
+  kernels::MeshArrays out;
+  out.positions_w = positions.get();
+  out.normals_w = normals.get();
+  out.colors = colors.get();
+  out.levels = levels.get();
+  out.edges = edges.get();
+  out.corners = corner_refs.get();
+  write_meshes(m.view.read, in, scratch.get(), threads, out);
+  check_last("meshing (writing)");
+  resolve_corners(in, edges.get(), corner_refs.get(), static_cast<int64_t>(corners),
+                  triangles.get(), unresolved.get());
+  check_last("meshing (resolving corners)");
+
+  TriangleMesh mesh;
+  mesh.positions_w.resize(vertices);
+  positions.download(mesh.positions_w.data(), vertices);
+  if (in.normals) {
+    mesh.normals_w.resize(vertices);
+    normals.download(mesh.normals_w.data(), vertices);
+  }
+  if (in.color) {
+    mesh.colors.resize(vertices);
+    colors.download(mesh.colors.data(), vertices);
+  }
+  mesh.levels.resize(vertices);
+  levels.download(mesh.levels.data(), vertices);
+  mesh.triangles.resize(corners / 3);
+  static_assert(sizeof(std::array<int32_t, 3>) == 3 * sizeof(int32_t));
+  triangles.download(reinterpret_cast<int32_t*>(mesh.triangles.data()), corners);
+  unsigned long long missing = 0;
+  unresolved.download(&missing, 1);
+  // As on the CPU: every corner's owner made its vertex; anything else is a bug, reported.
+  if (missing != 0)
+    fail(ErrorCode::InvalidData, "mesh: {} triangle corners found no vertex (internal error)",
+         missing);
+  detail::merge_boundary_vertices(counts.data(), layout, mesh);
+  return detail::finish_mesh(std::move(mesh), params, join_m, removed);
+}
+
 std::vector<int64_t> GpuReconstruction::blocks_per_level() const {
   const Impl& m = *impl_;
   int32_t c[kCounters];

@@ -3,6 +3,7 @@
 // no Eigen), defined in loop_kernels.cu. Every launch goes on the default stream; none waits for
 // the device unless it says so.
 
+#include <cstddef>
 #include <cstdint>
 
 #include "fusion/fusion_kernels.h"
@@ -11,6 +12,7 @@
 #include "hivox/core/sensor_noise.h"
 #include "hivox/map/map_view.h"
 #include "hivox/map/voxel_block_map.h"
+#include "mesh/mesh_passes.h"
 #include "raycast/raycast_kernels.h"
 #include "raycast/warp_kernels.h"
 #include "refine/refine_kernels.h"
@@ -178,5 +180,25 @@ void split_check(const MapView& map, SplitJob* jobs, int32_t n);
 void split_apply_level(const MutableMapView& map, SplitJob* jobs, int32_t n, float weight_scale);
 /// Returns the split parents' blocks to the pool and moves the level counts.
 void split_finish(const MutableMapView& map, const SplitJob* jobs, int32_t n);
+
+// ---- meshing (mesh_passes.cu): the passes of mesh/mesh_passes.h ------------------------------
+
+/// Scratch bytes one meshing thread needs (its padded block).
+std::size_t mesh_scratch_bytes();
+/// Threads to mesh `blocks` blocks with: at most `most`, a whole number of thread blocks.
+int mesh_thread_count(int64_t blocks, int most);
+/// Pass one over the `in.block_count` blocks, by `threads` threads (mesh_thread_count), each with
+/// its scratch in `scratch` (`threads` x mesh_scratch_bytes()): each block's counts.
+void count_meshes(const MapView& map, const kernels::MeshPassInput& in, void* scratch, int threads,
+                  kernels::BlockMeshCount* counts);
+/// Pass two: each block's vertices and corners into `out` at its offsets (`in`'s counts and
+/// offsets set).
+void write_meshes(const MapView& map, const kernels::MeshPassInput& in, void* scratch, int threads,
+                  const kernels::MeshArrays& out);
+/// Pass three: the vertex index of each of the `n` corners; corners that find no vertex get 0
+/// and are counted in `*unresolved`.
+void resolve_corners(const kernels::MeshPassInput& in, const uint16_t* edges,
+                     const kernels::EdgeRef* corners, int64_t n, int32_t* vertex_index,
+                     unsigned long long* unresolved);
 
 }  // namespace hivox::cuda

@@ -9,7 +9,7 @@
 
 #include "core/parallel.h"
 #include "hivox/core/error.h"
-#include "mesh/mesh_kernels.h"
+#include "mesh/mesh_passes.h"
 
 namespace hivox {
 
@@ -40,9 +40,11 @@ struct BlockScratch {
   kernels::MeshBlockScratch mesh;
 };
 
-/// Merges the vertices listed in `candidates` that sit at exactly the same position (copies of
-/// one vertex made by several blocks) into the first copy, and compacts the mesh.
-void merge_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
+}  // namespace
+
+namespace detail {
+
+void merge_vertex_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
   const auto& pos = mesh.positions_w;
   std::sort(candidates.begin(), candidates.end(), [&](int32_t a, int32_t b) {
     const Vec3f &p = pos[static_cast<std::size_t>(a)], &q = pos[static_cast<std::size_t>(b)];
@@ -85,7 +87,51 @@ void merge_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
     for (int32_t& v : t) v = index[static_cast<std::size_t>(v)];
 }
 
-}  // namespace
+std::vector<BlockRef> mesh_blocks_in_key_order(std::vector<BlockRef> blocks) {
+  std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
+    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+  });
+  return blocks;
+}
+
+MeshLayout mesh_layout(const kernels::BlockMeshCount* counts, int64_t blocks) {
+  MeshLayout l;
+  l.vertex_offset.assign(static_cast<std::size_t>(blocks) + 1, 0);
+  l.corner_offset.assign(static_cast<std::size_t>(blocks) + 1, 0);
+  for (int64_t i = 0; i < blocks; ++i) {
+    l.vertex_offset[i + 1] = l.vertex_offset[i] + counts[i].vertices;
+    l.corner_offset[i + 1] = l.corner_offset[i] + counts[i].corners;
+  }
+  if (l.vertices() > std::numeric_limits<int32_t>::max())
+    fail(ErrorCode::OutOfCapacity, "mesh: {} vertices exceed the int32 index range", l.vertices());
+  return l;
+}
+
+void merge_boundary_vertices(const kernels::BlockMeshCount* counts, const MeshLayout& layout,
+                             TriangleMesh& mesh) {
+  std::vector<int32_t> boundary;  // vertices on edges no block owns, made once per user
+  const auto blocks = static_cast<int64_t>(layout.vertex_offset.size()) - 1;
+  for (int64_t i = 0; i < blocks; ++i)
+    for (int64_t v = layout.vertex_offset[i] + counts[i].owned; v < layout.vertex_offset[i + 1];
+         ++v)
+      boundary.push_back(static_cast<int32_t>(v));
+  if (!boundary.empty()) merge_vertex_copies(boundary, mesh);
+}
+
+TriangleMesh finish_mesh(TriangleMesh mesh, const MeshParams& params, float join_distance_m,
+                         RemovedPieces* removed) {
+  if (params.bounds) mesh = crop_mesh(mesh, *params.bounds);
+  RemovedPieces r;
+  if (params.min_piece_triangles > 0) {
+    const int64_t before = mesh.triangle_count();
+    mesh = remove_small_pieces(mesh, params.min_piece_triangles, join_distance_m, &r.pieces);
+    r.triangles = before - mesh.triangle_count();
+  }
+  if (removed != nullptr) *removed = r;
+  return mesh;
+}
+
+}  // namespace detail
 
 namespace {
 
@@ -95,10 +141,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   const bool with_color = params.with_color && view.color != nullptr;
 
   // Blocks in key order (level, z, y, x): the output must not depend on pool positions.
-  std::vector<BlockRef> blocks = map.allocated_blocks();
-  std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
-    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
-  });
+  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
   // With bounds: the blocks whose cells (reaching a voxel into the next block) meet the box are
   // meshed, and the +x/+y/+z neighbours whose edges their cells use make those vertices only.
   std::vector<uint8_t> mesh_cells(blocks.size(), 1);
@@ -148,6 +191,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
           in.normals = params.compute_normals;
           in.color = with_color;
           in.cells = mesh_cells[static_cast<std::size_t>(i)] != 0;
+          in.table = &mc::kMcTable;
           kernels::mesh_block(view, scratch->cache, in, scratch->mesh,
                               parts[static_cast<std::size_t>(i)]);
         },
@@ -155,23 +199,21 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   });
 
   // Pass 2: global numbering, block by block.
-  std::vector<int64_t> vertex_offset(static_cast<std::size_t>(n) + 1, 0);
-  std::vector<int64_t> triangle_offset(static_cast<std::size_t>(n) + 1, 0);
-  for (int64_t i = 0; i < n; ++i) {
-    const BlockMesh& p = parts[static_cast<std::size_t>(i)];
-    vertex_offset[i + 1] = vertex_offset[i] + static_cast<int64_t>(p.vertices.size());
-    triangle_offset[i + 1] = triangle_offset[i] + static_cast<int64_t>(p.corners.size() / 3);
-  }
-  const int64_t vertices = vertex_offset[n], triangles = triangle_offset[n];
-  if (vertices > std::numeric_limits<int32_t>::max())
-    fail(ErrorCode::OutOfCapacity, "mesh: {} vertices exceed the int32 index range", vertices);
+  std::vector<kernels::BlockMeshCount> counts(static_cast<std::size_t>(n));
+  for (std::size_t i = 0; i < counts.size(); ++i)
+    counts[i] = {static_cast<int32_t>(parts[i].edges.size()),
+                 static_cast<int32_t>(parts[i].vertices.size()),
+                 static_cast<int32_t>(parts[i].corners.size())};
+  const detail::MeshLayout layout = detail::mesh_layout(counts.data(), n);
+  const std::vector<int64_t>& vertex_offset = layout.vertex_offset;
+  const int64_t vertices = layout.vertices();
 
   TriangleMesh mesh;
   mesh.positions_w.resize(static_cast<std::size_t>(vertices));
   if (params.compute_normals) mesh.normals_w.resize(static_cast<std::size_t>(vertices));
   if (with_color) mesh.colors.resize(static_cast<std::size_t>(vertices));
   mesh.levels.resize(static_cast<std::size_t>(vertices));
-  mesh.triangles.resize(static_cast<std::size_t>(triangles));
+  mesh.triangles.resize(static_cast<std::size_t>(layout.corners() / 3));
 
   // Pass 3: copy vertices and resolve triangle corners (binary search in the owner's edges).
   std::atomic<int64_t> unresolved{0};
@@ -187,7 +229,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
       mesh.levels[dst] = static_cast<uint8_t>(blocks[i].level);
     }
     int64_t missing = 0;
-    std::array<int32_t, 3>* out = mesh.triangles.data() + triangle_offset[i];
+    std::array<int32_t, 3>* out = mesh.triangles.data() + layout.corner_offset[i] / 3;
     for (std::size_t k = 0; k < p.corners.size(); ++k) {
       const EdgeRef r = p.corners[k];
       int64_t index;
@@ -195,13 +237,10 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
         index = vertex_offset[r.block] + (r.edge & ~kResolvedEdge);
       } else {
         const std::vector<uint16_t>& owner = parts[static_cast<std::size_t>(r.block)].edges;
-        const auto it = std::lower_bound(owner.begin(), owner.end(), r.edge);
-        if (it == owner.end() || *it != r.edge) {
-          ++missing;
-          index = 0;
-        } else {
-          index = vertex_offset[r.block] + (it - owner.begin());
-        }
+        const int32_t rank =
+            kernels::owned_rank(owner.data(), static_cast<int32_t>(owner.size()), r.edge);
+        missing += rank < 0;
+        index = vertex_offset[r.block] + std::max(rank, 0);
       }
       out[k / 3][k % 3] = static_cast<int32_t>(index);
     }
@@ -213,13 +252,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
     fail(ErrorCode::InvalidData, "mesh: {} triangle corners found no vertex (internal error)",
          unresolved.load());
 
-  std::vector<int32_t> boundary;  // vertices on edges no block owns, made once per user
-  for (int64_t i = 0; i < n; ++i) {
-    const BlockMesh& p = parts[static_cast<std::size_t>(i)];
-    for (std::size_t k = p.edges.size(); k < p.vertices.size(); ++k)
-      boundary.push_back(static_cast<int32_t>(vertex_offset[i] + static_cast<int64_t>(k)));
-  }
-  if (!boundary.empty()) merge_copies(boundary, mesh);
+  detail::merge_boundary_vertices(counts.data(), layout, mesh);
   return mesh;
 }
 
@@ -230,16 +263,7 @@ TriangleMesh extract_mesh(const VoxelBlockMap& map, const MeshParams& params,
   params.validate();
   TriangleMesh mesh =
       dispatch(map.device(), "mesh extraction", [&] { return extract_mesh_cpu(map, params); });
-  if (params.bounds) mesh = crop_mesh(mesh, *params.bounds);
-  RemovedPieces r;
-  if (params.min_piece_triangles > 0) {
-    const int64_t before = mesh.triangle_count();
-    mesh =
-        remove_small_pieces(mesh, params.min_piece_triangles, map.params().voxel_size_m, &r.pieces);
-    r.triangles = before - mesh.triangle_count();
-  }
-  if (removed != nullptr) *removed = r;
-  return mesh;
+  return detail::finish_mesh(std::move(mesh), params, map.params().voxel_size_m, removed);
 }
 
 }  // namespace hivox

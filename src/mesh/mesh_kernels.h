@@ -308,6 +308,9 @@ struct MeshBlockInput {
   int min_weight = 1;
   bool normals = true, color = false;
   bool cells = true;  ///< false: the vertices on its owned edges only (no triangles)
+  /// The marching-cubes cases: &mc::kMcTable on the host, a copy in device memory on a GPU
+  /// (device code cannot index a host constexpr array).
+  const mc::McTable* table = nullptr;
 };
 
 /// Marching cubes over one block, written once for every driver: `emit` receives the vertices
@@ -348,7 +351,7 @@ HIVOX_HD void mesh_block(const MapView& view, BlockLookupCache& cache, const Mes
         if (!pb.cell_valid[pad_index(x, y, z)]) continue;
         const int c = cell_case(pb, x, y, z);
         if (c == 0 || c == 255) continue;
-        const mc::McCase& mcase = mc::kMcTable.cases[c];
+        const mc::McCase& mcase = in.table->cases[c];
         for (int t = 0; t < mcase.triangle_count; ++t)
           for (int k = 0; k < 3; ++k) {
             const int e = mcase.triangles[t][k];

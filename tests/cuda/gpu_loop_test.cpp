@@ -18,6 +18,7 @@
 #include "cuda/device_memory.h"
 #include "cuda/loop_kernels.h"
 #include "hivox/core/error.h"
+#include "hivox/core/timer.h"
 #include "hivox/cuda/gpu_reconstruction.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/fusion/integrator.h"
@@ -30,6 +31,7 @@
 #include "hivox/refine/refiner.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "mesh/mesh_test_util.h"
 #include "test_util.h"
 
 namespace hivox::test {
@@ -380,6 +382,83 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
   expect_same_mesh(cpu.map(), *downloaded);
   const RgbdFrame last = data.read(data.size() - 1);
   expect_same_model(cpu.map(), gpu.download_model(), previous, last, *last.T_wc_gt, p, rig);
+}
+
+/// GpuReconstruction::extract_mesh against extract_mesh on the downloaded map: the same vertices
+/// (up to the device's fused multiply-adds in their interpolation) and the same triangles, with
+/// each set of mesh parameters.
+TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  cuda::GpuReconstruction gpu(p, data.info().rig);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const RgbdFrame f = data.read(i);
+    gpu.integrate(f, *f.T_wc_gt);
+  }
+  const std::unique_ptr<VoxelBlockMap> map = gpu.download_map();
+  for (const int64_t n : map->blocks_per_level()) ASSERT_GT(n, 100) << fmt_levels(*map);
+  auto cases = test::mesh_param_cases();
+  cases.emplace_back("bounds", MeshParams{});
+  cases.back().second.bounds = Box3f{{-0.3f, -0.3f, -0.1f}, {0.2f, 0.3f, 0.6f}};
+  for (const auto& [name, params] : cases) {
+    SCOPED_TRACE(name);
+    Stopwatch cpu_timer;
+    RemovedPieces cpu_removed, gpu_removed;
+    const TriangleMesh a = extract_mesh(*map, params, &cpu_removed);
+    const double cpu_ms = cpu_timer.elapsed_ms();
+    Stopwatch gpu_timer;
+    const TriangleMesh b = gpu.extract_mesh(params, &gpu_removed);
+    const double gpu_ms = gpu_timer.elapsed_ms();
+    std::printf(
+        "[ mesh     ] %s: %lld / %lld vertices, %lld / %lld triangles (CPU / GPU), "
+        "%.1f / %.1f ms\n",
+        name, static_cast<long long>(a.vertex_count()), static_cast<long long>(b.vertex_count()),
+        static_cast<long long>(a.triangle_count()), static_cast<long long>(b.triangle_count()),
+        cpu_ms, gpu_ms);
+    ASSERT_GT(a.triangle_count(), 10000);
+    ASSERT_EQ(a.vertex_count(), b.vertex_count());
+    ASSERT_EQ(a.triangle_count(), b.triangle_count());
+    ASSERT_EQ(a.normals_w.size(), b.normals_w.size());
+    ASSERT_EQ(a.colors.size(), b.colors.size());
+    EXPECT_EQ(cpu_removed.pieces, gpu_removed.pieces);
+    if (params.bounds) {
+      // Every block meshed, then cropped: the same triangles, the merged vertices' order may
+      // differ. Compared by their centroid.
+      double shift = 0;
+      for (std::size_t v = 0; v < a.positions_w.size(); ++v)
+        shift += static_cast<double>(a.positions_w[v].x) - b.positions_w[v].x + a.positions_w[v].y -
+                 b.positions_w[v].y + a.positions_w[v].z - b.positions_w[v].z;
+      EXPECT_LT(std::abs(shift) / static_cast<double>(a.vertex_count()), 1e-6);
+      continue;
+    }
+    int64_t far = 0, normal_far = 0, color_far = 0, level_differ = 0;
+    for (std::size_t v = 0; v < a.positions_w.size(); ++v) {
+      const Vec3f d = a.positions_w[v] - b.positions_w[v];
+      far += d.x * d.x + d.y * d.y + d.z * d.z > 1e-12f;  // 1 micrometre
+      if (!a.normals_w.empty()) {
+        const Vec3f& n = a.normals_w[v];
+        const Vec3f& m = b.normals_w[v];
+        normal_far += n.x * m.x + n.y * m.y + n.z * m.z < 0.9999f;
+      }
+      if (!a.colors.empty())
+        color_far += std::abs(a.colors[v].r - b.colors[v].r) > 1 ||
+                     std::abs(a.colors[v].g - b.colors[v].g) > 1 ||
+                     std::abs(a.colors[v].b - b.colors[v].b) > 1;
+      level_differ += a.levels[v] != b.levels[v];
+    }
+    EXPECT_EQ(far, 0);
+    EXPECT_EQ(normal_far, 0);
+    EXPECT_EQ(color_far, 0);
+    EXPECT_EQ(level_differ, 0);
+    int64_t triangles_differ = 0;
+    for (std::size_t t = 0; t < a.triangles.size(); ++t)
+      triangles_differ += a.triangles[t] != b.triangles[t];
+    EXPECT_EQ(triangles_differ, 0);
+  }
+  // An empty map gives an empty mesh.
+  cuda::GpuReconstruction empty(p, data.info().rig);
+  EXPECT_TRUE(empty.extract_mesh().empty());
 }
 
 /// The CLI's and the bindings' way onto the GPU: a Reconstruction on `cuda` (its frames on the

@@ -5,11 +5,13 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "analytic_scene.h"
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/voxel_block_map.h"
+#include "hivox/mesh/params.h"
 #include "map/map_access.h"
 
 namespace hivox::test {
@@ -112,6 +114,21 @@ inline std::unique_ptr<VoxelBlockMap> fuse_scene(const SphereOnPlane& scene, flo
   auto map = std::make_unique<VoxelBlockMap>(mesh_map_params(voxel_m, 1, true, mu_m));
   fuse_views(*map, scene, views, heights_m, color, max_depth_m);
   return map;
+}
+
+/// Mesh settings that change what each pass of the mesher makes, named for traces.
+inline std::vector<std::pair<const char*, MeshParams>> mesh_param_cases() {
+  std::vector<std::pair<const char*, MeshParams>> cases(4);
+  cases[0].first = "defaults";
+  cases[1].first = "no normals, no colour";
+  cases[1].second.compute_normals = false;
+  cases[1].second.with_color = false;
+  cases[2].first = "normals, no colour";
+  cases[2].second.with_color = false;
+  cases[3].first = "min_weight 3, small pieces removed";
+  cases[3].second.min_weight = 3;
+  cases[3].second.min_piece_triangles = 50;
+  return cases;
 }
 
 inline Eigen::Vector3d to_eigen(const Vec3f& v) {

@@ -6,8 +6,8 @@
 /// the last raycast come back to the host only when asked for (meshing, saving, comparing).
 /// Built with -DHIVOX_WITH_CUDA=ON (this header has no CUDA types).
 ///
-/// Refinement (the CPU Refiner's decisions, split and merge) runs on the device too; meshing,
-/// saving and renders take the map back to the host (download_map).
+/// Refinement (the CPU Refiner's decisions, split and merge) and meshing (extract_mesh) run on
+/// the device too; saving and renders take the map back to the host (download_map).
 
 #include <cstdint>
 #include <memory>
@@ -19,6 +19,7 @@
 #include "hivox/core/dataset.h"
 #include "hivox/map/stored_map.h"
 #include "hivox/map/voxel_block_map.h"
+#include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/track/tracker.h"
@@ -61,6 +62,12 @@ class GpuReconstruction {
   std::unique_ptr<VoxelBlockMap> download_map() const;
   /// Copies the device map into `map`, a host map of the same parameters (map_params()).
   void download_map(VoxelBlockMap& map) const;
+  /// The device map's mesh, as hivox::extract_mesh gives it for the downloaded map: marching
+  /// cubes in passes on the device (count, write, resolve the corners; mesh/mesh_passes.h), the
+  /// vertices that several blocks make on level boundaries merged on the host, then the same
+  /// cropping and small-piece removal. Only the block list (24 bytes a block) and the mesh cross
+  /// the bus. With `params.bounds` every block is meshed and the mesh cropped.
+  TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
   /// Allocated blocks per level (finest first), read from the device's counters.
   std::vector<int64_t> blocks_per_level() const;
   /// The last model raycast (the depth camera subsampled by the tracking's model_subsample),

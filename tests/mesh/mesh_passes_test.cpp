@@ -1,0 +1,167 @@
+// Meshing in passes (src/mesh/mesh_passes.h), the CUDA mesher's per-block and per-corner steps,
+// run here one block at a time on the host: they must give extract_mesh's mesh exactly, across
+// levels, with and without normals and colour.
+
+#include "mesh/mesh_passes.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <vector>
+
+#include "hivox/mesh/extract_mesh.h"
+#include "map/split_util.h"
+#include "mesh/mesh_test_util.h"
+
+namespace hivox {
+namespace {
+
+struct PassesResult {
+  TriangleMesh mesh;
+  int64_t unresolved = 0;         ///< corners that found no vertex
+  int64_t boundary_vertices = 0;  ///< made by several blocks each, merged
+};
+
+/// The passes as the CUDA mesher runs them, one block (one corner) after another.
+PassesResult mesh_in_passes(const VoxelBlockMap& map, const MeshParams& params) {
+  PassesResult r;
+  const MapView view = map.view();
+  const std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
+  const auto n = static_cast<int32_t>(blocks.size());
+  std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
+  for (int32_t i = 0; i < n; ++i) index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = i;
+
+  kernels::MeshPassInput in;
+  in.blocks = blocks.data();
+  in.index_of_ptr = index_of_ptr.data();
+  in.block_count = n;
+  in.min_weight = static_cast<int>(params.min_weight);
+  in.normals = params.compute_normals;
+  in.color = params.with_color && view.color != nullptr;
+  in.table = &mc::kMcTable;
+  const auto cache = std::make_unique<kernels::BlockLookupCache>();
+  const auto scratch = std::make_unique<kernels::MeshBlockScratch>();
+
+  std::vector<kernels::BlockMeshCount> counts(blocks.size());
+  for (int32_t i = 0; i < n; ++i)
+    counts[static_cast<std::size_t>(i)] = kernels::count_block_mesh(view, *cache, in, i, *scratch);
+  for (const kernels::BlockMeshCount& k : counts) r.boundary_vertices += k.vertices - k.owned;
+  const detail::MeshLayout layout = detail::mesh_layout(counts.data(), n);
+  in.counts = counts.data();
+  in.vertex_offset = layout.vertex_offset.data();
+  in.corner_offset = layout.corner_offset.data();
+
+  const auto vertices = static_cast<std::size_t>(layout.vertices());
+  TriangleMesh mesh;
+  mesh.positions_w.resize(vertices);
+  if (in.normals) mesh.normals_w.resize(vertices);
+  if (in.color) mesh.colors.resize(vertices);
+  mesh.levels.resize(vertices);
+  std::vector<uint16_t> edges(vertices);
+  std::vector<kernels::EdgeRef> corners(static_cast<std::size_t>(layout.corners()));
+  kernels::MeshArrays out;
+  out.positions_w = mesh.positions_w.data();
+  out.normals_w = in.normals ? mesh.normals_w.data() : nullptr;
+  out.colors = in.color ? mesh.colors.data() : nullptr;
+  out.levels = mesh.levels.data();
+  out.edges = edges.data();
+  out.corners = corners.data();
+  for (int32_t i = 0; i < n; ++i) kernels::write_block_mesh(view, *cache, in, i, *scratch, out);
+
+  mesh.triangles.resize(corners.size() / 3);
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    const int64_t v = kernels::resolve_corner(in, edges.data(), corners[k]);
+    r.unresolved += v < 0;
+    mesh.triangles[k / 3][k % 3] = static_cast<int32_t>(v);
+  }
+  detail::merge_boundary_vertices(counts.data(), layout, mesh);
+  r.mesh = detail::finish_mesh(std::move(mesh), params, map.params().voxel_size_m, nullptr);
+  return r;
+}
+
+void expect_identical(const TriangleMesh& a, const TriangleMesh& b) {
+  ASSERT_EQ(a.vertex_count(), b.vertex_count());
+  ASSERT_EQ(a.triangle_count(), b.triangle_count());
+  ASSERT_EQ(a.normals_w.size(), b.normals_w.size());
+  ASSERT_EQ(a.colors.size(), b.colors.size());
+  ASSERT_EQ(a.levels.size(), b.levels.size());
+  for (std::size_t i = 0; i < a.positions_w.size(); ++i) {
+    ASSERT_EQ(a.positions_w[i], b.positions_w[i]) << "vertex " << i;
+    if (!a.normals_w.empty()) {
+      ASSERT_EQ(a.normals_w[i], b.normals_w[i]) << "vertex " << i;
+    }
+    if (!a.colors.empty()) {
+      ASSERT_EQ(a.colors[i], b.colors[i]) << "vertex " << i;
+    }
+    ASSERT_EQ(a.levels[i], b.levels[i]) << "vertex " << i;
+  }
+  for (std::size_t t = 0; t < a.triangles.size(); ++t)
+    ASSERT_EQ(a.triangles[t], b.triangles[t]) << "triangle " << t;
+}
+
+/// The sphere on its floor fused at 4 mm into 3 levels (at the coarsest), then x >= 0 split to
+/// the middle level and x >= 64 mm on to the finest, and fused again: blocks of all three
+/// levels, and level boundaries where finer blocks meet coarser ones (vertices that no block
+/// owns, made by each block that uses them).
+std::unique_ptr<VoxelBlockMap> three_level_scene() {
+  const test::SphereOnPlane scene;
+  auto map = std::make_unique<VoxelBlockMap>(test::mesh_map_params(0.004f, 3, true, 0.048f));
+  const Rgb8 color{200, 90, 30};
+  test::fuse_views(*map, scene, 8, {0.5, 0.2}, &color);
+  test::split_down(
+      *map, 2, [](const BlockRef& b) { return b.pos.x >= (b.level == 2 ? 0 : 2); }, 0.0f);
+  test::fuse_views(*map, scene, 8, {0.5, 0.2}, &color);
+  return map;
+}
+
+TEST(MeshPasses, GiveExtractMeshsMeshAcrossLevels) {
+  const auto map = three_level_scene();
+  const std::vector<int64_t> per_level = map->blocks_per_level();
+  for (const int64_t n : per_level) ASSERT_GT(n, 50) << ::testing::PrintToString(per_level);
+  for (const auto& [name, params] : test::mesh_param_cases()) {
+    SCOPED_TRACE(name);
+    const TriangleMesh reference = extract_mesh(*map, params);
+    const PassesResult passes = mesh_in_passes(*map, params);
+    EXPECT_EQ(passes.unresolved, 0);
+    // Level boundaries: vertices made by several blocks, merged into one.
+    EXPECT_GT(passes.boundary_vertices, 100);
+    ASSERT_GT(reference.triangle_count(), 10000);
+    expect_identical(reference, passes.mesh);
+  }
+}
+
+TEST(MeshPasses, AnEmptyMapGivesAnEmptyMesh) {
+  const VoxelBlockMap map(test::mesh_map_params(0.01f, 2));
+  const PassesResult r = mesh_in_passes(map, {});
+  EXPECT_TRUE(r.mesh.empty());
+  EXPECT_TRUE(r.mesh.triangles.empty());
+  EXPECT_EQ(r.unresolved, 0);
+}
+
+TEST(MeshPasses, OwnedRankFindsOnlyListedEdges) {
+  const std::vector<uint16_t> edges = {2, 5, 6, 40, 1535};
+  for (std::size_t i = 0; i < edges.size(); ++i)
+    EXPECT_EQ(kernels::owned_rank(edges.data(), 5, edges[i]), static_cast<int32_t>(i));
+  for (const uint16_t missing : {0, 3, 7, 39, 41, 1534})
+    EXPECT_EQ(kernels::owned_rank(edges.data(), 5, missing), -1) << missing;
+  EXPECT_EQ(kernels::owned_rank(edges.data(), 0, 2), -1);
+  // A count shorter than the list: the edges past it are not the block's.
+  EXPECT_EQ(kernels::owned_rank(edges.data(), 3, 40), -1);
+}
+
+TEST(MeshPasses, ACornerWithoutItsVertexIsReported) {
+  // Block 1's owned edges are {4, 9}; its vertices start at 10. Block 0 made 10 vertices.
+  const std::vector<uint16_t> edges = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 9};
+  const std::vector<kernels::BlockMeshCount> counts = {{10, 10, 3}, {2, 2, 0}};
+  const std::vector<int64_t> vertex_offset = {0, 10, 12};
+  kernels::MeshPassInput in;
+  in.counts = counts.data();
+  in.vertex_offset = vertex_offset.data();
+  EXPECT_EQ(kernels::resolve_corner(in, edges.data(), {1, 9}), 11);
+  EXPECT_EQ(kernels::resolve_corner(in, edges.data(), {1, 5}), -1);
+  EXPECT_EQ(kernels::resolve_corner(in, edges.data(), {0, kernels::kResolvedEdge | 7}), 7);
+  EXPECT_EQ(kernels::resolve_corner(in, edges.data(), {1, kernels::kResolvedEdge | 1}), 11);
+}
+
+}  // namespace
+}  // namespace hivox
