@@ -4,7 +4,6 @@
 #include <cmath>
 #include <numbers>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
@@ -14,23 +13,42 @@ void System::symmetrize() {
   A.triangularView<Eigen::StrictlyLower>() = A.transpose();
 }
 
+void System::to_sums(double* out) const {
+  int k = 0;
+  for (int i = 0; i < 6; ++i)
+    for (int j = i; j < 6; ++j) out[k++] = A(i, j);
+  for (int i = 0; i < 6; ++i) out[kernels::kIcpB + i] = b(i);
+  out[kernels::kIcpR2] = r2;
+  out[kernels::kIcpDistance] = distance;
+  out[kernels::kIcpInliers] = static_cast<double>(inliers);
+}
+
+System System::from_sums(const double* sums) {
+  System s;
+  s.add(sums, sums + kernels::kIcpB, sums[kernels::kIcpR2], sums[kernels::kIcpDistance],
+        static_cast<int64_t>(sums[kernels::kIcpInliers]));
+  s.symmetrize();
+  return s;
+}
+
 namespace {
 
-/// Pose after the world-frame motion (t, w) of the camera about its centre c:
-/// p -> R(w) (p - c) + c + t.
-Pose apply_increment(const Pose& T, const Eigen::Matrix<double, 6, 1>& x) {
-  const Eigen::Vector3d t = x.head<3>(), w = x.tail<3>();
-  const double angle = w.norm();
-  const Eigen::Matrix3d R = angle > 0.0 ? Eigen::AngleAxisd(angle, w / angle).toRotationMatrix()
-                                        : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d c = T.translation();
-  Pose inc = Pose::Identity();
-  inc.linear() = R;
-  inc.translation() = c + t - R * c;
-  Pose out = inc * T;
-  // Keep the rotation orthonormal over many small updates.
-  out.linear() = Eigen::Quaterniond(out.linear()).normalized().toRotationMatrix();
-  return out;
+kernels::PoseD to_posed(const Pose& T) {
+  kernels::PoseD p;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) p.R[3 * i + j] = T.linear()(i, j);
+    p.t[i] = T.translation()(i);
+  }
+  return p;
+}
+
+Pose from_posed(const kernels::PoseD& p) {
+  Pose T = Pose::Identity();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) T.linear()(i, j) = p.R[3 * i + j];
+    T.translation()(i) = p.t[i];
+  }
+  return T;
 }
 
 double rotation_deg(const Pose& T) {
@@ -47,31 +65,22 @@ struct Alignment {
   bool diverged = false;
 };
 
+/// Gauss-Newton through the shared state machine (kernels::icp_update), one pass at a time.
 Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_wc_init) {
-  Alignment a;
-  Pose T = T_wc_init;
-  a.T_fin = T;
-  for (int level = params.levels() - 1; level >= 0 && !a.diverged; --level) {
+  kernels::IcpState s = kernels::icp_start(to_posed(T_wc_init));
+  for (int level = params.levels() - 1; level >= 0 && s.diverged == 0; --level)
     for (int it = 0; it < params.iterations[static_cast<std::size_t>(level)]; ++it) {
-      const System ne = reduce(level, T);
-      if (level == 0) {
-        a.fin = ne;
-        a.T_fin = T;
-      }
-      if (ne.inliers < 6) break;
-      const Eigen::Matrix<double, 6, 1> x = ne.A.ldlt().solve(-ne.b);
-      if (!x.allFinite()) {
-        a.diverged = true;
-        break;
-      }
-      T = apply_increment(T, x);
-      ++a.iterations;
-      if (x.head<3>().norm() < params.convergence_step &&
-          x.tail<3>().norm() < params.convergence_step)
-        break;
+      if (kernels::icp_skips(s, level)) break;
+      double sums[kernels::kIcpSums];
+      reduce(level, from_posed(s.T)).to_sums(sums);
+      kernels::icp_update(s, sums, level, params.convergence_step);
     }
-  }
-  a.T = T;
+  Alignment a;
+  a.T = from_posed(s.T);
+  a.T_fin = from_posed(s.T_fin);
+  a.fin = System::from_sums(s.fin);
+  a.iterations = s.iterations;
+  a.diverged = s.diverged != 0;
   return a;
 }
 

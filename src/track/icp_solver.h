@@ -1,7 +1,8 @@
 #pragma once
 // Gauss-Newton on the point-to-plane normal equations and the verdict on an alignment: host code
-// written once for every device. Only the ICP reduction (the sums over a pyramid level's pixels)
-// is device-specific; the CPU tracker and the CUDA loop hand theirs in.
+// written once for every device, stepping the shared state machine of track/gauss_newton.h. Only
+// the ICP reduction (the sums over a pyramid level's pixels) is device-specific; the CPU tracker
+// and the CUDA loop hand theirs in.
 
 #include <cstdint>
 #include <functional>
@@ -11,6 +12,7 @@
 #include "hivox/core/pose.h"
 #include "hivox/track/params.h"
 #include "hivox/track/tracker.h"
+#include "track/gauss_newton.h"
 
 namespace hivox::icp {
 
@@ -38,6 +40,9 @@ struct System {
   }
   /// Mirrors the upper triangle into the lower (after the last `add`).
   void symmetrize();
+  /// The sums in the reductions' layout (kernels::kIcpSums doubles, see track/gauss_newton.h).
+  void to_sums(double* out) const;
+  static System from_sums(const double* sums);
 };
 
 /// One pass over pyramid level `level` (0 finest) at pose `T_wc`.
