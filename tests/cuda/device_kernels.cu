@@ -94,6 +94,13 @@ __global__ void cast_rays(MapView map, PinholeCamera cam, Rigid3f T_wc, kernels:
   kernels::write_ray(out, map, i, outcome != kernels::RayOutcome::Miss, hit);
 }
 
+__global__ void gauss_newton(kernels::IcpState* state, const int* levels, const double* sums,
+                             int passes, double convergence_step) {
+  for (int i = 0; i < passes; ++i)
+    if (!kernels::icp_skips(*state, levels[i]))
+      kernels::icp_update(*state, sums + kernels::kIcpSums * i, levels[i], convergence_step);
+}
+
 }  // namespace
 
 std::string cuda_device_name() {
@@ -276,6 +283,31 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
   colors.download(result.colors.data(), pixels);
   levels.download(result.levels.data(), pixels);
   return result;
+}
+
+kernels::IcpState gauss_newton_on_device(const kernels::PoseD& start,
+                                         const std::vector<int>& levels,
+                                         const std::vector<double>& sums, double convergence_step) {
+  kernels::IcpState host = kernels::icp_start(start);
+  kernels::IcpState* state = nullptr;
+  int* d_levels = nullptr;
+  double* d_sums = nullptr;
+  check(cudaMalloc(&state, sizeof(host)), "cudaMalloc");
+  check(cudaMalloc(&d_levels, levels.size() * sizeof(int)), "cudaMalloc");
+  check(cudaMalloc(&d_sums, sums.size() * sizeof(double)), "cudaMalloc");
+  check(cudaMemcpy(state, &host, sizeof(host), cudaMemcpyHostToDevice), "upload");
+  check(cudaMemcpy(d_levels, levels.data(), levels.size() * sizeof(int), cudaMemcpyHostToDevice),
+        "upload");
+  check(cudaMemcpy(d_sums, sums.data(), sums.size() * sizeof(double), cudaMemcpyHostToDevice),
+        "upload");
+  gauss_newton<<<1, 1>>>(state, d_levels, d_sums, static_cast<int>(levels.size()),
+                         convergence_step);
+  check(cudaGetLastError(), "gauss_newton");
+  check(cudaMemcpy(&host, state, sizeof(host), cudaMemcpyDeviceToHost), "download");
+  cudaFree(state);
+  cudaFree(d_levels);
+  cudaFree(d_sums);
+  return host;
 }
 
 }  // namespace hivox::test

@@ -17,6 +17,7 @@
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/raycast/params.h"
 #include "raycast/coarse_occupancy.h"
+#include "track/gauss_newton.h"
 
 namespace hivox::test {
 
@@ -79,5 +80,12 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
                                 const PinholeCamera& camera, const Rigid3f& T_wc,
                                 const DepthImage* start_hint_m, const DepthImage* fallback_hint_m,
                                 int repeats = 1);
+
+/// Gauss-Newton stepped on the device (one thread, kernels::icp_update) from `start` through the
+/// passes `levels[i]` with sums `sums[30 i, 30 i + 30)`, passes at a stopped level skipped
+/// (kernels::icp_skips), as the host's align steps it.
+kernels::IcpState gauss_newton_on_device(const kernels::PoseD& start,
+                                         const std::vector<int>& levels,
+                                         const std::vector<double>& sums, double convergence_step);
 
 }  // namespace hivox::test

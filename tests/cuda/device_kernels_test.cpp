@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -239,6 +240,58 @@ TEST(DeviceKernels, TumFr1RpyThreeLevels) {
   HIVOX_REQUIRE_DATASET(dir, "tum_fr1_rpy");
   Workload w{"fr1/rpy, 3 levels from 2 mm", open_dataset(dir.string()), 100, 0.002f, 0.024f, 3};
   compare_on_device(w);
+}
+
+/// Gauss-Newton's steps (track/gauss_newton.h) on the device give the host's: the same stops,
+/// and poses equal to ~1e-12 (the device's sin, cos and fused multiply-adds).
+TEST(DeviceKernels, GaussNewtonStepsAsOnTheHost) {
+  HIVOX_REQUIRE_CUDA_DEVICE();
+  constexpr double kStep = 1e-5;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g;
+  std::vector<int> levels;
+  std::vector<double> sums;
+  double scale = 0.05;
+  for (const int level : {2, 2, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0}) {
+    double s[kernels::kIcpSums] = {};
+    // A = J^T J over 30 random rows; b of shrinking size, so that later levels converge.
+    for (int r = 0; r < 30; ++r) {
+      double j[6];
+      for (double& v : j) v = g(rng);
+      int k = 0;
+      for (int a = 0; a < 6; ++a)
+        for (int b = a; b < 6; ++b) s[k++] += j[a] * j[b];
+    }
+    for (int i = 0; i < 6; ++i) s[kernels::kIcpB + i] = scale * g(rng);
+    s[kernels::kIcpR2] = 1e-4;
+    s[kernels::kIcpDistance] = 30;
+    s[kernels::kIcpInliers] = levels.size() == 6 ? 5 : 30;  // level 1 stops at its 3rd pass
+    scale *= 0.6;
+    levels.push_back(level);
+    sums.insert(sums.end(), s, s + kernels::kIcpSums);
+  }
+  const kernels::PoseD start = {{0.36, 0.48, -0.8, -0.8, 0.6, 0, 0.48, 0.64, 0.6}, {1, -2, 0.5}};
+  kernels::IcpState host = kernels::icp_start(start);
+  for (std::size_t i = 0; i < levels.size(); ++i)
+    if (!kernels::icp_skips(host, levels[i]))
+      kernels::icp_update(host, sums.data() + kernels::kIcpSums * i, levels[i], kStep);
+  const kernels::IcpState gpu = gauss_newton_on_device(start, levels, sums, kStep);
+  std::printf("[ gn       ] %d increments on both, level %d stopped last\n", gpu.iterations,
+              host.done_level);
+  EXPECT_GE(host.iterations, 8);
+  EXPECT_EQ(gpu.iterations, host.iterations);
+  EXPECT_EQ(gpu.done_level, host.done_level);
+  EXPECT_EQ(gpu.diverged, host.diverged);
+  EXPECT_EQ(gpu.has_fin, host.has_fin);
+  for (int k = 0; k < kernels::kIcpSums; ++k) EXPECT_EQ(gpu.fin[k], host.fin[k]);
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_NEAR(gpu.T.R[i], host.T.R[i], 1e-12);
+    EXPECT_NEAR(gpu.T_fin.R[i], host.T_fin.R[i], 1e-12);
+  }
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(gpu.T.t[i], host.T.t[i], 1e-12);
+    EXPECT_NEAR(gpu.T_fin.t[i], host.T_fin.t[i], 1e-12);
+  }
 }
 
 }  // namespace
