@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false, mesh = false;
+  bool cpu = false, mesh = false, gn_on_device = false;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -93,6 +93,9 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "timed frames left out of the means");
   app.add_option("--max-blocks", max_blocks, "block pool capacity");
   app.add_flag("--cpu", cpu, "also run the CPU loop on the same frames (same handover)");
+  app.add_flag("--gn-on-device", gn_on_device,
+               "tracking's Gauss-Newton steps on the device (GpuReconstruction::"
+               "set_gauss_newton_on_device)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
   app.add_option("--json", json, "write the results here");
@@ -151,7 +154,9 @@ int main(int argc, char** argv) {
                     params, rig, cpu_loop.map(),
                     MapSession{static_cast<int64_t>(k), cpu_loop.trajectory().back().T_wc, {}})
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
-    std::printf("device: %s\n", cuda::device_name(0).c_str());
+    gpu->set_gauss_newton_on_device(gn_on_device);
+    std::printf("device: %s; Gauss-Newton on the %s\n", cuda::device_name(0).c_str(),
+                gn_on_device ? "device" : "host");
     std::vector<StampedPose> gt;
     for (std::size_t i = k; i < n; ++i) {
       if (has_gt) gt.push_back({data[i].timestamp_s, *data[i].T_wc_gt});
@@ -231,7 +236,8 @@ int main(int argc, char** argv) {
       std::ofstream out(json);
       out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
-          << poses << "\", \"handover\": " << k << ", \"frames_timed\": " << g.frames
+          << poses << "\", \"gauss_newton_on_device\": " << (gn_on_device ? "true" : "false")
+          << ", \"handover\": " << k << ", \"frames_timed\": " << g.frames
           << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms
           << ", \"integrate\": " << g.mean.integrate_ms << ", \"refine\": " << g.mean.refine_ms

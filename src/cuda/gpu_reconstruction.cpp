@@ -117,6 +117,9 @@ struct GpuReconstruction::Impl {
   Buffer<double> icp_sums;
   Buffer<uint32_t> icp_done;
   PinnedBuffer<double> host_sums;
+  bool gauss_newton_on_device = false;
+  Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
+  PinnedBuffer<kernels::IcpState> host_icp_state;
 
   // Refinement.
   Buffer<BlockRef> split_list;
@@ -283,6 +286,8 @@ struct GpuReconstruction::Impl {
     icp_done.reset(1, &total_bytes);
     check_status(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
     host_sums.reserve(32);
+    icp_state.reset(1, &total_bytes);
+    host_icp_state.reserve(1);
     if (map_params.levels > 1) {
       // At most every visible block splits; their parents (each once) may merge.
       split_list.reset(list, &total_bytes);
@@ -610,7 +615,33 @@ struct GpuReconstruction::Impl {
       sys.symmetrize();
       return sys;
     };
-    icp::align_and_judge(tp, reduce, valid_pixels, T_init, &result);
+    if (!gauss_newton_on_device) {
+      icp::align_and_judge(tp, reduce, valid_pixels, T_init, &result);
+      result.icp_ms = watch.lap_ms();
+      return result;
+    }
+    // Gauss-Newton on the device: every level's passes launched at once, each stepping the state
+    // where its sums end (a pass at a stopped level does nothing); the state is read back once.
+    kernels::IcpState* state = host_icp_state.reserve(1);
+    *state = kernels::icp_start(icp::to_posed(T_init));
+    check_status(
+        cudaMemcpyAsync(icp_state.get(), state, sizeof(kernels::IcpState), cudaMemcpyHostToDevice),
+        "tracking (Gauss-Newton's start)");
+    for (int level = tp.levels() - 1; level >= 0; --level) {
+      const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
+      const ImageLevel& M = model[static_cast<std::size_t>(level)];
+      const kernels::IcpPass pass(Rigid3f{}, T_model_cw, M.camera,
+                                  tp.max_distance_m * static_cast<float>(1 << level), tp);
+      for (int it = 0; it < tp.iterations[static_cast<std::size_t>(level)]; ++it)
+        icp_pass_on_device(pass, F.points.get(), F.normals.get(),
+                           static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
+                           M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(),
+                           icp_state.get(), level, tp.convergence_step);
+    }
+    check_status(
+        cudaMemcpy(state, icp_state.get(), sizeof(kernels::IcpState), cudaMemcpyDeviceToHost),
+        "tracking (Gauss-Newton)");
+    icp::judge_alignment(tp, icp::alignment_of(*state), reduce, valid_pixels, T_init, &result);
     result.icp_ms = watch.lap_ms();
     return result;
   }
@@ -697,6 +728,10 @@ const std::vector<FrameStats>& GpuReconstruction::frames() const {
 const TrackResult& GpuReconstruction::last_track() const {
   return impl_->last_track;
 }
+void GpuReconstruction::set_gauss_newton_on_device(bool on) {
+  impl_->gauss_newton_on_device = on;
+}
+
 const MapParams& GpuReconstruction::map_params() const {
   return impl_->map_params;
 }

@@ -364,10 +364,12 @@ __global__ void downsample_model_kernel(const Vec3f* points, const Vec3f* normal
 
 constexpr int kSums = 30;  // A upper (21), b (6), r2, distance, inliers
 
-__global__ void __launch_bounds__(kThreads)
-    icp_kernel(kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c, int64_t pixels,
-               const Vec3f* model_points, const Vec3f* model_normals, float* partials,
-               unsigned* done, double* sums) {
+/// One ICP pass: each block sums its pixels' terms at pose `c.T_wc`, the last block to finish
+/// sums the blocks in doubles into `sums`.
+__device__ __forceinline__ void icp_pass(const kernels::IcpPass& c, const Vec3f* points_c,
+                                         const Vec3f* normals_c, int64_t pixels,
+                                         const Vec3f* model_points, const Vec3f* model_normals,
+                                         float* partials, unsigned* done, double* sums) {
   // Each thread sums the terms of its pixels (a grid-stride loop: a few pixels a thread).
   float v[kSums];
   for (int k = 0; k < kSums; ++k) v[k] = 0.0f;
@@ -425,6 +427,35 @@ __global__ void __launch_bounds__(kThreads)
     if (lane == 0) sums[k] = s;
   }
   if (threadIdx.x == 0) *done = 0;  // ready for the next pass
+}
+
+__global__ void __launch_bounds__(kThreads)
+    icp_kernel(const kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c,
+               int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+               float* partials, unsigned* done, double* sums) {
+  icp_pass(c, points_c, normals_c, pixels, model_points, model_normals, partials, done, sums);
+}
+
+/// The pass with Gauss-Newton on the device: the pose comes from `state`, and a level the state
+/// skips gets no pass. Held to 64 registers (4 blocks an SM, as the host's pass runs): the pose in
+/// registers would take it to 79.
+__global__ void __launch_bounds__(kThreads, 4)
+    icp_state_kernel(kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c,
+                     int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+                     float* partials, unsigned* done, double* sums, const kernels::IcpState* state,
+                     int level) {
+  if (kernels::icp_skips(*state, level)) return;  // the same for every thread: no pass
+  c.T_wc = kernels::rigid3f_of(state->T);
+  icp_pass(c, points_c, normals_c, pixels, model_points, model_normals, partials, done, sums);
+}
+
+/// Gauss-Newton's step after a pass at `level` (none where the pass did nothing). A kernel of its
+/// own: inside the pass's last block, the 6x6 solve would raise the pass's registers (62 to 89)
+/// and halve its occupancy.
+__global__ void icp_step_kernel(kernels::IcpState* state, const double* sums, int level,
+                                double convergence_step) {
+  if (!kernels::icp_skips(*state, level))
+    kernels::icp_update(*state, sums, level, convergence_step);
 }
 
 dim3 image_grid(int w, int h, dim3 threads) {
@@ -562,6 +593,17 @@ void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f
   check_last("ICP reduction");
   if (cudaMemcpy(host_sums, sums, kSums * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
     check_last("ICP reduction (copying the sums)");
+}
+
+void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
+                        int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+                        float* partials, unsigned* done, double* sums, kernels::IcpState* state,
+                        int level, double convergence_step) {
+  const unsigned blocks = icp_blocks(pixels);
+  icp_state_kernel<<<blocks, kThreads>>>(pass, points_c, normals_c, pixels, model_points,
+                                         model_normals, partials, done, sums, state, level);
+  icp_step_kernel<<<1, 1>>>(state, sums, level, convergence_step);
+  check_last("ICP pass");
 }
 
 }  // namespace hivox::cuda

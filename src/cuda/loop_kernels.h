@@ -16,6 +16,7 @@
 #include "raycast/raycast_kernels.h"
 #include "raycast/warp_kernels.h"
 #include "refine/refine_kernels.h"
+#include "track/gauss_newton.h"
 #include "track/track_kernels.h"
 
 namespace hivox::cuda {
@@ -113,6 +114,14 @@ int64_t icp_partials_size(int64_t pixels);
 void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
                 int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                 float* partials, unsigned* done, double* sums, double* host_sums);
+/// One ICP pass with Gauss-Newton on the device: the pose comes from `state` (pass.T_wc is not
+/// read), a pass at a level the state skips does nothing, and a one-thread kernel after it steps
+/// the state with the sums (kernels::icp_update). Nothing waits: every pass is launched one after
+/// another and the state is read back once.
+void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
+                        int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
+                        float* partials, unsigned* done, double* sums, kernels::IcpState* state,
+                        int level, double convergence_step);
 
 // ---- refinement (refine_kernels.cu): the CPU Refiner's decisions and the map's split and merge
 // edits, per block on the device ----------------------------------------------------------------

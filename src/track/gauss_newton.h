@@ -11,6 +11,7 @@
 #include <cstdint>
 
 #include "hivox/core/hd.h"
+#include "hivox/core/math.h"
 
 namespace hivox::kernels {
 
@@ -25,6 +26,16 @@ struct PoseD {
   double R[9];
   double t[3];
 };
+
+/// `p` in single precision, as the per-pixel kernels take a pose.
+HIVOX_HD inline Rigid3f rigid3f_of(const PoseD& p) {
+  Rigid3f r;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r.R(i, j) = static_cast<float>(p.R[3 * i + j]);
+    r.t[i] = static_cast<float>(p.t[i]);
+  }
+  return r;
+}
 
 /// Solves A x = b for the symmetric 6x6 `A` given by its upper triangle (row-major, 21 values):
 /// LDL^T with symmetric pivoting on the largest remaining diagonal; a pivot of magnitude below

@@ -31,8 +31,6 @@ System System::from_sums(const double* sums) {
   return s;
 }
 
-namespace {
-
 kernels::PoseD to_posed(const Pose& T) {
   kernels::PoseD p;
   for (int i = 0; i < 3; ++i) {
@@ -51,19 +49,21 @@ Pose from_posed(const kernels::PoseD& p) {
   return T;
 }
 
+Alignment alignment_of(const kernels::IcpState& s) {
+  Alignment a;
+  a.T = from_posed(s.T);
+  a.T_fin = from_posed(s.T_fin);
+  a.fin = System::from_sums(s.fin);
+  a.iterations = s.iterations;
+  a.diverged = s.diverged != 0;
+  return a;
+}
+
+namespace {
+
 double rotation_deg(const Pose& T) {
   return rotation_angle_rad(T) * 180.0 / std::numbers::pi;
 }
-
-/// Where Gauss-Newton ended: the pose, the finest level's last system and the pose it was built
-/// at, the iterations run, and whether a step diverged.
-struct Alignment {
-  Pose T = Pose::Identity();
-  Pose T_fin = Pose::Identity();
-  System fin;
-  int iterations = 0;
-  bool diverged = false;
-};
 
 /// Gauss-Newton through the shared state machine (kernels::icp_update), one pass at a time.
 Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_wc_init) {
@@ -75,13 +75,7 @@ Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_w
       reduce(level, from_posed(s.T)).to_sums(sums);
       kernels::icp_update(s, sums, level, params.convergence_step);
     }
-  Alignment a;
-  a.T = from_posed(s.T);
-  a.T_fin = from_posed(s.T_fin);
-  a.fin = System::from_sums(s.fin);
-  a.iterations = s.iterations;
-  a.diverged = s.diverged != 0;
-  return a;
+  return alignment_of(s);
 }
 
 void judge(const TrackParams& params, const Alignment& a, int64_t valid_pixels,
@@ -126,7 +120,12 @@ void judge(const TrackParams& params, const Alignment& a, int64_t valid_pixels,
 
 void align_and_judge(const TrackParams& params, const Reduce& reduce, int64_t valid_pixels,
                      const Pose& T_wc_init, TrackResult* result) {
-  Alignment a = align(params, reduce, T_wc_init);
+  judge_alignment(params, align(params, reduce, T_wc_init), reduce, valid_pixels, T_wc_init,
+                  result);
+}
+
+void judge_alignment(const TrackParams& params, Alignment a, const Reduce& reduce,
+                     int64_t valid_pixels, const Pose& T_wc_init, TrackResult* result) {
   result->iterations = a.iterations;
   // The verdict, from the correspondences on the finest level at the pose of its last pass
   // (one increment before the end: the same correspondences once converged); a fresh pass only

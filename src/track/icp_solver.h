@@ -55,4 +55,25 @@ using Reduce = std::function<System(int level, const Pose& T_wc)>;
 void align_and_judge(const TrackParams& params, const Reduce& reduce, int64_t valid_pixels,
                      const Pose& T_wc_init, TrackResult* result);
 
+kernels::PoseD to_posed(const Pose& T);
+Pose from_posed(const kernels::PoseD& p);
+
+/// Where Gauss-Newton ended: the pose, the finest level's last system and the pose it was built
+/// at, the increments applied, and whether a step diverged.
+struct Alignment {
+  Pose T = Pose::Identity();
+  Pose T_fin = Pose::Identity();
+  System fin;
+  int iterations = 0;
+  bool diverged = false;
+};
+/// The alignment a run of the shared state machine ended in, on whichever device stepped it.
+Alignment alignment_of(const kernels::IcpState& s);
+
+/// align_and_judge's verdict for an alignment made elsewhere (a device that stepped the state
+/// machine itself); `reduce` serves the fresh finest-level pass taken when the last increment
+/// was large.
+void judge_alignment(const TrackParams& params, Alignment a, const Reduce& reduce,
+                     int64_t valid_pixels, const Pose& T_wc_init, TrackResult* result);
+
 }  // namespace hivox::icp

@@ -285,6 +285,41 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
   expect_same_map(cpu.map(), *downloaded, "tracked desk, fixed 4 mm", true);
 }
 
+/// Gauss-Newton stepped on the device (every pass launched at once, the state read back once a
+/// frame) against the host's stepping of the same sums: the same increments and verdicts, poses
+/// equal to the float pose's rounding (the device's double sin and cos differ in the last bits).
+TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  cuda::GpuReconstruction host(p, rig), on_device(p, rig);
+  on_device.set_gauss_newton_on_device(true);
+  const Pose first = *data.read(0).T_wc_gt;
+  int64_t iterations_differ = 0, verdicts_differ = 0;
+  double max_dt = 0, max_dr = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const RgbdFrame f = data.read(i);
+    const FrameStats& a = host.track_and_integrate(f, first);
+    const FrameStats& b = on_device.track_and_integrate(f, first);
+    EXPECT_TRUE(b.fused) << "frame " << i;
+    iterations_differ += a.track_iterations != b.track_iterations;
+    verdicts_differ += host.last_track().quality != on_device.last_track().quality;
+    const Pose d = host.trajectory().back().T_wc.inverse() * on_device.trajectory().back().T_wc;
+    max_dt = std::max(max_dt, d.translation().norm());
+    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+  }
+  std::printf(
+      "[ track    ] %zu frames, Gauss-Newton on the device against the host: poses at most %.4f "
+      "mm and %.5f deg apart, %lld frames with other iteration counts\n",
+      data.size(), 1e3 * max_dt, max_dr, static_cast<long long>(iterations_differ));
+  EXPECT_GT(on_device.frames().back().track_iterations, 0);
+  EXPECT_EQ(verdicts_differ, 0);
+  EXPECT_LE(iterations_differ, 2);
+  EXPECT_LT(max_dt, 1e-4);
+  EXPECT_LT(max_dr, 0.01);
+}
+
 TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
   // A raycast of the desk fused on the CPU, seen from 3 cm and 3 degrees away: the device's warp

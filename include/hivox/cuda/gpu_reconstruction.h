@@ -52,6 +52,13 @@ class GpuReconstruction {
   const FrameStats& track_and_integrate(const RgbdFrame& frame,
                                         const Pose& T_wc_first = Pose::Identity());
 
+  /// Where tracking's Gauss-Newton steps run: on the host (the default), each pass's sums read
+  /// back before the next pass; or on the device, in each pass's last block, every pass launched
+  /// at once and the result read back once per frame (the same steps, track/gauss_newton.h).
+  /// The device's way saves a round trip a pass; it has not yet been run on a GPU, so it is
+  /// not the default.
+  void set_gauss_newton_on_device(bool on);
+
   const std::vector<StampedPose>& trajectory() const;
   const std::vector<FrameStats>& frames() const;
   /// The last frame's tracking (Good, with no ICP numbers, for a frame fused at a given pose).
