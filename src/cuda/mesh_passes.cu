@@ -11,10 +11,10 @@ namespace hivox::cuda {
 
 namespace {
 
-// A thread's look-up cache is a local variable: its size differs between host and device code
-// (BlockLookupCache::kSlots), so it must not be part of a buffer the host sizes.
 constexpr int kMeshThreadsPerBlock = 64;
 
+// In both passes a thread's look-up cache is a local variable: its size differs between host and
+// device code (BlockLookupCache::kSlots), so it cannot be part of a buffer the host sizes.
 __global__ void count_meshes_kernel(const __grid_constant__ MapView map,
                                     const __grid_constant__ kernels::MeshPassInput in,
                                     kernels::MeshBlockScratch* scratch,
