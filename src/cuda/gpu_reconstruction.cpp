@@ -134,7 +134,7 @@ struct GpuReconstruction::Impl {
   std::vector<StampedPose> trajectory;
   std::vector<FrameStats> frames;
   TrackResult last_track;
-  Pose motion = Pose::Identity();
+  MotionPrior motion{params.track.constant_velocity};
   std::optional<Pose> resume_pose;  ///< the handed-over map's last pose: track from it
 
   Impl(const ReconstructionParams& p, const CameraRig& r, const VoxelBlockMap& host)
@@ -689,7 +689,7 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
                                                          const Pose& T_wc_first) {
   Impl& m = *impl_;
   if (m.trajectory.empty() && !m.resume_pose) {
-    m.motion = Pose::Identity();
+    m.motion.restart();
     return integrate(frame, T_wc_first);
   }
   FrameStats s;
@@ -699,18 +699,15 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   s.upload_ms = total.elapsed_ms();
   Stopwatch stage;
   if (!m.has_model || !m.model_T_wc.isApprox(T_prev)) m.raycast_model(T_prev, false, s);
-  const Pose T_init = m.params.track.constant_velocity ? Pose(T_prev * m.motion) : T_prev;
-  m.last_track = m.track(T_init);
+  m.last_track = m.track(m.motion.start(T_prev));
   s.take_track(m.last_track);
   s.track_ms = stage.lap_ms();
+  const Pose T_wc = m.motion.keep(T_prev, m.last_track);
   if (m.last_track.quality == TrackingQuality::Lost) {
     s.fused = false;
     s.valid_pixels = m.last_track.valid_pixels;
-    m.motion = Pose::Identity();
-    return m.record(frame, T_prev, total, s);
+    return m.record(frame, T_wc, total, s);
   }
-  const Pose T_wc = m.last_track.T_wc;
-  m.motion = T_prev.inverse() * T_wc;
   // The integration constants at the tracked pose (the images are already on the device).
   IntegrationFrame f = f0;
   f.constants.T_cw = to_rigid3f(T_wc.inverse());

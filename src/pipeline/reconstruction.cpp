@@ -161,7 +161,7 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
     last_track_ = TrackResult{};
     last_track_.T_wc = T_wc_first;
     last_track_.quality = TrackingQuality::Good;
-    motion_ = Pose::Identity();
+    motion_.restart();
     return integrate(frame, T_wc_first, read_ms);
   }
   FrameStats s;
@@ -175,18 +175,16 @@ const FrameStats& Reconstruction::track_and_integrate(const RgbdFrame& frame, do
       model.camera.width != model_camera().width) {
     raycaster_.raycast(*map_, model_camera(), T_prev, params_.fusion.depth_range);
   }
-  const Pose T_init = params_.track.constant_velocity ? Pose(T_prev * motion_) : T_prev;
-  last_track_ = tracker_.track(frame.depth_m, rig_.depth_camera, raycaster_.result(), T_init);
+  last_track_ =
+      tracker_.track(frame.depth_m, rig_.depth_camera, raycaster_.result(), motion_.start(T_prev));
   s.track_ms = total.elapsed_ms();
   s.take_track(last_track_);
+  const Pose T_wc = motion_.keep(T_prev, last_track_);
   if (last_track_.quality == TrackingQuality::Lost) {
     s.fused = false;
     s.valid_pixels = last_track_.valid_pixels;
-    motion_ = Pose::Identity();
-    return record(frame, T_prev, total, s);
+    return record(frame, T_wc, total, s);
   }
-  const Pose T_wc = last_track_.T_wc;
-  motion_ = T_prev.inverse() * T_wc;
   fuse(frame, T_wc, s);
   return record(frame, T_wc, total, s);
 }

@@ -129,6 +129,37 @@ TEST(Tracker, GarbageDepthIsLostAndNotFused) {
   EXPECT_LE(distance_m(recon.trajectory().back().T_wc, *next.T_wc_gt), 0.01);
 }
 
+TEST(MotionPrior, StartsFromTheLastMotionAndForgetsItWhenLost) {
+  const Pose a(Eigen::Translation3d(1, 0, 0) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()));
+  const Pose b(Eigen::Translation3d(1.02, 0.01, 0) *
+               Eigen::AngleAxisd(0.13, Eigen::Vector3d::UnitZ()));
+  MotionPrior prior(true);
+  EXPECT_TRUE(prior.start(a).isApprox(a)) << "no motion known yet";
+  TrackResult tracked;
+  tracked.quality = TrackingQuality::Good;
+  tracked.T_wc = b;
+  EXPECT_TRUE(prior.keep(a, tracked).isApprox(b));
+  // The next frame starts from b moved by the motion a -> b.
+  const Pose expected = b * (a.inverse() * b);
+  EXPECT_TRUE(prior.start(b).isApprox(expected));
+  // A lost frame keeps the previous pose and forgets the motion.
+  TrackResult lost;
+  lost.quality = TrackingQuality::Lost;
+  lost.T_wc = expected;
+  EXPECT_TRUE(prior.keep(b, lost).isApprox(b));
+  EXPECT_TRUE(prior.start(b).isApprox(b));
+  // Poor frames are kept.
+  tracked.quality = TrackingQuality::Poor;
+  EXPECT_TRUE(prior.keep(a, tracked).isApprox(b));
+  prior.restart();
+  EXPECT_TRUE(prior.start(b).isApprox(b));
+  // Without the constant-velocity model, tracking starts from the previous pose.
+  MotionPrior still(false);
+  tracked.quality = TrackingQuality::Good;
+  still.keep(a, tracked);
+  EXPECT_TRUE(still.start(b).isApprox(b));
+}
+
 TEST(TrackParams, RejectsNonsense) {
   TrackParams p;
   EXPECT_NO_THROW(p.validate());

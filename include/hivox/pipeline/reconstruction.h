@@ -189,7 +189,7 @@ class Reconstruction {
 
   Tracker tracker_;
   TrackResult last_track_;
-  Pose motion_ = Pose::Identity();  ///< last frame-to-frame motion (camera frame), for the prior
+  MotionPrior motion_{params_.track.constant_velocity};
   TrackingCounts tracking_counts_;
   std::vector<FrameStats> frames_;
   std::vector<StampedPose> trajectory_;

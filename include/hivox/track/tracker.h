@@ -34,6 +34,35 @@ struct TrackResult {
   double icp_ms = 0;
 };
 
+/// The frame-to-frame flow around tracking, one owner for every loop (CPU and devices): where a
+/// frame's tracking starts and which pose it keeps. Tracking starts from the previous pose moved
+/// by the last frame-to-frame motion (`TrackParams::constant_velocity`) or from the previous pose
+/// itself; a tracked frame keeps its estimate and becomes the motion; a lost frame keeps the
+/// previous pose and forgets the motion, as does a frame fused at a given pose.
+class MotionPrior {
+ public:
+  explicit MotionPrior(bool constant_velocity) : constant_velocity_(constant_velocity) {}
+  /// Where tracking from `T_prev` (the last frame's pose) starts.
+  Pose start(const Pose& T_prev) const {
+    return constant_velocity_ ? Pose(T_prev * motion_) : T_prev;
+  }
+  /// The pose a frame tracked from `T_prev` keeps, given its tracking `result`.
+  Pose keep(const Pose& T_prev, const TrackResult& result) {
+    if (result.quality == TrackingQuality::Lost) {
+      restart();
+      return T_prev;
+    }
+    motion_ = T_prev.inverse() * result.T_wc;
+    return result.T_wc;
+  }
+  /// A frame fused at a given pose (a new map's first): no motion known.
+  void restart() { motion_ = Pose::Identity(); }
+
+ private:
+  bool constant_velocity_ = true;
+  Pose motion_ = Pose::Identity();  ///< the last frame-to-frame motion (camera frame)
+};
+
 class Tracker {
  public:
   /// Depths outside `depth_range` are ignored (a reconstruction passes its fusion's range); the
