@@ -801,7 +801,15 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
     if (meta[ptr].level >= 0)
       listed.push_back(
           {meta[ptr].pos, meta[ptr].level, meta[ptr].entry, static_cast<int32_t>(ptr)});
-  const std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(std::move(listed));
+  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(std::move(listed));
+  // With bounds, the blocks near the box (as the CPU selects them, by binary search here).
+  std::vector<uint8_t> cells;
+  if (params.bounds) {
+    const std::vector<BlockRef> all = blocks;
+    cells = detail::select_mesh_blocks(
+        blocks, static_cast<int32_t>(high_water), m.map_params, *params.bounds,
+        [&](int level, const Vec3i& pos) { return detail::sorted_block_ptr(all, level, pos); });
+  }
   const auto n = static_cast<int32_t>(blocks.size());
   if (n == 0) return detail::finish_mesh({}, params, join_m, removed);
   std::vector<int32_t> index_of_ptr(high_water, -1);
@@ -810,6 +818,9 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   Buffer<BlockRef> d_blocks;
   Buffer<int32_t> d_index_of_ptr;
   Buffer<mc::McTable> table;
+  Buffer<uint8_t> d_cells;
+  d_cells.reset(cells.size(), nullptr);
+  d_cells.upload(cells.data(), cells.size());
   d_blocks.reset(blocks.size(), nullptr);
   d_blocks.upload(blocks.data(), blocks.size());
   d_index_of_ptr.reset(high_water, nullptr);
@@ -819,6 +830,7 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   kernels::MeshPassInput in;
   in.blocks = d_blocks.get();
   in.index_of_ptr = d_index_of_ptr.get();
+  in.cells = cells.empty() ? nullptr : d_cells.get();
   in.block_count = n;
   in.min_weight = static_cast<int>(params.min_weight);
   in.normals = params.compute_normals;

@@ -118,6 +118,45 @@ void merge_boundary_vertices(const kernels::BlockMeshCount* counts, const MeshLa
   if (!boundary.empty()) merge_vertex_copies(boundary, mesh);
 }
 
+int32_t sorted_block_ptr(const std::vector<BlockRef>& sorted, int level, const Vec3i& pos) {
+  const BlockKey key{pos, level};
+  const auto it =
+      std::lower_bound(sorted.begin(), sorted.end(), key, [](const BlockRef& b, const BlockKey& k) {
+        return BlockKey{b.pos, b.level} < k;
+      });
+  return it != sorted.end() && it->level == level && it->pos == pos ? it->ptr : -1;
+}
+
+std::vector<uint8_t> select_mesh_blocks(std::vector<BlockRef>& blocks, int32_t high_water,
+                                        const MapParams& params, const Box3f& box,
+                                        const std::function<int32_t(int, const Vec3i&)>& ptr_of) {
+  auto meets_box = [&](const BlockRef& b) {
+    const float s = params.block_size_at(b.level);
+    for (int a = 0; a < 3; ++a)
+      if (static_cast<float>(b.pos[a]) * s > box.max_m[a] ||
+          static_cast<float>(b.pos[a] + 1) * s + s / kBlockSide < box.min_m[a])
+        return false;
+    return true;
+  };
+  std::vector<uint8_t> keep(static_cast<std::size_t>(high_water), 0);
+  for (const BlockRef& b : blocks) {
+    if (!meets_box(b)) continue;
+    keep[static_cast<std::size_t>(b.ptr)] = 2;  // cells and vertices
+    for (int d = 1; d < 8; ++d) {
+      const int32_t nb =
+          ptr_of(b.level, {b.pos.x + (d & 1), b.pos.y + ((d >> 1) & 1), b.pos.z + (d >> 2)});
+      if (nb >= 0 && keep[static_cast<std::size_t>(nb)] == 0)
+        keep[static_cast<std::size_t>(nb)] = 1;  // vertices only
+    }
+  }
+  std::erase_if(blocks,
+                [&](const BlockRef& b) { return keep[static_cast<std::size_t>(b.ptr)] == 0; });
+  std::vector<uint8_t> cells(blocks.size());
+  for (std::size_t i = 0; i < blocks.size(); ++i)
+    cells[i] = keep[static_cast<std::size_t>(blocks[i].ptr)] == 2;
+  return cells;
+}
+
 TriangleMesh finish_mesh(TriangleMesh mesh, const MeshParams& params, float join_distance_m,
                          RemovedPieces* removed) {
   if (params.bounds) mesh = crop_mesh(mesh, *params.bounds);
@@ -144,33 +183,12 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
   // With bounds: the blocks whose cells (reaching a voxel into the next block) meet the box are
   // meshed, and the +x/+y/+z neighbours whose edges their cells use make those vertices only.
-  std::vector<uint8_t> mesh_cells(blocks.size(), 1);
-  if (params.bounds) {
-    const Box3f& box = *params.bounds;
-    auto meets_box = [&](const BlockRef& b) {
-      const float s = map.params().block_size_at(b.level);
-      for (int a = 0; a < 3; ++a)
-        if (static_cast<float>(b.pos[a]) * s > box.max_m[a] ||
-            static_cast<float>(b.pos[a] + 1) * s + s / kBlockSide < box.min_m[a])
-          return false;
-      return true;
-    };
-    std::vector<uint8_t> keep(static_cast<std::size_t>(map.block_high_water()), 0);
-    for (const BlockRef& b : blocks) {
-      if (!meets_box(b)) continue;
-      keep[static_cast<std::size_t>(b.ptr)] = 2;  // cells and vertices
-      for (int d = 1; d < 8; ++d) {
-        const int32_t nb = find_block_ptr(
-            view.level[b.level], {b.pos.x + (d & 1), b.pos.y + ((d >> 1) & 1), b.pos.z + (d >> 2)});
-        if (nb >= 0 && keep[static_cast<std::size_t>(nb)] == 0)
-          keep[static_cast<std::size_t>(nb)] = 1;  // vertices only
-      }
-    }
-    std::erase_if(blocks,
-                  [&](const BlockRef& b) { return keep[static_cast<std::size_t>(b.ptr)] == 0; });
-    for (std::size_t i = 0; i < blocks.size(); ++i)
-      mesh_cells[i] = keep[static_cast<std::size_t>(blocks[i].ptr)] == 2;
-  }
+  const std::vector<uint8_t> mesh_cells =
+      params.bounds
+          ? detail::select_mesh_blocks(
+                blocks, map.block_high_water(), map.params(), *params.bounds,
+                [&](int level, const Vec3i& pos) { return find_block_ptr(view.level[level], pos); })
+          : std::vector<uint8_t>(blocks.size(), 1);
   const int64_t n = static_cast<int64_t>(blocks.size());
   std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
   for (int64_t i = 0; i < n; ++i)

@@ -6,6 +6,7 @@
 // are written here once; tests run them on the host and get extract_mesh's mesh exactly.
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "hivox/core/hd.h"
@@ -70,6 +71,7 @@ struct WriteEmitter {
 struct MeshPassInput {
   const BlockRef* blocks = nullptr;       ///< in key order (mesh_blocks_in_key_order)
   const int32_t* index_of_ptr = nullptr;  ///< pool index -> index in `blocks`
+  const uint8_t* cells = nullptr;         ///< per block, 0: its owned vertices only; null: all 1
   int32_t block_count = 0;
   int min_weight = 1;
   bool normals = true, color = false;
@@ -87,6 +89,7 @@ HIVOX_HD inline MeshBlockInput mesh_block_input(const MeshPassInput& p, int32_t 
   in.min_weight = p.min_weight;
   in.normals = p.normals;
   in.color = p.color;
+  in.cells = p.cells == nullptr || p.cells[i] != 0;
   in.table = p.table;
   return in;
 }
@@ -141,6 +144,19 @@ namespace hivox::detail {
 
 /// `blocks` sorted by key (level, z, y, x): the mesh must not depend on pool positions.
 std::vector<BlockRef> mesh_blocks_in_key_order(std::vector<BlockRef> blocks);
+
+/// The pool index of the block at `pos` of `level` in `sorted` (mesh_blocks_in_key_order's
+/// order), or -1: a binary search, for a driver without the map's hash tables at hand.
+int32_t sorted_block_ptr(const std::vector<BlockRef>& sorted, int level, const Vec3i& pos);
+
+/// With bounds, the blocks (in key order, pool indices below `high_water`) to mesh: those whose
+/// cells, reaching a voxel into the next block, meet `box` (cells and vertices: flag 1), and the
+/// +x/+y/+z neighbours whose edges those cells use (their vertices only: flag 0). `blocks` keeps
+/// these, in order; the flags are returned, one a kept block. `ptr_of(level, pos)`: the pool
+/// index of the block at `pos` of `level`, or < 0 when none is allocated there.
+std::vector<uint8_t> select_mesh_blocks(std::vector<BlockRef>& blocks, int32_t high_water,
+                                        const MapParams& params, const Box3f& box,
+                                        const std::function<int32_t(int, const Vec3i&)>& ptr_of);
 
 /// Where each block's vertices and corners start (exclusive sums of `counts`, one more entry
 /// than blocks: the totals last). Throws `Error(OutOfCapacity)` past the int32 vertex indices.

@@ -26,7 +26,16 @@ struct PassesResult {
 PassesResult mesh_in_passes(const VoxelBlockMap& map, const MeshParams& params) {
   PassesResult r;
   const MapView view = map.view();
-  const std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
+  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
+  // With bounds, the blocks near the box, found by binary search as a driver without the hash
+  // tables finds them.
+  std::vector<uint8_t> cells;
+  if (params.bounds) {
+    const std::vector<BlockRef> all = blocks;
+    cells = detail::select_mesh_blocks(
+        blocks, map.block_high_water(), map.params(), *params.bounds,
+        [&](int level, const Vec3i& pos) { return detail::sorted_block_ptr(all, level, pos); });
+  }
   const auto n = static_cast<int32_t>(blocks.size());
   std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
   for (int32_t i = 0; i < n; ++i) index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = i;
@@ -34,6 +43,7 @@ PassesResult mesh_in_passes(const VoxelBlockMap& map, const MeshParams& params) 
   kernels::MeshPassInput in;
   in.blocks = blocks.data();
   in.index_of_ptr = index_of_ptr.data();
+  in.cells = cells.empty() ? nullptr : cells.data();
   in.block_count = n;
   in.min_weight = static_cast<int>(params.min_weight);
   in.normals = params.compute_normals;
@@ -118,7 +128,11 @@ TEST(MeshPasses, GiveExtractMeshsMeshAcrossLevels) {
   const auto map = three_level_scene();
   const std::vector<int64_t> per_level = map->blocks_per_level();
   for (const int64_t n : per_level) ASSERT_GT(n, 50) << ::testing::PrintToString(per_level);
-  for (const auto& [name, params] : test::mesh_param_cases()) {
+  auto cases = test::mesh_param_cases();
+  // A box through all three levels (x < 0 coarsest, [0, 64 mm) middle, beyond finest).
+  cases.emplace_back("bounds", MeshParams{});
+  cases.back().second.bounds = Box3f{{-0.25f, -0.3f, -0.01f}, {0.25f, 0.1f, 0.5f}};
+  for (const auto& [name, params] : cases) {
     SCOPED_TRACE(name);
     const TriangleMesh reference = extract_mesh(*map, params);
     const PassesResult passes = mesh_in_passes(*map, params);
@@ -126,6 +140,10 @@ TEST(MeshPasses, GiveExtractMeshsMeshAcrossLevels) {
     // Level boundaries: vertices made by several blocks, merged into one.
     EXPECT_GT(passes.boundary_vertices, 100);
     ASSERT_GT(reference.triangle_count(), 10000);
+    if (params.bounds) {
+      EXPECT_LT(reference.triangle_count(), extract_mesh(*map).triangle_count() * 9 / 10)
+          << "the box cuts the surface";
+    }
     expect_identical(reference, passes.mesh);
   }
 }

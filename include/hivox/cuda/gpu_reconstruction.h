@@ -73,7 +73,7 @@ class GpuReconstruction {
   /// cubes in passes on the device (count, write, resolve the corners; mesh/mesh_passes.h), the
   /// vertices that several blocks make on level boundaries merged on the host, then the same
   /// cropping and small-piece removal. Only the block list (24 bytes a block) and the mesh cross
-  /// the bus. With `params.bounds` every block is meshed and the mesh cropped.
+  /// the bus.
   TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
   /// Allocated blocks per level (finest first), read from the device's counters.
   std::vector<int64_t> blocks_per_level() const;
