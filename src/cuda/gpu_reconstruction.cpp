@@ -282,10 +282,10 @@ struct GpuReconstruction::Impl {
     tile_z_max.reset(static_cast<std::size_t>(tiles.count()), &total_bytes);
     icp_partials.reset(static_cast<std::size_t>(icp_partials_size(static_cast<int64_t>(pixels))),
                        &total_bytes);
-    icp_sums.reset(32, &total_bytes);
+    icp_sums.reset(kernels::kIcpSums, &total_bytes);
     icp_done.reset(1, &total_bytes);
     check_status(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
-    host_sums.reserve(32);
+    host_sums.reserve(kernels::kIcpSums);
     icp_state.reset(1, &total_bytes);
     host_icp_state.reserve(1);
     if (map_params.levels > 1) {
@@ -601,19 +601,22 @@ struct GpuReconstruction::Impl {
                  "tracking (preprocessing)");
     result.preprocess_ms = watch.lap_ms();
     const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
-    double* sums = host_sums.reserve(32);
+    // A pass's constants at pyramid level `level` (the pose: `T_wc`, unless the device's state
+    // gives it).
+    auto pass_at = [&](int level, const Rigid3f& T_wc) {
+      return kernels::IcpPass(T_wc, T_model_cw, model[static_cast<std::size_t>(level)].camera,
+                              tp.max_distance_m * static_cast<float>(1 << level), tp);
+    };
+    double* sums = host_sums.reserve(kernels::kIcpSums);
     const icp::Reduce reduce = [&](int level, const Pose& T) {
       const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
       const ImageLevel& M = model[static_cast<std::size_t>(level)];
-      const kernels::IcpPass pass(to_rigid3f(T), T_model_cw, M.camera,
-                                  tp.max_distance_m * static_cast<float>(1 << level), tp);
-      icp_reduce(pass, F.points.get(), F.normals.get(),
+      icp_reduce(pass_at(level, to_rigid3f(T)), F.points.get(), F.normals.get(),
                  static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
                  M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(), sums);
-      icp::System sys;
-      sys.add(sums, sums + 21, sums[27], sums[28], static_cast<int64_t>(sums[29]));
-      sys.symmetrize();
-      return sys;
+      icp::Sums out;
+      std::copy(sums, sums + kernels::kIcpSums, out.v);
+      return out;
     };
     if (!gauss_newton_on_device) {
       icp::align_and_judge(tp, reduce, valid_pixels, T_init, &result);
@@ -630,8 +633,7 @@ struct GpuReconstruction::Impl {
     for (int level = tp.levels() - 1; level >= 0; --level) {
       const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
       const ImageLevel& M = model[static_cast<std::size_t>(level)];
-      const kernels::IcpPass pass(Rigid3f{}, T_model_cw, M.camera,
-                                  tp.max_distance_m * static_cast<float>(1 << level), tp);
+      const kernels::IcpPass pass = pass_at(level, Rigid3f{});
       for (int it = 0; it < tp.iterations[static_cast<std::size_t>(level)]; ++it)
         icp_pass_on_device(pass, F.points.get(), F.normals.get(),
                            static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),

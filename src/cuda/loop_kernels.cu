@@ -362,7 +362,8 @@ __global__ void downsample_model_kernel(const Vec3f* points, const Vec3f* normal
   out_depth[o] = count > 0 ? d / static_cast<float>(count) : 0.0f;
 }
 
-constexpr int kSums = 30;  // A upper (21), b (6), r2, distance, inliers
+// The sums in the layout of track/gauss_newton.h: A upper (21), b (6), r2, distance, inliers.
+constexpr int kSums = kernels::kIcpSums;
 
 /// One ICP pass: each block sums its pixels' terms at pose `c.T_wc`, the last block to finish
 /// sums the blocks in doubles into `sums`.
@@ -390,10 +391,10 @@ __device__ __forceinline__ void icp_pass(const kernels::IcpPass& c, const Vec3f*
       int k = 0;
       for (int a = 0; a < 6; ++a)
         for (int b = a; b < 6; ++b) v[k++] += J[a] * J[b];
-      for (int a = 0; a < 6; ++a) v[21 + a] += J[a] * r;
-      v[27] += t.r * t.r;
-      v[28] += t.distance_m;
-      v[29] += 1.0f;
+      for (int a = 0; a < 6; ++a) v[kernels::kIcpB + a] += J[a] * r;
+      v[kernels::kIcpR2] += t.r * t.r;
+      v[kernels::kIcpDistance] += t.distance_m;
+      v[kernels::kIcpInliers] += 1.0f;
     }
   }
   // The block's sums: within each warp by shuffles, then across the warps.

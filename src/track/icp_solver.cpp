@@ -9,25 +9,17 @@
 
 namespace hivox::icp {
 
-void System::symmetrize() {
-  A.triangularView<Eigen::StrictlyLower>() = A.transpose();
-}
-
-void System::to_sums(double* out) const {
-  int k = 0;
-  for (int i = 0; i < 6; ++i)
-    for (int j = i; j < 6; ++j) out[k++] = A(i, j);
-  for (int i = 0; i < 6; ++i) out[kernels::kIcpB + i] = b(i);
-  out[kernels::kIcpR2] = r2;
-  out[kernels::kIcpDistance] = distance;
-  out[kernels::kIcpInliers] = static_cast<double>(inliers);
-}
-
 System System::from_sums(const double* sums) {
   System s;
-  s.add(sums, sums + kernels::kIcpB, sums[kernels::kIcpR2], sums[kernels::kIcpDistance],
-        static_cast<int64_t>(sums[kernels::kIcpInliers]));
-  s.symmetrize();
+  int k = 0;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) s.A(i, j) = sums[k++];
+    s.b(i) = sums[kernels::kIcpB + i];
+  }
+  s.A.triangularView<Eigen::StrictlyLower>() = s.A.transpose();
+  s.r2 = sums[kernels::kIcpR2];
+  s.distance = sums[kernels::kIcpDistance];
+  s.inliers = static_cast<int64_t>(sums[kernels::kIcpInliers]);
   return s;
 }
 
@@ -71,9 +63,7 @@ Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_w
   for (int level = params.levels() - 1; level >= 0 && s.diverged == 0; --level)
     for (int it = 0; it < params.iterations[static_cast<std::size_t>(level)]; ++it) {
       if (kernels::icp_skips(s, level)) break;
-      double sums[kernels::kIcpSums];
-      reduce(level, from_posed(s.T)).to_sums(sums);
-      kernels::icp_update(s, sums, level, params.convergence_step);
+      kernels::icp_update(s, reduce(level, from_posed(s.T)).v, level, params.convergence_step);
     }
   return alignment_of(s);
 }
@@ -132,7 +122,7 @@ void judge_alignment(const TrackParams& params, Alignment a, const Reduce& reduc
   // when the last increment was large.
   const Pose last_step = a.T_fin.inverse() * a.T;
   if (a.iterations == 0 || last_step.translation().norm() > 1e-3 || rotation_deg(last_step) > 0.1)
-    a.fin = reduce(0, a.T);
+    a.fin = System::from_sums(reduce(0, a.T).v);
   judge(params, a, valid_pixels, T_wc_init, result);
 }
 

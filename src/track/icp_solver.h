@@ -16,8 +16,25 @@
 
 namespace hivox::icp {
 
-/// Sums of one Gauss-Newton pass: the normal equations (6x6, the motion about the camera centre)
-/// and the residual statistics of its pairs.
+/// One Gauss-Newton pass's sums in the reductions' layout (track/gauss_newton.h): the upper
+/// triangle of A row-major (21), b (6), the inliers' squared residuals, their distances from the
+/// camera, their count.
+struct Sums {
+  double v[kernels::kIcpSums] = {};
+
+  /// Adds partial sums: A's upper triangle (21), b (6), and the residual statistics.
+  template <typename T>
+  void add(const T* A_upper, const T* b6, double r2, double distance, int64_t inliers) {
+    for (int k = 0; k < kernels::kIcpB; ++k) v[k] += A_upper[k];
+    for (int i = 0; i < 6; ++i) v[kernels::kIcpB + i] += b6[i];
+    v[kernels::kIcpR2] += r2;
+    v[kernels::kIcpDistance] += distance;
+    v[kernels::kIcpInliers] += static_cast<double>(inliers);
+  }
+};
+
+/// A pass's sums as the verdict reads them: the normal equations (6x6, the motion about the
+/// camera centre) and the residual statistics of its pairs.
 struct System {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
@@ -25,28 +42,11 @@ struct System {
   double distance = 0;  ///< sum of the inliers' distances from the camera centre
   int64_t inliers = 0;
 
-  /// Adds partial sums in the reductions' layout: the upper triangle of A row-major (21), b (6).
-  template <typename T>
-  void add(const T* A_upper, const T* b6, double r2_sum, double distance_sum,
-           int64_t inlier_count) {
-    int k = 0;
-    for (int i = 0; i < 6; ++i) {
-      for (int j = i; j < 6; ++j) A(i, j) += A_upper[k++];
-      b(i) += b6[i];
-    }
-    r2 += r2_sum;
-    distance += distance_sum;
-    inliers += inlier_count;
-  }
-  /// Mirrors the upper triangle into the lower (after the last `add`).
-  void symmetrize();
-  /// The sums in the reductions' layout (kernels::kIcpSums doubles, see track/gauss_newton.h).
-  void to_sums(double* out) const;
   static System from_sums(const double* sums);
 };
 
 /// One pass over pyramid level `level` (0 finest) at pose `T_wc`.
-using Reduce = std::function<System(int level, const Pose& T_wc)>;
+using Reduce = std::function<Sums(int level, const Pose& T_wc)>;
 
 /// Aligns from `T_wc_init` (Gauss-Newton on SE(3), coarsest level first, `params.iterations`
 /// passes per level at most) and judges the result: the finest level's numbers and the quality;

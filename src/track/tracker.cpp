@@ -96,11 +96,11 @@ void Tracker::build_model_pyramid(const RaycastResult& model) {
   }
 }
 
-icp::System Tracker::reduce(int level, const Pose& T) {
+icp::Sums Tracker::reduce(int level, const Pose& T) {
   return dispatch(device_, "the ICP reduction", [&] { return reduce_cpu(level, T); });
 }
 
-icp::System Tracker::reduce_cpu(int level, const Pose& T) {
+icp::Sums Tracker::reduce_cpu(int level, const Pose& T) {
   const PyramidLevel& F = frame_[static_cast<std::size_t>(level)];
   const ModelLevel& M = model_[static_cast<std::size_t>(level)];
   const kernels::IcpPass pass(to_rigid3f(T), T_model_cw_, M.camera,
@@ -191,12 +191,11 @@ icp::System Tracker::reduce_cpu(int level, const Pose& T) {
     }
   });
   // The rows summed in row order, in doubles: the same system whatever the thread count.
-  icp::System sum;
+  icp::Sums sum;
   for (int y = 0; y < h; ++y) {
     const RowSums& row = sums[y];
     sum.add(row.A, row.b, row.r2, row.distance, row.inliers);
   }
-  sum.symmetrize();
   return sum;
 }
 

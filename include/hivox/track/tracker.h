@@ -18,7 +18,7 @@
 namespace hivox {
 
 namespace icp {
-struct System;
+struct Sums;
 }
 
 struct TrackResult {
@@ -101,8 +101,8 @@ class Tracker {
   void build_model_pyramid(const RaycastResult& model);
   /// One pass over pyramid level `level` at pose `T`: projective association against the model
   /// and the normal equations (the ICP reduction; dispatches on the device).
-  icp::System reduce(int level, const Pose& T);
-  icp::System reduce_cpu(int level, const Pose& T);
+  icp::Sums reduce(int level, const Pose& T);
+  icp::Sums reduce_cpu(int level, const Pose& T);
 
   TrackParams params_;
   DepthRange depth_range_;
