@@ -792,47 +792,33 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   params.validate();
   const Impl& m = *impl_;
   const float join_m = m.map_params.voxel_size_m;
-  // The blocks in key order: their metadata comes to the host to be sorted.
+  // The blocks to mesh, planned on the host from their metadata (24 bytes a block).
   int32_t c[kCounters];
   m.counters.download(c, kCounters);
   const auto high_water = static_cast<std::size_t>(c[kHighWater]);
   std::vector<BlockMeta> meta(high_water);
   m.meta.download(meta.data(), high_water);
-  std::vector<BlockRef> listed;
-  for (std::size_t ptr = 0; ptr < high_water; ++ptr)
-    if (meta[ptr].level >= 0)
-      listed.push_back(
-          {meta[ptr].pos, meta[ptr].level, meta[ptr].entry, static_cast<int32_t>(ptr)});
-  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(std::move(listed));
-  // With bounds, the blocks near the box (as the CPU selects them, by binary search here).
-  std::vector<uint8_t> cells;
-  if (params.bounds) {
-    const std::vector<BlockRef> all = blocks;
-    cells = detail::select_mesh_blocks(
-        blocks, static_cast<int32_t>(high_water), m.map_params, *params.bounds,
-        [&](int level, const Vec3i& pos) { return detail::sorted_block_ptr(all, level, pos); });
-  }
-  const auto n = static_cast<int32_t>(blocks.size());
+  const detail::MeshBlocks plan = detail::plan_mesh_blocks(
+      allocated_blocks(meta.data(), c[kHighWater]), c[kHighWater], m.map_params, params.bounds);
+  const auto n = static_cast<int32_t>(plan.blocks.size());
   if (n == 0) return detail::finish_mesh({}, params, join_m, removed);
-  std::vector<int32_t> index_of_ptr(high_water, -1);
-  for (int32_t i = 0; i < n; ++i) index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = i;
 
   Buffer<BlockRef> d_blocks;
+  Buffer<uint8_t> d_cells;
   Buffer<int32_t> d_index_of_ptr;
   Buffer<mc::McTable> table;
-  Buffer<uint8_t> d_cells;
-  d_cells.reset(cells.size(), nullptr);
-  d_cells.upload(cells.data(), cells.size());
-  d_blocks.reset(blocks.size(), nullptr);
-  d_blocks.upload(blocks.data(), blocks.size());
+  d_blocks.reset(plan.blocks.size(), nullptr);
+  d_blocks.upload(plan.blocks.data(), plan.blocks.size());
+  d_cells.reset(plan.cells.size(), nullptr);
+  d_cells.upload(plan.cells.data(), plan.cells.size());
   d_index_of_ptr.reset(high_water, nullptr);
-  d_index_of_ptr.upload(index_of_ptr.data(), high_water);
+  d_index_of_ptr.upload(plan.index_of_ptr.data(), high_water);
   table.reset(1, nullptr);
   table.upload(&mc::kMcTable, 1);
   kernels::MeshPassInput in;
   in.blocks = d_blocks.get();
   in.index_of_ptr = d_index_of_ptr.get();
-  in.cells = cells.empty() ? nullptr : d_cells.get();
+  in.cells = d_cells.get();
   in.block_count = n;
   in.min_weight = static_cast<int>(params.min_weight);
   in.normals = params.compute_normals;
@@ -845,10 +831,10 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   Buffer<unsigned char> scratch;
   scratch.reset(static_cast<std::size_t>(threads) * mesh_scratch_bytes(), nullptr);
   Buffer<kernels::BlockMeshCount> d_counts;
-  d_counts.reset(blocks.size(), nullptr);
+  d_counts.reset(plan.blocks.size(), nullptr);
   count_meshes(m.view.read, in, scratch.get(), threads, d_counts.get());
   check_last("meshing (counting)");
-  std::vector<kernels::BlockMeshCount> counts(blocks.size());
+  std::vector<kernels::BlockMeshCount> counts(plan.blocks.size());
   d_counts.download(counts.data(), counts.size());
   const detail::MeshLayout layout = detail::mesh_layout(counts.data(), n);
   const auto vertices = static_cast<std::size_t>(layout.vertices());

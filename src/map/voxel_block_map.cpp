@@ -201,15 +201,19 @@ std::optional<BlockRef> VoxelBlockMap::find(int level, const Vec3i& pos) const {
   return BlockRef{pos, level, e, lv.entries[e].ptr};
 }
 
-std::vector<BlockRef> VoxelBlockMap::allocated_blocks() const {
+std::vector<BlockRef> allocated_blocks(const BlockMeta* meta, int32_t high_water,
+                                       int64_t expected) {
   std::vector<BlockRef> out;
-  out.reserve(static_cast<std::size_t>(blocks_in_use()));
-  const int32_t n = block_high_water();
-  for (int32_t ptr = 0; ptr < n; ++ptr) {
-    const BlockMeta& m = meta_[static_cast<std::size_t>(ptr)];
+  out.reserve(static_cast<std::size_t>(expected));
+  for (int32_t ptr = 0; ptr < high_water; ++ptr) {
+    const BlockMeta& m = meta[ptr];
     if (m.level >= 0) out.push_back({m.pos, m.level, m.entry, ptr});
   }
   return out;
+}
+
+std::vector<BlockRef> VoxelBlockMap::allocated_blocks() const {
+  return hivox::allocated_blocks(meta_.data(), block_high_water(), blocks_in_use());
 }
 
 std::vector<int64_t> VoxelBlockMap::split_entries_per_level() const {

@@ -87,13 +87,6 @@ void merge_vertex_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
     for (int32_t& v : t) v = index[static_cast<std::size_t>(v)];
 }
 
-std::vector<BlockRef> mesh_blocks_in_key_order(std::vector<BlockRef> blocks) {
-  std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
-    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
-  });
-  return blocks;
-}
-
 MeshLayout mesh_layout(const kernels::BlockMeshCount* counts, int64_t blocks) {
   MeshLayout l;
   l.vertex_offset.assign(static_cast<std::size_t>(blocks) + 1, 0);
@@ -118,43 +111,58 @@ void merge_boundary_vertices(const kernels::BlockMeshCount* counts, const MeshLa
   if (!boundary.empty()) merge_vertex_copies(boundary, mesh);
 }
 
-int32_t sorted_block_ptr(const std::vector<BlockRef>& sorted, int level, const Vec3i& pos) {
-  const BlockKey key{pos, level};
-  const auto it =
-      std::lower_bound(sorted.begin(), sorted.end(), key, [](const BlockRef& b, const BlockKey& k) {
-        return BlockKey{b.pos, b.level} < k;
-      });
-  return it != sorted.end() && it->level == level && it->pos == pos ? it->ptr : -1;
-}
-
-std::vector<uint8_t> select_mesh_blocks(std::vector<BlockRef>& blocks, int32_t high_water,
-                                        const MapParams& params, const Box3f& box,
-                                        const std::function<int32_t(int, const Vec3i&)>& ptr_of) {
-  auto meets_box = [&](const BlockRef& b) {
-    const float s = params.block_size_at(b.level);
-    for (int a = 0; a < 3; ++a)
-      if (static_cast<float>(b.pos[a]) * s > box.max_m[a] ||
-          static_cast<float>(b.pos[a] + 1) * s + s / kBlockSide < box.min_m[a])
-        return false;
-    return true;
-  };
-  std::vector<uint8_t> keep(static_cast<std::size_t>(high_water), 0);
-  for (const BlockRef& b : blocks) {
-    if (!meets_box(b)) continue;
-    keep[static_cast<std::size_t>(b.ptr)] = 2;  // cells and vertices
-    for (int d = 1; d < 8; ++d) {
-      const int32_t nb =
-          ptr_of(b.level, {b.pos.x + (d & 1), b.pos.y + ((d >> 1) & 1), b.pos.z + (d >> 2)});
-      if (nb >= 0 && keep[static_cast<std::size_t>(nb)] == 0)
-        keep[static_cast<std::size_t>(nb)] = 1;  // vertices only
+MeshBlocks plan_mesh_blocks(std::vector<BlockRef> allocated, int32_t high_water,
+                            const MapParams& params, const std::optional<Box3f>& bounds,
+                            const std::function<int32_t(int, const Vec3i&)>& ptr_of) {
+  MeshBlocks plan;
+  std::vector<BlockRef>& blocks = plan.blocks;
+  blocks = std::move(allocated);
+  std::sort(blocks.begin(), blocks.end(), [](const BlockRef& a, const BlockRef& b) {
+    return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+  });
+  if (!bounds) {
+    plan.cells.assign(blocks.size(), 1);
+  } else {
+    // A block's neighbour: from the caller, or by binary search in the sorted list.
+    auto find = [&](int level, const Vec3i& pos) -> int32_t {
+      if (ptr_of) return ptr_of(level, pos);
+      const BlockKey key{pos, level};
+      const auto it = std::lower_bound(blocks.begin(), blocks.end(), key,
+                                       [](const BlockRef& b, const BlockKey& k) {
+                                         return BlockKey{b.pos, b.level} < k;
+                                       });
+      return it != blocks.end() && it->level == level && it->pos == pos ? it->ptr : -1;
+    };
+    const Box3f& box = *bounds;
+    auto meets_box = [&](const BlockRef& b) {
+      const float s = params.block_size_at(b.level);
+      for (int a = 0; a < 3; ++a)
+        if (static_cast<float>(b.pos[a]) * s > box.max_m[a] ||
+            static_cast<float>(b.pos[a] + 1) * s + s / kBlockSide < box.min_m[a])
+          return false;
+      return true;
+    };
+    std::vector<uint8_t> keep(static_cast<std::size_t>(high_water), 0);
+    for (const BlockRef& b : blocks) {
+      if (!meets_box(b)) continue;
+      keep[static_cast<std::size_t>(b.ptr)] = 2;  // cells and vertices
+      for (int d = 1; d < 8; ++d) {
+        const int32_t nb =
+            find(b.level, {b.pos.x + (d & 1), b.pos.y + ((d >> 1) & 1), b.pos.z + (d >> 2)});
+        if (nb >= 0 && keep[static_cast<std::size_t>(nb)] == 0)
+          keep[static_cast<std::size_t>(nb)] = 1;  // vertices only
+      }
     }
+    std::erase_if(blocks,
+                  [&](const BlockRef& b) { return keep[static_cast<std::size_t>(b.ptr)] == 0; });
+    plan.cells.resize(blocks.size());
+    for (std::size_t i = 0; i < blocks.size(); ++i)
+      plan.cells[i] = keep[static_cast<std::size_t>(blocks[i].ptr)] == 2;
   }
-  std::erase_if(blocks,
-                [&](const BlockRef& b) { return keep[static_cast<std::size_t>(b.ptr)] == 0; });
-  std::vector<uint8_t> cells(blocks.size());
+  plan.index_of_ptr.assign(static_cast<std::size_t>(high_water), -1);
   for (std::size_t i = 0; i < blocks.size(); ++i)
-    cells[i] = keep[static_cast<std::size_t>(blocks[i].ptr)] == 2;
-  return cells;
+    plan.index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = static_cast<int32_t>(i);
+  return plan;
 }
 
 TriangleMesh finish_mesh(TriangleMesh mesh, const MeshParams& params, float join_distance_m,
@@ -179,20 +187,11 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   const MapView view = map.view();
   const bool with_color = params.with_color && view.color != nullptr;
 
-  // Blocks in key order (level, z, y, x): the output must not depend on pool positions.
-  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
-  // With bounds: the blocks whose cells (reaching a voxel into the next block) meet the box are
-  // meshed, and the +x/+y/+z neighbours whose edges their cells use make those vertices only.
-  const std::vector<uint8_t> mesh_cells =
-      params.bounds
-          ? detail::select_mesh_blocks(
-                blocks, map.block_high_water(), map.params(), *params.bounds,
-                [&](int level, const Vec3i& pos) { return find_block_ptr(view.level[level], pos); })
-          : std::vector<uint8_t>(blocks.size(), 1);
+  const detail::MeshBlocks plan = detail::plan_mesh_blocks(
+      map.allocated_blocks(), map.block_high_water(), map.params(), params.bounds,
+      [&](int level, const Vec3i& pos) { return find_block_ptr(view.level[level], pos); });
+  const std::vector<BlockRef>& blocks = plan.blocks;
   const int64_t n = static_cast<int64_t>(blocks.size());
-  std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
-  for (int64_t i = 0; i < n; ++i)
-    index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = static_cast<int32_t>(i);
 
   // Pass 1: per block, its vertices and its triangles with corners as edge references.
   std::vector<BlockMesh> parts(static_cast<std::size_t>(n));
@@ -204,11 +203,11 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
           kernels::MeshBlockInput in;
           in.block = blocks[i];
           in.self = static_cast<int32_t>(i);
-          in.index_of_ptr = index_of_ptr.data();
+          in.index_of_ptr = plan.index_of_ptr.data();
           in.min_weight = params.min_weight;
           in.normals = params.compute_normals;
           in.color = with_color;
-          in.cells = mesh_cells[static_cast<std::size_t>(i)] != 0;
+          in.cells = plan.cells[static_cast<std::size_t>(i)] != 0;
           in.table = &mc::kMcTable;
           kernels::mesh_block(view, scratch->cache, in, scratch->mesh,
                               parts[static_cast<std::size_t>(i)]);

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "hivox/core/hd.h"
@@ -69,7 +70,7 @@ struct WriteEmitter {
 /// What the passes read besides the map. The offsets and counts are read from the writing pass
 /// on.
 struct MeshPassInput {
-  const BlockRef* blocks = nullptr;       ///< in key order (mesh_blocks_in_key_order)
+  const BlockRef* blocks = nullptr;       ///< in key order (plan_mesh_blocks)
   const int32_t* index_of_ptr = nullptr;  ///< pool index -> index in `blocks`
   const uint8_t* cells = nullptr;         ///< per block, 0: its owned vertices only; null: all 1
   int32_t block_count = 0;
@@ -142,21 +143,21 @@ HIVOX_HD inline int64_t resolve_corner(const MeshPassInput& p, const uint16_t* e
 
 namespace hivox::detail {
 
-/// `blocks` sorted by key (level, z, y, x): the mesh must not depend on pool positions.
-std::vector<BlockRef> mesh_blocks_in_key_order(std::vector<BlockRef> blocks);
+/// The blocks a mesh is made of and what the passes read of them.
+struct MeshBlocks {
+  std::vector<BlockRef> blocks;  ///< in key order (level, z, y, x): pool positions do not matter
+  std::vector<uint8_t> cells;    ///< per block, 1: its cells; 0: the vertices on its edges only
+  std::vector<int32_t> index_of_ptr;  ///< pool index -> index in `blocks`, or -1
+};
 
-/// The pool index of the block at `pos` of `level` in `sorted` (mesh_blocks_in_key_order's
-/// order), or -1: a binary search, for a driver without the map's hash tables at hand.
-int32_t sorted_block_ptr(const std::vector<BlockRef>& sorted, int level, const Vec3i& pos);
-
-/// With bounds, the blocks (in key order, pool indices below `high_water`) to mesh: those whose
-/// cells, reaching a voxel into the next block, meet `box` (cells and vertices: flag 1), and the
-/// +x/+y/+z neighbours whose edges those cells use (their vertices only: flag 0). `blocks` keeps
-/// these, in order; the flags are returned, one a kept block. `ptr_of(level, pos)`: the pool
-/// index of the block at `pos` of `level`, or < 0 when none is allocated there.
-std::vector<uint8_t> select_mesh_blocks(std::vector<BlockRef>& blocks, int32_t high_water,
-                                        const MapParams& params, const Box3f& box,
-                                        const std::function<int32_t(int, const Vec3i&)>& ptr_of);
+/// Plans the mesh of the `allocated` blocks (pool indices below `high_water`): all of them in
+/// key order, or with `bounds` those whose cells, reaching a voxel into the next block, meet the
+/// box, and the +x/+y/+z neighbours whose edges those cells use (vertices only). `ptr_of(level,
+/// pos)`: the pool index of a block of that level, or < 0; when empty, a binary search in the
+/// sorted list (for a driver without the map's hash tables at hand).
+MeshBlocks plan_mesh_blocks(std::vector<BlockRef> allocated, int32_t high_water,
+                            const MapParams& params, const std::optional<Box3f>& bounds,
+                            const std::function<int32_t(int, const Vec3i&)>& ptr_of = {});
 
 /// Where each block's vertices and corners start (exclusive sums of `counts`, one more entry
 /// than blocks: the totals last). Throws `Error(OutOfCapacity)` past the int32 vertex indices.

@@ -26,24 +26,16 @@ struct PassesResult {
 PassesResult mesh_in_passes(const VoxelBlockMap& map, const MeshParams& params) {
   PassesResult r;
   const MapView view = map.view();
-  std::vector<BlockRef> blocks = detail::mesh_blocks_in_key_order(map.allocated_blocks());
-  // With bounds, the blocks near the box, found by binary search as a driver without the hash
-  // tables finds them.
-  std::vector<uint8_t> cells;
-  if (params.bounds) {
-    const std::vector<BlockRef> all = blocks;
-    cells = detail::select_mesh_blocks(
-        blocks, map.block_high_water(), map.params(), *params.bounds,
-        [&](int level, const Vec3i& pos) { return detail::sorted_block_ptr(all, level, pos); });
-  }
+  // The blocks found by binary search, as a driver without the hash tables finds them.
+  const detail::MeshBlocks plan = detail::plan_mesh_blocks(
+      map.allocated_blocks(), map.block_high_water(), map.params(), params.bounds);
+  const std::vector<BlockRef>& blocks = plan.blocks;
   const auto n = static_cast<int32_t>(blocks.size());
-  std::vector<int32_t> index_of_ptr(static_cast<std::size_t>(map.block_high_water()), -1);
-  for (int32_t i = 0; i < n; ++i) index_of_ptr[static_cast<std::size_t>(blocks[i].ptr)] = i;
 
   kernels::MeshPassInput in;
   in.blocks = blocks.data();
-  in.index_of_ptr = index_of_ptr.data();
-  in.cells = cells.empty() ? nullptr : cells.data();
+  in.index_of_ptr = plan.index_of_ptr.data();
+  in.cells = plan.cells.data();
   in.block_count = n;
   in.min_weight = static_cast<int>(params.min_weight);
   in.normals = params.compute_normals;

@@ -32,6 +32,12 @@ struct BlockRef {
   int32_t ptr = kPtrEmpty;
 };
 
+/// The allocated blocks listed in a pool's metadata (`meta` for pool blocks [0, high_water)),
+/// in pool order: VoxelBlockMap::allocated_blocks, and the same for a copy of the metadata (a
+/// device map's, downloaded). `expected`: how many there are, when known (reserved up front).
+std::vector<BlockRef> allocated_blocks(const BlockMeta* meta, int32_t high_water,
+                                       int64_t expected = 0);
+
 /// Outcome of a batched insertion; nothing is dropped silently.
 struct InsertStats {
   int64_t inserted = 0;
