@@ -815,14 +815,10 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   d_index_of_ptr.upload(plan.index_of_ptr.data(), high_water);
   table.reset(1, nullptr);
   table.upload(&mc::kMcTable, 1);
-  kernels::MeshPassInput in;
-  in.blocks = d_blocks.get();
+  kernels::MeshPassInput in = detail::mesh_pass_input(params, m.view.color != nullptr, plan);
+  in.blocks = d_blocks.get();  // the device's copies
   in.index_of_ptr = d_index_of_ptr.get();
   in.cells = d_cells.get();
-  in.block_count = n;
-  in.min_weight = static_cast<int>(params.min_weight);
-  in.normals = params.compute_normals;
-  in.color = params.with_color && m.view.color != nullptr;
   in.table = table.get();
 
   // Pass one: each block's counts; the layout on the host.

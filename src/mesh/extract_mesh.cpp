@@ -87,6 +87,20 @@ void merge_vertex_copies(std::vector<int32_t>& candidates, TriangleMesh& mesh) {
     for (int32_t& v : t) v = index[static_cast<std::size_t>(v)];
 }
 
+kernels::MeshPassInput mesh_pass_input(const MeshParams& params, bool map_color,
+                                       const MeshBlocks& plan) {
+  kernels::MeshPassInput in;
+  in.blocks = plan.blocks.data();
+  in.index_of_ptr = plan.index_of_ptr.data();
+  in.cells = plan.cells.data();
+  in.block_count = static_cast<int32_t>(plan.blocks.size());
+  in.min_weight = static_cast<int>(params.min_weight);
+  in.normals = params.compute_normals;
+  in.color = params.with_color && map_color;
+  in.table = &mc::kMcTable;
+  return in;
+}
+
 MeshLayout mesh_layout(const kernels::BlockMeshCount* counts, int64_t blocks) {
   MeshLayout l;
   l.vertex_offset.assign(static_cast<std::size_t>(blocks) + 1, 0);
@@ -185,13 +199,13 @@ namespace {
 /// The CPU's extraction: blocks meshed in parallel, each thread with its own scratch.
 TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params) {
   const MapView view = map.view();
-  const bool with_color = params.with_color && view.color != nullptr;
 
   const detail::MeshBlocks plan = detail::plan_mesh_blocks(
       map.allocated_blocks(), map.block_high_water(), map.params(), params.bounds,
       [&](int level, const Vec3i& pos) { return find_block_ptr(view.level[level], pos); });
   const std::vector<BlockRef>& blocks = plan.blocks;
   const int64_t n = static_cast<int64_t>(blocks.size());
+  const kernels::MeshPassInput in = detail::mesh_pass_input(params, view.color != nullptr, plan);
 
   // Pass 1: per block, its vertices and its triangles with corners as edge references.
   std::vector<BlockMesh> parts(static_cast<std::size_t>(n));
@@ -200,16 +214,8 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
     team.for_each(
         n,
         [&](int64_t i) {
-          kernels::MeshBlockInput in;
-          in.block = blocks[i];
-          in.self = static_cast<int32_t>(i);
-          in.index_of_ptr = plan.index_of_ptr.data();
-          in.min_weight = params.min_weight;
-          in.normals = params.compute_normals;
-          in.color = with_color;
-          in.cells = plan.cells[static_cast<std::size_t>(i)] != 0;
-          in.table = &mc::kMcTable;
-          kernels::mesh_block(view, scratch->cache, in, scratch->mesh,
+          kernels::mesh_block(view, scratch->cache,
+                              kernels::mesh_block_input(in, static_cast<int32_t>(i)), scratch->mesh,
                               parts[static_cast<std::size_t>(i)]);
         },
         CpuSchedule::dynamic(16));
@@ -228,7 +234,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
   TriangleMesh mesh;
   mesh.positions_w.resize(static_cast<std::size_t>(vertices));
   if (params.compute_normals) mesh.normals_w.resize(static_cast<std::size_t>(vertices));
-  if (with_color) mesh.colors.resize(static_cast<std::size_t>(vertices));
+  if (in.color) mesh.colors.resize(static_cast<std::size_t>(vertices));
   mesh.levels.resize(static_cast<std::size_t>(vertices));
   mesh.triangles.resize(static_cast<std::size_t>(layout.corners() / 3));
 
@@ -242,7 +248,7 @@ TriangleMesh extract_mesh_cpu(const VoxelBlockMap& map, const MeshParams& params
       const std::size_t dst = static_cast<std::size_t>(v0) + k;
       mesh.positions_w[dst] = v.position_w;
       if (params.compute_normals) mesh.normals_w[dst] = v.normal_w;
-      if (with_color) mesh.colors[dst] = v.color;
+      if (in.color) mesh.colors[dst] = v.color;
       mesh.levels[dst] = static_cast<uint8_t>(blocks[i].level);
     }
     int64_t missing = 0;

@@ -159,6 +159,12 @@ MeshBlocks plan_mesh_blocks(std::vector<BlockRef> allocated, int32_t high_water,
                             const MapParams& params, const std::optional<Box3f>& bounds,
                             const std::function<int32_t(int, const Vec3i&)>& ptr_of = {});
 
+/// The passes' input for `params` over `plan`'s blocks (host pointers into `plan`, the host's
+/// marching-cubes table; a device driver points them at its copies). `map_color`: the map
+/// stores colour.
+kernels::MeshPassInput mesh_pass_input(const MeshParams& params, bool map_color,
+                                       const MeshBlocks& plan);
+
 /// Where each block's vertices and corners start (exclusive sums of `counts`, one more entry
 /// than blocks: the totals last). Throws `Error(OutOfCapacity)` past the int32 vertex indices.
 struct MeshLayout {

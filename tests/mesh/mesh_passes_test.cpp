@@ -32,15 +32,7 @@ PassesResult mesh_in_passes(const VoxelBlockMap& map, const MeshParams& params) 
   const std::vector<BlockRef>& blocks = plan.blocks;
   const auto n = static_cast<int32_t>(blocks.size());
 
-  kernels::MeshPassInput in;
-  in.blocks = blocks.data();
-  in.index_of_ptr = plan.index_of_ptr.data();
-  in.cells = plan.cells.data();
-  in.block_count = n;
-  in.min_weight = static_cast<int>(params.min_weight);
-  in.normals = params.compute_normals;
-  in.color = params.with_color && view.color != nullptr;
-  in.table = &mc::kMcTable;
+  kernels::MeshPassInput in = detail::mesh_pass_input(params, view.color != nullptr, plan);
   const auto cache = std::make_unique<kernels::BlockLookupCache>();
   const auto scratch = std::make_unique<kernels::MeshBlockScratch>();
 
