@@ -32,6 +32,11 @@ class Buffer {
     size_ = n;
     if (total != nullptr) *total += static_cast<int64_t>(n * sizeof(T));
   }
+  /// reset(n, total), then the first n elements uploaded from `host`.
+  void assign(const T* host, std::size_t n, int64_t* total = nullptr) {
+    reset(n, total);
+    upload(host, n);
+  }
   T* get() const { return ptr_; }
   std::size_t size() const { return size_; }
   void upload(const T* host, std::size_t n, std::size_t offset = 0) {

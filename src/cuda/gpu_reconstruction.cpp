@@ -171,17 +171,14 @@ struct GpuReconstruction::Impl {
     const auto capacity = static_cast<std::size_t>(mp.max_blocks);
     for (int l = 0; l < mp.levels; ++l) {
       const auto n = static_cast<std::size_t>(h.read.level[l].entry_count);
-      entries[l].reset(n, &map_bytes);
-      entries[l].upload(h.level[l].entries, n);
-      excess_free[l].reset(static_cast<std::size_t>(h.level[l].excess.capacity), &map_bytes);
-      excess_free[l].upload(h.level[l].excess.items, excess_free[l].size());
+      entries[l].assign(h.level[l].entries, n, &map_bytes);
+      excess_free[l].assign(h.level[l].excess.items,
+                            static_cast<std::size_t>(h.level[l].excess.capacity), &map_bytes);
       view.level[l].entries = entries[l].get();
       view.read.level[l].entries = entries[l].get();
     }
-    block_free.reset(capacity, &map_bytes);
-    block_free.upload(h.blocks.items, capacity);
-    meta.reset(capacity, &map_bytes);
-    meta.upload(h.meta, capacity);
+    block_free.assign(h.blocks.items, capacity, &map_bytes);
+    meta.assign(h.meta, capacity, &map_bytes);
     const int32_t used = host.block_high_water();
     tsdf.reserve(capacity * kBlockVoxels * sizeof(TsdfVoxel), params.device.index);
     if (h.color != nullptr)
@@ -807,14 +804,10 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   Buffer<uint8_t> d_cells;
   Buffer<int32_t> d_index_of_ptr;
   Buffer<mc::McTable> table;
-  d_blocks.reset(plan.blocks.size(), nullptr);
-  d_blocks.upload(plan.blocks.data(), plan.blocks.size());
-  d_cells.reset(plan.cells.size(), nullptr);
-  d_cells.upload(plan.cells.data(), plan.cells.size());
-  d_index_of_ptr.reset(high_water, nullptr);
-  d_index_of_ptr.upload(plan.index_of_ptr.data(), high_water);
-  table.reset(1, nullptr);
-  table.upload(&mc::kMcTable, 1);
+  d_blocks.assign(plan.blocks.data(), plan.blocks.size());
+  d_cells.assign(plan.cells.data(), plan.cells.size());
+  d_index_of_ptr.assign(plan.index_of_ptr.data(), high_water);
+  table.assign(&mc::kMcTable, 1);
   kernels::MeshPassInput in = detail::mesh_pass_input(params, m.view.color != nullptr, plan);
   in.blocks = d_blocks.get();  // the device's copies
   in.index_of_ptr = d_index_of_ptr.get();
@@ -836,10 +829,8 @@ TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
   const auto vertices = static_cast<std::size_t>(layout.vertices());
   const auto corners = static_cast<std::size_t>(layout.corners());
   Buffer<int64_t> vertex_offset, corner_offset;
-  vertex_offset.reset(layout.vertex_offset.size(), nullptr);
-  vertex_offset.upload(layout.vertex_offset.data(), layout.vertex_offset.size());
-  corner_offset.reset(layout.corner_offset.size(), nullptr);
-  corner_offset.upload(layout.corner_offset.data(), layout.corner_offset.size());
+  vertex_offset.assign(layout.vertex_offset.data(), layout.vertex_offset.size());
+  corner_offset.assign(layout.corner_offset.data(), layout.corner_offset.size());
   in.counts = d_counts.get();
   in.vertex_offset = vertex_offset.get();
   in.corner_offset = corner_offset.get();
