@@ -3,9 +3,7 @@
 //
 //   hivox_gpu_loop synthetic:desk?frames=300 --levels 1            # fixed 2 mm, tracked
 //   hivox_gpu_loop data/tum_fr1_rpy --handover 50 --cpu           # 3 levels from a CPU-refined map
-//   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --mesh    # then mesh on the device and
-//                                                                 # on the host (the map
-//                                                                 downloaded)
+//   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --mesh    # then mesh it, both ways
 //
 // `--handover K` runs frames [0, K) through the CPU reconstruction, copies its map to the device
 // and times frames [K, N) there (the device refines the hierarchy from then on). Times are the
