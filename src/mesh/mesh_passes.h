@@ -72,7 +72,7 @@ struct WriteEmitter {
 struct MeshPassInput {
   const BlockRef* blocks = nullptr;       ///< in key order (plan_mesh_blocks)
   const int32_t* index_of_ptr = nullptr;  ///< pool index -> index in `blocks`
-  const uint8_t* cells = nullptr;         ///< per block, 0: its owned vertices only; null: all 1
+  const uint8_t* cells = nullptr;         ///< per block, 0: its owned vertices only
   int32_t block_count = 0;
   int min_weight = 1;
   bool normals = true, color = false;
@@ -90,7 +90,7 @@ HIVOX_HD inline MeshBlockInput mesh_block_input(const MeshPassInput& p, int32_t 
   in.min_weight = p.min_weight;
   in.normals = p.normals;
   in.color = p.color;
-  in.cells = p.cells == nullptr || p.cells[i] != 0;
+  in.cells = p.cells[i] != 0;
   in.table = p.table;
   return in;
 }

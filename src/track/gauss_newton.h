@@ -178,11 +178,10 @@ HIVOX_HD inline PoseD apply_increment(const PoseD& T, const double x[6]) {
 struct IcpState {
   PoseD T;                  ///< the pose being refined
   PoseD T_fin;              ///< the pose the finest level's last sums were taken at
-  double fin[kIcpSums];     ///< the finest level's last sums
+  double fin[kIcpSums];     ///< the finest level's last sums (zeros before its first)
   int32_t iterations = 0;   ///< increments applied
   int32_t done_level = -1;  ///< a level whose passes have stopped (converged, too few pairs)
   int32_t diverged = 0;     ///< a step was not finite: every later pass is skipped
-  int32_t has_fin = 0;      ///< `fin` holds sums
 };
 
 HIVOX_HD inline IcpState icp_start(const PoseD& T) {
@@ -206,7 +205,6 @@ HIVOX_HD inline void icp_update(IcpState& s, const double* sums, int level,
   if (level == 0) {
     for (int k = 0; k < kIcpSums; ++k) s.fin[k] = sums[k];
     s.T_fin = s.T;
-    s.has_fin = 1;
   }
   if (sums[kIcpInliers] < 6.0) {
     s.done_level = level;
