@@ -46,7 +46,6 @@ Mat6 normal_matrix(std::mt19937& rng, int rows, int null_dims, double spread) {
 TEST(GaussNewton, SolvesAsEigensLdltDoes) {
   std::mt19937 rng(7);
   std::normal_distribution<double> g;
-  int solved = 0;
   for (const int null_dims : {0, 1, 3, 6})
     for (const double spread : {0.0, 3.0, 6.0})
       for (int trial = 0; trial < 20; ++trial) {
@@ -65,9 +64,7 @@ TEST(GaussNewton, SolvesAsEigensLdltDoes) {
             << "got " << got.transpose() << "\nref " << ref.transpose();
         // A solution of the system where one exists.
         EXPECT_LE((A * got - b).norm(), 1e-8 * (1.0 + b.norm()));
-        ++solved;
       }
-  EXPECT_EQ(solved, 240);
 }
 
 TEST(GaussNewton, ANonFiniteSystemIsReported) {
