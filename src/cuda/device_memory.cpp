@@ -117,8 +117,8 @@ void GrowingBuffer::reserve(std::size_t bytes, int device) {
   std::size_t granularity = 0;
   check_driver(vm.granularity(&granularity, &prop, CU_MEM_ALLOC_GRANULARITY_RECOMMENDED),
                "asking the allocation granularity");
-  // Chunks of 8 MiB or more: few mappings, little committed beyond the need.
-  chunk_ = std::max<std::size_t>(granularity, std::size_t{8} << 20) / granularity * granularity;
+  // Chunks of the recommended granularity: what is committed beyond the need stays below one.
+  chunk_ = granularity;
   reserved_ = (std::max<std::size_t>(bytes, 1) + chunk_ - 1) / chunk_ * chunk_;
   CUdeviceptr base = 0;
   check_driver(vm.reserve(&base, reserved_, 0, 0, 0), "reserving device addresses");
@@ -133,17 +133,25 @@ std::size_t GrowingBuffer::commit(std::size_t bytes) {
   access.location = prop.location;
   access.flags = CU_MEM_ACCESS_FLAGS_PROT_READWRITE;
   const std::size_t target = std::min(reserved_, (bytes + chunk_ - 1) / chunk_ * chunk_);
-  while (committed_ < target) {
-    CUmemGenericAllocationHandle h = 0;
-    check_driver(vm.create(&h, chunk_, &prop, 0), "committing device memory");
-    const CUdeviceptr at = reinterpret_cast<CUdeviceptr>(base_) + committed_;
-    const CUresult mapped = vm.map(at, chunk_, 0, h, 0);
-    if (mapped != CUDA_SUCCESS) vm.release(h);
-    check_driver(mapped, "mapping device memory");
-    handles_.push_back(h);
-    check_driver(vm.set_access(at, chunk_, &access, 1), "enabling access to device memory");
-    committed_ += chunk_;
+  if (target <= committed_) return committed_;
+  // The whole shortfall as one allocation and one mapping: one call to each driver function
+  // whatever the growth.
+  const std::size_t size = target - committed_;
+  CUmemGenericAllocationHandle h = 0;
+  check_driver(vm.create(&h, size, &prop, 0), "committing device memory");
+  const CUdeviceptr at = reinterpret_cast<CUdeviceptr>(base_) + committed_;
+  const CUresult mapped = vm.map(at, size, 0, h, 0);
+  if (mapped != CUDA_SUCCESS) vm.release(h);
+  check_driver(mapped, "mapping device memory");
+  handles_.push_back(h);
+  const CUresult access_set = vm.set_access(at, size, &access, 1);
+  if (access_set != CUDA_SUCCESS) {
+    vm.unmap(at, size);
+    vm.release(h);
+    handles_.pop_back();
   }
+  check_driver(access_set, "enabling access to device memory");
+  committed_ = target;
   return committed_;
 }
 

@@ -100,9 +100,10 @@ class PinnedBuffer {
   std::size_t size_ = 0;
 };
 
-/// `capacity` elements of address space reserved on the current device; memory is committed in
-/// chunks as `commit(n)` asks for the first n elements. Falls back to one plain allocation of the
-/// whole capacity where the driver has no virtual memory management.
+/// Address space reserved on the current device, memory committed as `commit(n)` asks for the
+/// first n bytes: in the driver's allocation granularity (2 MiB on current GPUs), one mapping a
+/// call. Falls back to one plain allocation of the whole capacity where the driver has no virtual
+/// memory management.
 class GrowingBuffer {
  public:
   GrowingBuffer() = default;
@@ -123,6 +124,29 @@ class GrowingBuffer {
   int device_ = 0;
   bool virtual_ = false;
   std::vector<unsigned long long> handles_;
+};
+
+/// A GrowingBuffer of `T`s: room for `capacity` of them, the first n committed on demand. What
+/// lies beyond the uploaded or written elements is undefined (freshly committed memory).
+template <typename T>
+class GrowingArray {
+ public:
+  void reserve(std::size_t capacity, int device) { buffer_.reserve(capacity * sizeof(T), device); }
+  void commit(std::size_t n) { buffer_.commit(n * sizeof(T)); }
+  T* get() const { return static_cast<T*>(buffer_.get()); }
+  std::size_t committed_bytes() const { return buffer_.committed(); }
+  /// The first `n` elements (committed) from and to the host.
+  void upload(const T* host, std::size_t n) {
+    if (n > 0)
+      check_status(cudaMemcpy(get(), host, n * sizeof(T), cudaMemcpyHostToDevice), "upload");
+  }
+  void download(T* host, std::size_t n) const {
+    if (n > 0)
+      check_status(cudaMemcpy(host, get(), n * sizeof(T), cudaMemcpyDeviceToHost), "download");
+  }
+
+ private:
+  GrowingBuffer buffer_;
 };
 
 }  // namespace hivox::cuda

@@ -79,9 +79,12 @@ struct GpuReconstruction::Impl {
   std::array<Buffer<HashEntry>, kMaxLevels> entries;
   std::array<Buffer<int32_t>, kMaxLevels> excess_free;
   Buffer<int32_t> block_free;
-  Buffer<BlockMeta> meta;
   Buffer<int32_t> counters;
-  GrowingBuffer tsdf, color;  ///< the voxel pool: committed up to the high-water mark
+  // The pool's voxels and its blocks' metadata: committed up to the high-water mark (a block's
+  // metadata is written when it is taken, as its voxels are cleared).
+  GrowingArray<TsdfVoxel> tsdf;
+  GrowingArray<ColorVoxel> color;
+  GrowingArray<BlockMeta> meta;
   MutableMapView view;
   int32_t high_water = 0;  ///< the device's, as of the last frame's end
   int64_t blocks = 0;
@@ -178,21 +181,17 @@ struct GpuReconstruction::Impl {
       view.read.level[l].entries = entries[l].get();
     }
     block_free.assign(h.blocks.items, capacity, &map_bytes);
-    meta.assign(h.meta, capacity, &map_bytes);
     const int32_t used = host.block_high_water();
-    tsdf.reserve(capacity * kBlockVoxels * sizeof(TsdfVoxel), params.device.index);
-    if (h.color != nullptr)
-      color.reserve(capacity * kBlockVoxels * sizeof(ColorVoxel), params.device.index);
+    tsdf.reserve(capacity * kBlockVoxels, params.device.index);
+    if (h.color != nullptr) color.reserve(capacity * kBlockVoxels, params.device.index);
+    meta.reserve(capacity, params.device.index);
     commit_pool(used);
-    view.tsdf = static_cast<TsdfVoxel*>(tsdf.get());
-    view.color = h.color != nullptr ? static_cast<ColorVoxel*>(color.get()) : nullptr;
+    view.tsdf = tsdf.get();
+    view.color = h.color != nullptr ? color.get() : nullptr;
     const auto voxels = static_cast<std::size_t>(used) * kBlockVoxels;
-    check_status(cudaMemcpy(view.tsdf, h.tsdf, voxels * sizeof(TsdfVoxel), cudaMemcpyHostToDevice),
-                 "uploading the map's voxels");
-    if (view.color != nullptr)
-      check_status(
-          cudaMemcpy(view.color, h.color, voxels * sizeof(ColorVoxel), cudaMemcpyHostToDevice),
-          "uploading the map's colours");
+    tsdf.upload(h.tsdf, voxels);
+    if (view.color != nullptr) color.upload(h.color, voxels);
+    meta.upload(h.meta, static_cast<std::size_t>(used));
     counters.reset(kCounters, &map_bytes);
     int32_t c[kCounters] = {};
     for (int l = 0; l < mp.levels; ++l) c[kExcessCount + l] = *h.level[l].excess.count;
@@ -216,16 +215,17 @@ struct GpuReconstruction::Impl {
     total_bytes += map_bytes;
   }
 
-  /// Commits the voxel pool's memory for pool blocks [0, blocks).
+  /// Commits the pool's memory (voxels and metadata) for pool blocks [0, blocks).
   void commit_pool(int64_t blocks) {
-    const auto voxels = static_cast<std::size_t>(blocks) * kBlockVoxels;
-    tsdf.commit(voxels * sizeof(TsdfVoxel));
-    if (color.get() != nullptr) color.commit(voxels * sizeof(ColorVoxel));
+    const auto n = static_cast<std::size_t>(blocks);
+    tsdf.commit(n * kBlockVoxels);
+    if (color.get() != nullptr) color.commit(n * kBlockVoxels);
+    meta.commit(n);
   }
 
   int64_t pool_bytes() const {
-    return static_cast<int64_t>(tsdf.committed() +
-                                (color.get() != nullptr ? color.committed() : 0));
+    return static_cast<int64_t>(tsdf.committed_bytes() + color.committed_bytes() +
+                                meta.committed_bytes());
   }
 
   void allocate_frame_buffers() {
@@ -772,16 +772,15 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
   m.block_free.download(h.blocks.items, m.block_free.size());
   *h.blocks.count = c[kBlockFreeCount];
   for (int l = 0; l < kMaxLevels; ++l) h.level_block_count[l] = c[kLevelCount + l];
-  *h.block_high_water = c[kHighWater];
+  // Past its high-water mark a map's metadata is free (level -1): the device holds none there,
+  // and the host's is cleared up to its own mark.
   const auto used = static_cast<std::size_t>(c[kHighWater]);
-  m.meta.download(h.meta, m.meta.size());
-  check_status(cudaMemcpy(h.tsdf, m.view.tsdf, used * kBlockVoxels * sizeof(TsdfVoxel),
-                          cudaMemcpyDeviceToHost),
-               "downloading the voxels");
-  if (h.color != nullptr && m.view.color != nullptr)
-    check_status(cudaMemcpy(h.color, m.view.color, used * kBlockVoxels * sizeof(ColorVoxel),
-                            cudaMemcpyDeviceToHost),
-                 "downloading the colours");
+  const auto host_used = static_cast<std::size_t>(*h.block_high_water);
+  *h.block_high_water = c[kHighWater];
+  m.meta.download(h.meta, used);
+  if (host_used > used) std::fill(h.meta + used, h.meta + host_used, BlockMeta{});
+  m.tsdf.download(h.tsdf, used * kBlockVoxels);
+  if (h.color != nullptr && m.view.color != nullptr) m.color.download(h.color, used * kBlockVoxels);
 }
 
 TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,

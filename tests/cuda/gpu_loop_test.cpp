@@ -419,6 +419,39 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
   expect_same_model(cpu.map(), gpu.download_model(), previous, last, *last.T_wc_gt, p, rig);
 }
 
+/// With the default capacities (2^20 pool blocks) the device holds no more memory for a map
+/// than the CPU counts for the same map, on a fixed grid and in a hierarchy that merges: the
+/// pool's voxels and metadata are committed up to its high-water mark, the CPU's metadata is
+/// held whole.
+TEST(GpuLoop, HoldsNoMoreMemoryForAMapThanTheCpu) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  for (const int levels : {1, 3}) {
+    ReconstructionParams p;
+    p.map.levels = levels;
+    p.device = Device::cuda();
+    cuda::GpuReconstruction gpu(p, rig);
+    p.device = Device::cpu();
+    Reconstruction cpu(p, rig);
+    int64_t merges = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      const RgbdFrame f = data.read(i);
+      cpu.integrate(f, *f.T_wc_gt);
+      merges += gpu.integrate(f, *f.T_wc_gt).merges;
+    }
+    const int64_t device = gpu.map_memory_bytes(), host = cpu.map().memory_bytes();
+    std::printf(
+        "[ memory   ] %d level(s): the map holds %.1f MiB on the device, %.1f MiB on the CPU "
+        "(%lld / %lld blocks, %lld merges on the device)\n",
+        levels, device / 1048576.0, host / 1048576.0, static_cast<long long>(gpu.blocks_in_use()),
+        static_cast<long long>(cpu.map().blocks_in_use()), static_cast<long long>(merges));
+    ASSERT_GT(cpu.map().blocks_in_use(), 1000);
+    if (levels > 1) EXPECT_GT(merges, 0);
+    EXPECT_LE(device, host) << levels << " level(s)";
+  }
+}
+
 /// GpuReconstruction::extract_mesh against extract_mesh on the downloaded map: the same vertices
 /// (up to the device's fused multiply-adds in their interpolation) and the same triangles, with
 /// each set of mesh parameters.

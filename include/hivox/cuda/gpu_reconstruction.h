@@ -84,7 +84,9 @@ class GpuReconstruction {
   int64_t blocks_in_use() const;
   /// Blocks dropped so far because a capacity ran out (the continued map's included).
   int64_t dropped_blocks() const;
-  /// Device memory held by the map, and by the whole loop (map, frame and pyramid buffers).
+  /// Device memory held by the map, and by the whole loop (map, frame and pyramid buffers). The
+  /// hash tables and free lists are held whole; the pool's voxels and metadata are committed up
+  /// to its high-water mark, in the driver's granularity (2 MiB).
   int64_t map_memory_bytes() const;
   int64_t device_memory_bytes() const;
 
