@@ -99,6 +99,12 @@ struct GpuReconstruction::Impl {
   Buffer<AllocCounters> alloc_counters;
   PinnedBuffer<AllocCounters> host_counters;
   PinnedBuffer<int32_t> host_high_water;
+  // The super-blocks holding blocks (grown by insertions; on the host as of the last frame's
+  // allocation) and the raycast's coarse occupancy grid over them.
+  Buffer<kernels::SuperBlockBounds> occupancy_bounds;
+  PinnedBuffer<kernels::SuperBlockBounds> host_bounds;
+  kernels::SuperBlockBounds bounds;
+  Buffer<int32_t> occupancy_cells;
 
   // The frame.
   PinnedBuffer<float> staged_depth;
@@ -210,6 +216,8 @@ struct GpuReconstruction::Impl {
     view.read.color = view.color;
     view.read.meta = view.meta;
     high_water = host.block_high_water();
+    bounds = kernels::super_block_bounds(h.meta, used, mp.levels);
+    occupancy_bounds.assign(&bounds, 1, &total_bytes);
     blocks = host.blocks_in_use();
     dropped = host.dropped_blocks();
     total_bytes += map_bytes;
@@ -298,7 +306,9 @@ struct GpuReconstruction::Impl {
   /// Device buffer `b` holding at least `n` elements (grown by half again when short).
   template <typename T>
   void ensure(Buffer<T>& b, std::size_t n) {
-    if (b.size() < n) b.reset(n + n / 2, &total_bytes);
+    if (b.size() >= n) return;
+    total_bytes -= static_cast<int64_t>(b.size() * sizeof(T));  // the old buffer goes
+    b.reset(n + n / 2, &total_bytes);
   }
 
   int32_t read_counter(int index) const {
@@ -494,23 +504,28 @@ struct GpuReconstruction::Impl {
     // Pops take the lowest free pool blocks: the high-water mark grows by at most the insertions.
     commit_pool(static_cast<int64_t>(high_water) + to_insert);
     insert_blocks(view, missing, to_insert, visible.get(), stamps.get(), frame,
-                  alloc_counters.get());
+                  alloc_counters.get(), occupancy_bounds.get());
     synchronize("allocation");
     s.allocate_ms = stage.lap_ms();
     cuda::integrate(view, visible.get(), found + to_insert, alloc_counters.get(), f.depth, f.color,
                     f.constants);
     synchronize("integration");
     s.integrate_ms = stage.lap_ms();
-    // The counters and the high-water mark in one round trip.
+    // The counters, the high-water mark and the super-blocks' bounds in one round trip.
     int32_t* hw = host_high_water.reserve(1);
+    kernels::SuperBlockBounds* hb = host_bounds.reserve(1);
     check_status(
         cudaMemcpyAsync(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
         "reading the counters");
     check_status(
         cudaMemcpyAsync(hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
         "reading the high-water mark");
+    check_status(cudaMemcpyAsync(hb, occupancy_bounds.get(), sizeof(kernels::SuperBlockBounds),
+                                 cudaMemcpyDeviceToHost),
+                 "reading the super-blocks' bounds");
     synchronize("reading the counters");
     high_water = *hw;
+    bounds = *hb;
     s.valid_pixels = c->valid_pixels;
     s.visible_blocks = c->visible;
     s.new_blocks = c->inserted;
@@ -535,8 +550,20 @@ struct GpuReconstruction::Impl {
         kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0.camera);
     tiles.z_min = tile_z_min.get();
     tiles.z_max = tile_z_max.get();
+    // The coarse occupancy grid over the super-blocks holding blocks (cleared and marked by the
+    // raycast, as the CPU's raycaster builds it), where it is asked for and not too large.
+    kernels::CoarseOccupancy occupancy;
+    if (params.raycast.tuning.coarse_skipping) {
+      occupancy = kernels::CoarseOccupancy::covering(
+          bounds, view.read.level[map_params.levels - 1].block_size_m);
+      const int64_t cells = occupancy.cell_count();
+      if (cells > 0 && cells <= kernels::CoarseOccupancy::kMaxCells) {
+        ensure(occupancy_cells, static_cast<std::size_t>(cells));
+        occupancy.cells = occupancy_cells.get();
+      }
+    }
     const kernels::RayMarchConstants k =
-        kernels::march_constants(params.raycast, view.read, kernels::CoarseOccupancy{});
+        kernels::march_constants(params.raycast, view.read, occupancy);
     const kernels::RaycastOutputView out{m0.depth.get(), m0.points.get(), m0.normals.get(),
                                          model_colors.get(), model_levels.get()};
     check_status(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),

@@ -8,6 +8,7 @@
 
 #include "core/parallel.h"
 #include "cuda/device_helpers.cuh"
+#include "cuda/device_memory.h"
 #include "hivox/core/device.h"
 #include "map/map_kernels.h"
 
@@ -81,7 +82,8 @@ __global__ void find_blocks_kernel(MapView map, kernels::DepthFrameView depth, R
 /// One CUDA block per missing key: its first thread inserts the block (kernels::allocate_block),
 /// then all its threads clear the block's voxels together (coalesced).
 __global__ void insert_blocks_kernel(MutableMapView map, BlockKeySet missing, BlockRef* visible,
-                                     int32_t* stamps, int32_t frame, AllocCounters* counters) {
+                                     int32_t* stamps, int32_t frame, AllocCounters* counters,
+                                     kernels::SuperBlockBounds* bounds) {
   __shared__ int32_t block;
   if (threadIdx.x == 0) {
     const BlockKey k = missing.list[blockIdx.x];
@@ -92,6 +94,8 @@ __global__ void insert_blocks_kernel(MutableMapView map, BlockKeySet missing, Bl
         stamps[block] = frame;
         visible[atomicAdd(&counters->visible, 1)] = BlockRef{k.pos, k.level, entry, block};
         atomicAdd(&counters->inserted, 1);
+        bounds->add_atomic(
+            kernels::CoarseOccupancy::super_block_of(k.pos, k.level, map.read.levels));
         break;
       case kernels::AllocResult::HashFull:
         atomicAdd(&counters->hash_full, 1);
@@ -188,11 +192,14 @@ __global__ void fill_tiles(kernels::RangeTiles tiles) {
 
 __global__ void project_blocks_kernel(MapView map, int32_t high_water, Rigid3f T_cw,
                                       PinholeCamera cam, float min_depth_m, float max_depth_m,
-                                      kernels::RangeTiles tiles) {
+                                      kernels::RangeTiles tiles,
+                                      kernels::CoarseOccupancy occupancy) {
   const int32_t ptr = blockIdx.x * blockDim.x + threadIdx.x;
   if (ptr >= high_water) return;
   const BlockMeta m = map.meta[ptr];
   if (m.level < 0) return;
+  if (occupancy.cells != nullptr)
+    occupancy.mark(kernels::CoarseOccupancy::super_block_of(m.pos, m.level, map.levels));
   kernels::project_block_to_tiles(T_cw, cam, m.pos, map.level[m.level].block_size_m, min_depth_m,
                                   max_depth_m, tiles);
 }
@@ -475,10 +482,11 @@ void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const
 }
 
 void insert_blocks(const MutableMapView& map, const BlockKeySet& missing, int32_t count,
-                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters) {
+                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters,
+                   kernels::SuperBlockBounds* bounds) {
   if (count <= 0) return;
   insert_blocks_kernel<<<static_cast<unsigned>(count), 128>>>(map, missing, visible, stamps, frame,
-                                                              counters);
+                                                              counters, bounds);
   check_last("allocation (inserting blocks)");
 }
 
@@ -504,9 +512,14 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
              const kernels::RaycastOutputView& out, AllocCounters* counters) {
   fill_tiles<<<grid_for(tiles.count()), kThreads>>>(tiles);
+  if (k.occupancy.cells != nullptr)
+    check_status(
+        cudaMemsetAsync(k.occupancy.cells, 0,
+                        static_cast<std::size_t>(k.occupancy.cell_count()) * sizeof(int32_t)),
+        "clearing the coarse occupancy grid");
   if (high_water > 0)
     project_blocks_kernel<<<grid_for(high_water), kThreads>>>(
-        map, high_water, T_wc.inverse(), camera, min_depth_m, max_depth_m, tiles);
+        map, high_water, T_wc.inverse(), camera, min_depth_m, max_depth_m, tiles, k.occupancy);
   // Warps of 8x4 pixels: their rays stay closer together than those of 16x2, so they
   // diverge less (1 % faster than 16x2 on the H200).
   const dim3 threads(8, 16);

@@ -53,9 +53,11 @@ void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const
                  BlockRef* visible, AllocCounters* counters);
 
 /// Stage two: inserts the `count` distinct missing blocks (lock-free, kernels::allocate_block)
-/// and appends the new ones to the visible list, stamped.
+/// and appends the new ones to the visible list, stamped; grows `bounds` (device memory) by
+/// their super-blocks.
 void insert_blocks(const MutableMapView& map, const BlockKeySet& missing, int32_t count,
-                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters);
+                   BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters,
+                   kernels::SuperBlockBounds* bounds);
 
 /// Integrates the frame into the visible blocks (the first `counters->visible` of at most
 /// `max_blocks`): one thread per voxel, the block's surface summary and update count after.
@@ -78,9 +80,10 @@ struct RayHintImages {
 };
 
 /// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
-/// then one ray per pixel; counts hits into `counters->raycast_hits`. (Queuing the rays whose
-/// hints fail for a second, marching pass was slower: a warp of marching rays diverges on every
-/// step, where a warp of mostly hinted rays waits on a few.)
+/// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
+/// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
+/// (Queuing the rays whose hints fail for a second, marching pass was slower: a warp of marching
+/// rays diverges on every step, where a warp of mostly hinted rays waits on a few.)
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,

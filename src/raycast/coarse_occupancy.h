@@ -11,9 +11,39 @@
 
 namespace hivox {
 class VoxelBlockMap;
-}
+struct BlockMeta;
+}  // namespace hivox
 
 namespace hivox::kernels {
+
+/// The box [lo, hi] of super-blocks (CoarseOccupancy's cells) that hold blocks; empty while
+/// lo > hi. A split's children and a merge's parent lie in the super-block of the blocks they
+/// replace, so only insertions grow it.
+struct SuperBlockBounds {
+  Vec3i lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};
+
+  HIVOX_HD bool empty() const { return lo.x > hi.x; }
+  HIVOX_HD void add(const Vec3i& c) {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = c[a] < lo[a] ? c[a] : lo[a];
+      hi[a] = c[a] > hi[a] ? c[a] : hi[a];
+    }
+  }
+  /// add(c) where threads may add concurrently (an atomic only where `c` lies outside).
+  HIVOX_HD void add_atomic(const Vec3i& c) {
+    int32_t* l = &lo.x;
+    int32_t* h = &hi.x;
+    for (int a = 0; a < 3; ++a) {
+      if (c[a] < atomic_load(l + a)) atomic_min(l + a, c[a]);
+      if (c[a] > atomic_load(h + a)) atomic_max(h + a, c[a]);
+    }
+  }
+  void merge(const SuperBlockBounds& o) {
+    if (o.empty()) return;
+    add(o.lo);
+    add(o.hi);
+  }
+};
 
 /// Which cubes of space ("super-blocks", each `kSuperBlockSide` blocks of the coarsest level on a
 /// side) hold a block of any level: a march crosses an empty one in one step instead of block
@@ -23,6 +53,9 @@ namespace hivox::kernels {
 struct CoarseOccupancy {
   static constexpr int kSuperBlockShift = 2;
   static constexpr int kSuperBlockSide = 1 << kSuperBlockShift;
+  /// Beyond this many cells there is no grid (a map spread over a huge box: rays then cross
+  /// unallocated space block by block).
+  static constexpr int64_t kMaxCells = int64_t{1} << 22;
   int32_t* cells = nullptr;  ///< 1 where a block lies, x fastest; outside [lo, lo + dims): none
   Vec3i lo, dims;
   float side_m = 0, inv_side_m = 0;
@@ -34,6 +67,20 @@ struct CoarseOccupancy {
     const int shift = kSuperBlockShift + (levels - 1 - level);
     return {pos.x >> shift, pos.y >> shift, pos.z >> shift};
   }
+  /// The grid over `bounds` for a map whose coarsest blocks are `coarsest_block_m` on a side,
+  /// its cells not yet set (`cells` null); no dims where `bounds` is empty.
+  static CoarseOccupancy covering(const SuperBlockBounds& bounds, float coarsest_block_m) {
+    CoarseOccupancy grid;
+    if (bounds.empty()) return grid;
+    grid.lo = bounds.lo;
+    grid.dims = {bounds.hi.x - bounds.lo.x + 1, bounds.hi.y - bounds.lo.y + 1,
+                 bounds.hi.z - bounds.lo.z + 1};
+    grid.side_m = kSuperBlockSide * coarsest_block_m;
+    grid.inv_side_m = 1.0f / grid.side_m;
+    return grid;
+  }
+  /// How many cells the grid spans (0 when it has no dims).
+  int64_t cell_count() const { return static_cast<int64_t>(dims.x) * dims.y * dims.z; }
   HIVOX_HD Vec3i cell_of(const Vec3f& p_w) const { return floor_to_int(p_w * inv_side_m); }
   HIVOX_HD bool empty(const Vec3i& c) const {
     if (cells == nullptr) return false;
@@ -50,10 +97,12 @@ struct CoarseOccupancy {
   }
 };
 
+/// The super-blocks that hold the blocks below `high_water` of `map` (levels `levels`).
+SuperBlockBounds super_block_bounds(const BlockMeta* meta, int32_t high_water, int levels);
+
 /// Fills `cells` with the super-blocks of `map` that hold a block of any level and returns the
 /// view of it (valid while `cells` and the map's layout do not change). No grid (`cells` null in
-/// the view) when the map has no blocks or its blocks span more than 2^22 super-blocks (a map
-/// spread over a huge box: rays then cross unallocated space block by block).
+/// the view) when the map has no blocks or its blocks span more than kMaxCells super-blocks.
 CoarseOccupancy build_coarse_occupancy(const VoxelBlockMap& map, std::vector<int32_t>* cells);
 
 }  // namespace hivox::kernels

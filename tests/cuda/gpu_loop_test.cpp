@@ -447,7 +447,9 @@ TEST(GpuLoop, HoldsNoMoreMemoryForAMapThanTheCpu) {
         levels, device / 1048576.0, host / 1048576.0, static_cast<long long>(gpu.blocks_in_use()),
         static_cast<long long>(cpu.map().blocks_in_use()), static_cast<long long>(merges));
     ASSERT_GT(cpu.map().blocks_in_use(), 1000);
-    if (levels > 1) EXPECT_GT(merges, 0);
+    if (levels > 1) {
+      EXPECT_GT(merges, 0);
+    }
     EXPECT_LE(device, host) << levels << " level(s)";
   }
 }

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "analytic_scene.h"
+#include "core/parallel.h"
 #include "hivox/core/error.h"
 #include "hivox/fusion/integrator.h"
 #include "raycast/coarse_occupancy.h"
@@ -402,6 +403,61 @@ TEST(CoarseOccupancy, MarksTheSuperBlocksHoldingBlocksOfAnyLevel) {
   // An empty map has no grid.
   VoxelBlockMap empty(p);
   EXPECT_EQ(kernels::build_coarse_occupancy(empty, &cells).cells, nullptr);
+}
+
+// The device keeps the super-blocks' bounds across frames, grown only by insertions: that holds
+// because a split's children and a merge's parent lie in the super-block of the blocks they
+// replace, at every level and on both sides of zero.
+TEST(CoarseOccupancy, RefinementKeepsBlocksInTheirSuperBlock) {
+  constexpr int kLevels = 3;
+  for (int level = 1; level < kLevels; ++level)
+    for (int x = -70; x <= 70; x += 3)
+      for (int y : {-33, -1, 0, 5})
+        for (int z : {-9, 0, 17}) {
+          const Vec3i parent{x, y, z};
+          const Vec3i expected = kernels::CoarseOccupancy::super_block_of(parent, level, kLevels);
+          for (int c = 0; c < 8; ++c) {
+            const Vec3i child{2 * x + (c & 1), 2 * y + ((c >> 1) & 1), 2 * z + (c >> 2)};
+            ASSERT_EQ(kernels::CoarseOccupancy::super_block_of(child, level - 1, kLevels), expected)
+                << "parent " << x << " " << y << " " << z << " at level " << level;
+          }
+        }
+}
+
+// Bounds grown by many threads at once (the device's insertions) are the serial bounds, and the
+// grid covering them is the one build_coarse_occupancy lays out.
+TEST(CoarseOccupancy, BoundsGrownConcurrentlyAreTheSerialBounds) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> coord(-500, 500);
+  std::vector<Vec3i> cells(20000);
+  for (Vec3i& c : cells) c = {coord(rng), coord(rng), coord(rng)};
+  kernels::SuperBlockBounds serial, concurrent;
+  EXPECT_TRUE(serial.empty());
+  for (const Vec3i& c : cells) serial.add(c);
+  parallel_for(static_cast<int64_t>(cells.size()),
+               [&](int64_t i) { concurrent.add_atomic(cells[static_cast<std::size_t>(i)]); });
+  EXPECT_EQ(concurrent.lo, serial.lo);
+  EXPECT_EQ(concurrent.hi, serial.hi);
+  EXPECT_FALSE(concurrent.empty());
+
+  MapParams p = fixed_grid(0.01f);
+  p.levels = 2;
+  VoxelBlockMap map(p);
+  const std::vector<BlockKey> keys = {{{-1, 0, 0}, 0}, {{-9, 3, 7}, 0}, {{5, 5, 5}, 1}};
+  ASSERT_EQ(map.insert_blocks(keys).inserted, 3);
+  const kernels::SuperBlockBounds b =
+      kernels::super_block_bounds(map.view().meta, map.block_high_water(), map.levels());
+  EXPECT_EQ(b.lo, (Vec3i{-2, 0, 0}));
+  EXPECT_EQ(b.hi, (Vec3i{1, 1, 1}));
+  std::vector<int32_t> storage;
+  const kernels::CoarseOccupancy built = kernels::build_coarse_occupancy(map, &storage);
+  const kernels::CoarseOccupancy laid =
+      kernels::CoarseOccupancy::covering(b, map.view().level[1].block_size_m);
+  EXPECT_EQ(laid.lo, built.lo);
+  EXPECT_EQ(laid.dims, built.dims);
+  EXPECT_FLOAT_EQ(laid.side_m, built.side_m);
+  EXPECT_EQ(laid.cell_count(), static_cast<int64_t>(storage.size()));
+  EXPECT_EQ(laid.cells, nullptr);
 }
 
 // Crossing empty super-blocks in one step finds the surfaces block-by-block marching finds.

@@ -67,6 +67,18 @@ HIVOX_HD inline int32_t atomic_max(int32_t* address, int32_t value) {
 #endif
 }
 
+HIVOX_HD inline int32_t atomic_min(int32_t* address, int32_t value) {
+#if defined(__CUDA_ARCH__)
+  return atomicMin(address, value);
+#else
+  int32_t current = std::atomic_ref<int32_t>(*address).load(std::memory_order_relaxed);
+  while (value < current && !std::atomic_ref<int32_t>(*address).compare_exchange_weak(
+                                current, value, std::memory_order_acq_rel)) {
+  }
+  return current;
+#endif
+}
+
 /// Atomic minimum / maximum of non-negative floats (their bit patterns order like integers).
 HIVOX_HD inline void atomic_min_positive(float* address, float value) {
   int32_t* bits = reinterpret_cast<int32_t*>(address);
