@@ -1,0 +1,222 @@
+// What the device's raycast costs, modelled on the CPU: every model ray of a frame cast alone
+// with the shared kernels::cast_ray, as a GPU thread casts it (the same hints, range tiles and
+// constants as the CUDA loop), timed one by one, and the times gathered into the GPU's warps
+// (8x4 pixels). A warp takes as long as its slowest ray, and with all of a raycast's warps
+// resident at once the kernel takes about as long as its slowest warps: the tail, not the mean,
+// is what a change to the march must shorten. Each variant is timed in turns with the others
+// (the same rays, `--rounds` times, the minimum per ray kept).
+//
+//   ray_cost ../shared/data/tum_fr1_rpy --frames 120 --at 119
+//   ray_cost synthetic:desk?frames=60 --levels 1 --top 10
+//
+// Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step) and
+// `no-grid` (unallocated space crossed block by block).
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "hivox/core/error.h"
+#include "hivox/io/dataset.h"
+#include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/hints.h"
+#include "hivox/raycast/raycaster.h"
+#include "raycast/coarse_occupancy.h"
+#include "raycast/raycast_kernels.h"
+#include "raycast/surface_tiles.h"
+
+namespace {
+
+using namespace hivox;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kWarpWidth = 8, kWarpHeight = 4;  // the CUDA raycast's warp of pixels
+
+/// One ray: its inputs, how it ended and its best time.
+struct Ray {
+  Vec3f dir;
+  float z_min = 0, z_max = 0;
+  kernels::RayHints hints;
+  kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
+  double ns = 1e30;
+};
+
+const char* outcome_name(kernels::RayOutcome o) {
+  switch (o) {
+    case kernels::RayOutcome::AtHint:
+      return "at hint";
+    case kernels::RayOutcome::AtSecondHint:
+      return "at second hint";
+    case kernels::RayOutcome::Marched:
+      return "marched";
+    case kernels::RayOutcome::Miss:
+      return "miss";
+  }
+  return "?";
+}
+
+/// A variant of the march: its constants (occupancy grid or none).
+struct Variant {
+  std::string name;
+  kernels::RayMarchConstants k;
+  std::vector<Ray> rays;
+};
+
+void report(const Variant& v, const PinholeCamera& cam, int top) {
+  const int wx = (cam.width + kWarpWidth - 1) / kWarpWidth;
+  const int wy = (cam.height + kWarpHeight - 1) / kWarpHeight;
+  std::vector<double> warp_max(static_cast<std::size_t>(wx) * wy, 0.0);
+  std::vector<int> warp_slowest(warp_max.size(), -1);
+  double total = 0;
+  int64_t by_outcome[4] = {};
+  double ns_by_outcome[4] = {};
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const int i = y * cam.width + x;
+      const Ray& r = v.rays[static_cast<std::size_t>(i)];
+      total += r.ns;
+      const auto o = static_cast<int>(r.outcome);
+      ++by_outcome[o];
+      ns_by_outcome[o] += r.ns;
+      const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
+      if (r.ns > warp_max[w]) {
+        warp_max[w] = r.ns;
+        warp_slowest[w] = i;
+      }
+    }
+  const double simt = std::accumulate(warp_max.begin(), warp_max.end(), 0.0);
+  std::vector<std::size_t> order(warp_max.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return warp_max[a] > warp_max[b]; });
+  auto pct = [&](double q) {
+    return warp_max[order[static_cast<std::size_t>(q * (order.size() - 1))]];
+  };
+  // A warp's 32 lanes wait for its slowest ray: the share of their time spent on rays.
+  const double lanes = kWarpWidth * kWarpHeight * simt;
+  std::printf(
+      "%s: rays %.2f ms in all (mean %.0f ns); warps %.2f ms (their slowest rays; lanes busy "
+      "%.0f %% of it); slowest warp %.1f us, 99th/90th/50th percentile %.1f/%.1f/%.2f us\n",
+      v.name.c_str(), total / 1e6, total / v.rays.size(), simt / 1e6, 100.0 * total / lanes,
+      warp_max[order[0]] / 1e3, pct(0.01) / 1e3, pct(0.1) / 1e3, pct(0.5) / 1e3);
+  std::printf("  outcomes:");
+  for (int o = 0; o < 4; ++o)
+    std::printf(" %s %lld (%.0f ns each)", outcome_name(static_cast<kernels::RayOutcome>(o)),
+                static_cast<long long>(by_outcome[o]),
+                by_outcome[o] > 0 ? ns_by_outcome[o] / by_outcome[o] : 0.0);
+  std::printf("\n");
+  for (int t = 0; t < top && t < static_cast<int>(order.size()); ++t) {
+    const int i = warp_slowest[order[static_cast<std::size_t>(t)]];
+    const Ray& r = v.rays[static_cast<std::size_t>(i)];
+    std::printf(
+        "  slow warp %d: ray (%d, %d) %.1f us, %s; range %.3f-%.3f m, hints %.3f / %.3f m\n", t,
+        i % cam.width, i / cam.width, r.ns / 1e3, outcome_name(r.outcome), r.z_min, r.z_max,
+        r.hints.hint, r.hints.second);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"The CUDA raycast's per-warp cost, modelled on the CPU with the shared ray code"};
+  std::string spec;
+  int frames = 120, at = -1, levels = 3, rounds = 3, top = 5;
+  std::string poses = "gt";
+  app.add_option("dataset", spec, "dataset folder or synthetic:NAME")->required();
+  app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
+  app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
+  app.add_option("--levels", levels, "resolution levels (1 = fixed 2 mm grid)");
+  app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
+  app.add_option("--top", top, "slowest warps to describe");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const std::unique_ptr<DatasetReader> reader = open_dataset(spec);
+    const CameraRig& rig = reader->info().rig;
+    const int n = std::min<int>(frames, static_cast<int>(reader->size()));
+    if (at < 0 || at >= n) at = n - 1;
+    if (at < 1)
+      fail(ErrorCode::InvalidArgument, "--at {}: the raycast needs a frame before it", at);
+    ReconstructionParams p;
+    p.map.levels = levels;
+    p.device = Device::cpu();
+    Reconstruction loop(p, rig);
+    const PinholeCamera cam = rig.depth_camera.subsampled(p.track.model_subsample);
+    Raycaster raycaster(p.raycast);
+    FrameHints frame_hints;
+    RaycastResult previous;
+    RaycastHints hints;
+    Pose T_wc;
+    for (int i = 0; i <= at; ++i) {
+      const RgbdFrame f = reader->read(static_cast<std::size_t>(i));
+      if (!f.T_wc_gt) fail(ErrorCode::InvalidArgument, "{}: frame {} has no ground truth", spec, i);
+      loop.integrate(f, *f.T_wc_gt);
+      T_wc = *f.T_wc_gt;
+      // The loop's raycast after fusing: the frame's depth and the previous raycast as hints.
+      hints = frame_hints.build(f.depth_m, rig.depth_camera, p.track.model_subsample, T_wc,
+                                i > 0 ? &previous : nullptr, p.map.truncation_m);
+      if (i < at) previous = raycaster.raycast(loop.map(), cam, T_wc, p.fusion.depth_range, hints);
+    }
+    const VoxelBlockMap& map = loop.map();
+    const MapView view = map.view();
+    std::printf("%s, frame %d: %lld blocks, %d levels; model raycast %dx%d\n", spec.c_str(), at,
+                static_cast<long long>(map.blocks_in_use()), map.levels(), cam.width, cam.height);
+
+    // Range tiles as the device fills them.
+    const float min_m = std::max(p.fusion.depth_range.min_m, 1e-3f);
+    kernels::RangeTiles tiles = kernels::RangeTiles::covering(p.raycast.tuning.range_tile_px, cam);
+    std::vector<float> z_lo(static_cast<std::size_t>(tiles.count()), 3.4e38f),
+        z_hi(static_cast<std::size_t>(tiles.count()), 0.0f);
+    tiles.z_min = z_lo.data();
+    tiles.z_max = z_hi.data();
+    const Rigid3f T = to_rigid3f(T_wc);
+    kernels::fill_range_tiles(map, cam, to_rigid3f(T_wc.inverse()), min_m,
+                              p.fusion.depth_range.max_m, tiles);
+    std::vector<int32_t> cells;
+    std::vector<Variant> variants;
+    variants.push_back(
+        {"grid",
+         kernels::march_constants(p.raycast, view, kernels::build_coarse_occupancy(map, &cells)),
+         {}});
+    variants.push_back(
+        {"no-grid", kernels::march_constants(p.raycast, view, kernels::CoarseOccupancy{}), {}});
+
+    const std::size_t pixels = static_cast<std::size_t>(cam.width) * cam.height;
+    for (Variant& v : variants) {
+      v.rays.resize(pixels);
+      for (int y = 0; y < cam.height; ++y)
+        for (int x = 0; x < cam.width; ++x) {
+          Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
+          const int t = tiles.tile_of(x, y);
+          r.z_min = tiles.z_min[t];
+          r.z_max = tiles.z_max[t];
+          const float start = hints.start_m != nullptr ? (*hints.start_m)(x, y) : 0.0f;
+          const float fallback = hints.fallback_m != nullptr ? (*hints.fallback_m)(x, y) : 0.0f;
+          r.hints = kernels::ray_hints(start, fallback, v.k, r.z_min, r.z_max);
+          r.dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+        }
+    }
+    for (int round = 0; round < rounds; ++round)
+      for (Variant& v : variants)
+        for (Ray& r : v.rays) {
+          kernels::BlockLookupCache cache;
+          kernels::RayHit hit;
+          const Clock::time_point t0 = Clock::now();
+          r.outcome =
+              kernels::cast_ray(view, cache, T.t, r.dir, r.hints, r.z_min, r.z_max, v.k, &hit);
+          const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
+          r.ns = std::min(r.ns, ns);
+        }
+    for (const Variant& v : variants) report(v, cam, top);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "ray_cost: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
