@@ -235,12 +235,14 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_crossing(
 /// (and no crossing was found right before it): a surface in front of z_start is likely.
 /// `z_first` (when > z_start): where the march begins, the ray in front of it known to cross no
 /// cell with a surface (RayStretch); a sample just behind a surface still searches back into it
-/// (as far as z_start). The march finds what it would find from z_start.
+/// (as far as z_start). The march finds what it would find from z_start. `stop_if_behind`: the
+/// march ends (false) where it sets `started_behind`.
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLookupCache& cache,
                                                      const Vec3f& o, const Vec3f& d, float z_start,
                                                      float z_end, const RayMarchConstants& k,
                                                      RayHit* hit, bool* started_behind = nullptr,
-                                                     float z_first = 0.0f) {
+                                                     float z_first = 0.0f,
+                                                     bool stop_if_behind = false) {
   bool seen_known = false;
   const float inv_len = 1.0f / norm(d);
   const Vec3f inv_d{d.x != 0.0f ? 1.0f / d.x : 0.0f, d.y != 0.0f ? 1.0f / d.y : 0.0f,
@@ -331,7 +333,10 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
       prev_valid = false;
       continue;
     }
-    if (s.f <= 0.0f && !seen_known && started_behind != nullptr) *started_behind = true;
+    if (s.f <= 0.0f && !seen_known && started_behind != nullptr) {
+      *started_behind = true;
+      if (stop_if_behind) return false;
+    }
     seen_known = true;
     if (s.f <= 0.0f) {
       if (prev_valid && prev_f > 0.0f) {
@@ -500,15 +505,23 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
                                      const RayStretch& stretch = {}) {
   bool behind = false;
   auto end_at = [&](float z_end) { return z_end < stretch.z_out ? z_end : stretch.z_out; };
-  bool found = march_ray(map, cache, o, d, hint > 0.0f ? hint - k.hint_margin_m : z_min,
-                         end_at(z_max), k, hit, &behind, stretch.z_in);
+  const float z_from = hint > 0.0f ? hint - k.hint_margin_m : z_min;
+  // With a hint, the march behind it stops as soon as it finds it began behind a surface: the
+  // march in front of the hint decides then, and the march behind runs whole only where that
+  // finds nothing. The same hit as marching behind first, without its cost where the front wins
+  // (the slowest rays of a raycast were often these: a hint behind a depth edge, marched to the
+  // end of the range before the front was searched).
+  bool found = march_ray(map, cache, o, d, z_from, end_at(z_max), k, hit, &behind, stretch.z_in,
+                         hint > 0.0f);
   if (hint > 0.0f && (!found || behind)) {
     RayHit front;
     if (march_ray(map, cache, o, d, z_min, end_at(hint < z_max ? hint : z_max), k, &front, nullptr,
                   stretch.z_in)) {
       *hit = front;
-      found = true;
+      return true;
     }
+    if (behind)
+      found = march_ray(map, cache, o, d, z_from, end_at(z_max), k, hit, nullptr, stretch.z_in);
   }
   return found;
 }
