@@ -2,7 +2,8 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes: the gpu tests, compute-sanitizer's memcheck on
 # the newest of them, then bench/gpu_loop on the desk and fr1/rpy (fixed grid and 3 levels;
-# Gauss-Newton on the host and on the device, alternated; meshing on the device and the host).
+# Gauss-Newton on the host and on the device, alternated; the coarse occupancy grid off and on;
+# meshing on the device and the host).
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time.
 #
@@ -65,5 +66,13 @@ for levels in 3 1; do
       --json "$out/fr1_l${levels}_gn_device.json"
   fi
 done
+# The raycast's coarse occupancy grid off and on, alternated (fr1/rpy has the long marches).
+if [ -n "$fr1" ]; then
+  for grid in off on; do
+    flag=""
+    [ "$grid" = off ] && flag=--no-coarse-grid
+    step "fr1_l3_grid_$grid" "$loop" "$fr1" --levels 3 $flag --json "$out/fr1_l3_grid_$grid.json"
+  done
+fi
 step desk_l3_mesh "$loop" "$desk" --levels 3 --poses gt --mesh --json "$out/desk_l3_mesh.json"
 echo "logs and numbers in $out"

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false, mesh = false, gn_on_device = false;
+  bool cpu = false, mesh = false, gn_on_device = false, no_coarse_grid = false;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -94,6 +94,8 @@ int main(int argc, char** argv) {
   app.add_flag("--gn-on-device", gn_on_device,
                "tracking's Gauss-Newton steps on the device (GpuReconstruction::"
                "set_gauss_newton_on_device)");
+  app.add_flag("--no-coarse-grid", no_coarse_grid,
+               "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
   app.add_option("--json", json, "write the results here");
@@ -120,6 +122,7 @@ int main(int argc, char** argv) {
     params.map.levels = levels;
     params.map.voxel_size_m = voxel_m;
     params.map.max_blocks = max_blocks;
+    params.raycast.tuning.coarse_skipping = !no_coarse_grid;
     const std::size_t k =
         static_cast<std::size_t>(std::clamp<int>(handover, 0, static_cast<int>(n)));
 
@@ -153,8 +156,9 @@ int main(int argc, char** argv) {
                     MapSession{static_cast<int64_t>(k), cpu_loop.trajectory().back().T_wc, {}})
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
     gpu->set_gauss_newton_on_device(gn_on_device);
-    std::printf("device: %s; Gauss-Newton on the %s\n", cuda::device_name(0).c_str(),
-                gn_on_device ? "device" : "host");
+    std::printf("device: %s; Gauss-Newton on the %s; coarse occupancy grid %s\n",
+                cuda::device_name(0).c_str(), gn_on_device ? "device" : "host",
+                no_coarse_grid ? "off" : "on");
     std::vector<StampedPose> gt;
     for (std::size_t i = k; i < n; ++i) {
       if (has_gt) gt.push_back({data[i].timestamp_s, *data[i].T_wc_gt});
@@ -235,7 +239,8 @@ int main(int argc, char** argv) {
       out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
           << poses << "\", \"gauss_newton_on_device\": " << (gn_on_device ? "true" : "false")
-          << ", \"handover\": " << k << ", \"frames_timed\": " << g.frames
+          << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true") << ", \"handover\": " << k
+          << ", \"frames_timed\": " << g.frames
           << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms
           << ", \"integrate\": " << g.mean.integrate_ms << ", \"refine\": " << g.mean.refine_ms
