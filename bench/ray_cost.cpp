@@ -45,6 +45,7 @@ struct Ray {
   kernels::RayHints hints;
   kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
   double ns = 1e30;
+  float depth_m = 0;  ///< the hit's
 };
 
 const char* outcome_name(kernels::RayOutcome o) {
@@ -127,13 +128,16 @@ int main(int argc, char** argv) {
   CLI::App app{"The CUDA raycast's per-warp cost, modelled on the CPU with the shared ray code"};
   std::string spec;
   int frames = 120, at = -1, levels = 3, rounds = 3, top = 5;
-  std::string poses = "gt";
+  std::string dump;
   app.add_option("dataset", spec, "dataset folder or synthetic:NAME")->required();
   app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
   app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
   app.add_option("--levels", levels, "resolution levels (1 = fixed 2 mm grid)");
   app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
   app.add_option("--top", top, "slowest warps to describe");
+  app.add_option("--dump", dump,
+                 "write every ray's outcome and hit depth (first variant) here, one line a ray: "
+                 "two builds' files are equal where a change keeps the raycast's result");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -212,8 +216,16 @@ int main(int argc, char** argv) {
               kernels::cast_ray(view, cache, T.t, r.dir, r.hints, r.z_min, r.z_max, v.k, &hit);
           const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
           r.ns = std::min(r.ns, ns);
+          r.depth_m = hit.depth_m;
         }
     for (const Variant& v : variants) report(v, cam, top);
+    if (!dump.empty()) {
+      FILE* out = std::fopen(dump.c_str(), "w");
+      if (out == nullptr) fail(ErrorCode::Io, "--dump {}: cannot be written", dump);
+      for (const Ray& r : variants.front().rays)
+        std::fprintf(out, "%d %.7f\n", static_cast<int>(r.outcome), r.depth_m);
+      std::fclose(out);
+    }
   } catch (const Error& e) {
     std::fprintf(stderr, "ray_cost: %s\n", e.what());
     return 1;
