@@ -227,23 +227,30 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_crossing(
   refine_bracket(map, cache, o, d, b, k, hit);
 }
 
+/// What a march saw on its way, besides its hit (march_ray's optional report).
+struct MarchReport {
+  bool known = false;           ///< it met observed voxels (a sample, or an observed free octant)
+  bool started_behind = false;  ///< the first of them lay behind a surface, no crossing before
+};
+
 /// Marches ray `o + z d` for z in [z_start, z_end] to the first crossing of the TSDF from
 /// positive (free space) to negative. Through unallocated space it jumps from block to block;
 /// through known space it steps by the TSDF distance, through unknown voxels by the band; the
 /// crossing is refined by the secant method.
-/// `started_behind` (optional) is set when the first known sample already lies behind a surface
-/// (and no crossing was found right before it): a surface in front of z_start is likely.
+/// `report` (optional) receives what the march met: where it started behind a surface, one in
+/// front of z_start is likely.
 /// `z_first` (when > z_start): where the march begins, the ray in front of it known to cross no
 /// cell with a surface (RayStretch); a sample just behind a surface still searches back into it
 /// (as far as z_start). The march finds what it would find from z_start. `stop_if_behind`: the
-/// march ends (false) where it sets `started_behind`.
+/// march ends (false) where it finds it started behind a surface.
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLookupCache& cache,
                                                      const Vec3f& o, const Vec3f& d, float z_start,
                                                      float z_end, const RayMarchConstants& k,
-                                                     RayHit* hit, bool* started_behind = nullptr,
+                                                     RayHit* hit, MarchReport* report = nullptr,
                                                      float z_first = 0.0f,
                                                      bool stop_if_behind = false) {
-  bool seen_known = false;
+  MarchReport unused;
+  MarchReport& seen = report != nullptr ? *report : unused;
   const float inv_len = 1.0f / norm(d);
   const Vec3f inv_d{d.x != 0.0f ? 1.0f / d.x : 0.0f, d.y != 0.0f ? 1.0f / d.y : 0.0f,
                     d.z != 0.0f ? 1.0f / d.z : 0.0f};
@@ -296,7 +303,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
                    lo.z + static_cast<float>(oz) * half_m};
         skip_hi = {skip_lo.x + half_m, skip_lo.y + half_m, skip_lo.z + half_m};
         // Observed and all positive: known free space in front, as a positive sample would say.
-        seen_known = seen_known || (surface.observed & bit) != 0;
+        seen.known = seen.known || (surface.observed & bit) != 0;
       }
     }
     if (skip) {
@@ -333,11 +340,11 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
       prev_valid = false;
       continue;
     }
-    if (s.f <= 0.0f && !seen_known && started_behind != nullptr) {
-      *started_behind = true;
+    if (s.f <= 0.0f && !seen.known) {
+      seen.started_behind = true;
       if (stop_if_behind) return false;
     }
-    seen_known = true;
+    seen.known = true;
     if (s.f <= 0.0f) {
       if (prev_valid && prev_f > 0.0f) {
         refine_crossing(map, cache, o, d, prev_z, prev_f, z, s.f, s, level, k, hit);
@@ -495,6 +502,77 @@ struct RayStretch {
   float z_out = FLT_MAX;
 };
 
+/// A march split across the lanes of a GPU warp: the warp takes the rays whose hints failed one
+/// at a time, each lane marching a stretch of the ray, instead of each thread marching its own
+/// ray while its warp waits for the longest. Lane `lane` of `lanes` marches its stretch of
+/// [z_start, z_end]: the stretches are equal, at least `kMinStretchBands` bands long (a short
+/// march uses fewer lanes; the others march nothing), and each reaches a band into the next, so
+/// that one lane brackets a crossing at a boundary; a lane that starts behind a surface
+/// searches back as far as z_start. The march's hit is the lowest lane's (split_march_result).
+struct LaneMarch {
+  static constexpr float kMinStretchBands = 2.0f;
+  bool found = false;
+  RayHit hit;
+  MarchReport report;
+};
+HIVOX_HD inline LaneMarch march_lane(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                     const Vec3f& d, float z_start, float z_end,
+                                     const RayMarchConstants& k, int lane, int lanes) {
+  LaneMarch m;
+  const float band = k.mu_m;
+  float length = (z_end - z_start) / static_cast<float>(lanes);
+  length =
+      length > LaneMarch::kMinStretchBands * band ? length : LaneMarch::kMinStretchBands * band;
+  const float from = z_start + static_cast<float>(lane) * length;
+  if (from > z_end) return m;
+  const float to = from + length + band;
+  m.found =
+      march_ray(map, cache, o, d, z_start, to < z_end ? to : z_end, k, &m.hit, &m.report, from);
+  return m;
+}
+
+/// The lowest set bit's index of `mask` (not 0).
+HIVOX_HD inline int lowest_lane(uint32_t mask) {
+#if defined(__CUDA_ARCH__)
+  return __ffs(static_cast<int>(mask)) - 1;
+#else
+  return __builtin_ctz(mask);
+#endif
+}
+
+/// A split march's result from its lanes' reports as masks (bit i: lane i): the winner is the
+/// lowest lane that found a crossing (-1: none); the march began behind a surface where the
+/// lowest lane that met observed voxels began behind one.
+struct SplitMarch {
+  int winner = -1;
+  bool behind = false;
+};
+HIVOX_HD inline SplitMarch split_march_result(uint32_t found, uint32_t known, uint32_t behind) {
+  SplitMarch r;
+  if (found != 0u) r.winner = lowest_lane(found);
+  if (known != 0u) r.behind = ((behind >> lowest_lane(known)) & 1u) != 0u;
+  return r;
+}
+
+/// The stretches of march_from_hint as a split march takes them: first `far` (from the hint's
+/// margin, or z_min without a hint, to z_max); where that finds nothing or began behind a
+/// surface and there is a hint, `front` (z_min to the hint), whose hit wins where it has one.
+struct HintStretches {
+  float far_from = 0, far_to = 0, front_from = 0, front_to = 0;
+  HIVOX_HD bool has_front() const { return front_to > 0.0f; }
+};
+HIVOX_HD inline HintStretches hint_stretches(float hint, float z_min, float z_max,
+                                             const RayMarchConstants& k) {
+  HintStretches s;
+  s.far_from = hint > 0.0f ? hint - k.hint_margin_m : z_min;
+  s.far_to = z_max;
+  if (hint > 0.0f) {
+    s.front_from = z_min;
+    s.front_to = hint < z_max ? hint : z_max;
+  }
+  return s;
+}
+
 /// The march of a ray whose hint search failed, or that has no hint (`hint` 0): from
 /// `k.hint_margin_m` in front of the hint (from `z_min` without one) to `z_max`. Where the hint is
 /// wrong (a model surface in front of it, e.g. at a depth edge, or none behind it), the part in
@@ -503,27 +581,78 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
                                      const Vec3f& d, float hint, float z_min, float z_max,
                                      const RayMarchConstants& k, RayHit* hit,
                                      const RayStretch& stretch = {}) {
-  bool behind = false;
+  MarchReport behind;
   auto end_at = [&](float z_end) { return z_end < stretch.z_out ? z_end : stretch.z_out; };
-  const float z_from = hint > 0.0f ? hint - k.hint_margin_m : z_min;
+  const HintStretches st = hint_stretches(hint, z_min, z_max, k);
+  const float z_from = st.far_from;
   // With a hint, the march behind it stops as soon as it finds it began behind a surface: the
   // march in front of the hint decides then, and the march behind runs whole only where that
   // finds nothing. The same hit as marching behind first, without its cost where the front wins
   // (the slowest rays of a raycast were often these: a hint behind a depth edge, marched to the
   // end of the range before the front was searched).
-  bool found = march_ray(map, cache, o, d, z_from, end_at(z_max), k, hit, &behind, stretch.z_in,
-                         hint > 0.0f);
-  if (hint > 0.0f && (!found || behind)) {
+  bool found = march_ray(map, cache, o, d, z_from, end_at(st.far_to), k, hit, &behind, stretch.z_in,
+                         st.has_front());
+  if (st.has_front() && (!found || behind.started_behind)) {
     RayHit front;
-    if (march_ray(map, cache, o, d, z_min, end_at(hint < z_max ? hint : z_max), k, &front, nullptr,
+    if (march_ray(map, cache, o, d, st.front_from, end_at(st.front_to), k, &front, nullptr,
                   stretch.z_in)) {
       *hit = front;
       return true;
     }
-    if (behind)
-      found = march_ray(map, cache, o, d, z_from, end_at(z_max), k, hit, nullptr, stretch.z_in);
+    if (behind.started_behind)
+      found = march_ray(map, cache, o, d, z_from, end_at(st.far_to), k, hit, nullptr, stretch.z_in);
   }
   return found;
+}
+
+/// Which lane's hit a split march_from_hint keeps: `front` says from which stretch, `winner` the
+/// lane (-1: the ray hit nothing).
+struct SplitChoice {
+  bool front = false;
+  int winner = -1;
+};
+/// march_from_hint's decisions for a split march. `march(from, to, front)` marches that stretch
+/// split across the lanes (each lane keeping its own LaneMarch of each stretch) and returns
+/// their split_march_result; a GPU warp's lanes call this together, a CPU emulation once for
+/// all lanes.
+template <typename SplitMarchFn>
+HIVOX_HD inline SplitChoice split_march_from_hint(const HintStretches& st, SplitMarchFn&& march) {
+  const SplitMarch far = march(st.far_from, st.far_to, false);
+  if (st.has_front() && (far.winner < 0 || far.behind)) {
+    const SplitMarch front = march(st.front_from, st.front_to, true);
+    if (front.winner >= 0) return {true, front.winner};
+  }
+  return {false, far.winner};
+}
+
+/// A split march_from_hint on the CPU, lane after lane (the tests, and bench/ray_cost's model of
+/// the GPU's): what a warp's `lanes` lanes find together for one ray, with `caches[lane]` each.
+/// `each_lane(lane, march)` runs `march()` for that lane (a hook for timing it). Returns whether
+/// the ray hit, into `hit`.
+template <typename EachLane>
+inline bool split_march_on_cpu(const MapView& map, BlockLookupCache* caches, const Vec3f& o,
+                               const Vec3f& d, float hint, float z_min, float z_max,
+                               const RayMarchConstants& k, int lanes, RayHit* hit,
+                               EachLane&& each_lane) {
+  constexpr int kMostLanes = 32;
+  LaneMarch far[kMostLanes], front[kMostLanes];
+  lanes = lanes < kMostLanes ? lanes : kMostLanes;
+  auto march = [&](float from, float to, bool is_front) {
+    LaneMarch* m = is_front ? front : far;
+    uint32_t found = 0, known = 0, behind = 0;
+    for (int lane = 0; lane < lanes; ++lane) {
+      each_lane(lane,
+                [&] { m[lane] = march_lane(map, caches[lane], o, d, from, to, k, lane, lanes); });
+      found |= static_cast<uint32_t>(m[lane].found) << lane;
+      known |= static_cast<uint32_t>(m[lane].report.known) << lane;
+      behind |= static_cast<uint32_t>(m[lane].report.started_behind) << lane;
+    }
+    return split_march_result(found, known, behind);
+  };
+  const SplitChoice c = split_march_from_hint(hint_stretches(hint, z_min, z_max, k), march);
+  if (c.winner < 0) return false;
+  *hit = (c.front ? front : far)[c.winner].hit;
+  return true;
 }
 
 /// Where a ray's surface was found (see cast_ray).

@@ -483,6 +483,59 @@ TEST(Raycaster, CoarseSkippingFindsTheSameSurfaces) {
   }
 }
 
+// A march split across a warp's 32 lanes (each a stretch of the ray, the lowest lane's hit kept;
+// the GPU's way with the few rays of a warp whose hints failed) finds the surfaces the whole
+// march finds, on the exact surface: without a hint, with the hint at the surface, in front of it
+// and behind it (where the march behind the hint begins behind the surface and the front wins).
+TEST(Raycaster, SplitMarchesFindTheSurfacesWholeMarchesFind) {
+  const Scene s = fused_scene(0.01f);
+  const MapView view = s.map->view();
+  std::vector<int32_t> cells;
+  RaycastParams rp;
+  const kernels::RayMarchConstants k =
+      kernels::march_constants(rp, view, kernels::build_coarse_occupancy(*s.map, &cells));
+  const PinholeCamera cam = small_camera();
+  std::vector<kernels::BlockLookupCache> caches(32);
+  kernels::BlockLookupCache cache;
+  int64_t rays = 0, both = 0, one_only = 0, apart = 0, off_surface = 0;
+  for (int v : {2, 9}) {
+    const Pose T_wc = test::orbit(s.shape.centre, 1.6, 0.7, 24)[v];
+    const DepthImage truth = s.shape.render(cam, T_wc);
+    const Rigid3f T = to_rigid3f(T_wc);
+    for (int y = 0; y < cam.height; y += 2)
+      for (int x = 0; x < cam.width; x += 2) {
+        const float d = truth(x, y);
+        const Vec3f dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+        std::vector<float> hints = {0.0f};  // none
+        if (d > 0.0f) hints.insert(hints.end(), {d, d - 3.0f * s.mu, d + 3.0f * s.mu});
+        for (const float hint : hints) {
+          ++rays;
+          kernels::RayHit whole, split;
+          const bool a = kernels::march_from_hint(view, cache, T.t, dir, hint, kRange.min_m,
+                                                  kRange.max_m, k, &whole);
+          const bool b = kernels::split_march_on_cpu(view, caches.data(), T.t, dir, hint,
+                                                     kRange.min_m, kRange.max_m, k, 32, &split,
+                                                     [](int, auto&& march) { march(); });
+          one_only += a != b;
+          if (!a || !b) continue;
+          ++both;
+          apart += std::abs(whole.depth_m - split.depth_m) > 0.5f * s.voxel;
+          const Vec3f p = split.p_w;
+          off_surface += std::abs(s.shape.sdf(Eigen::Vector3d(p.x, p.y, p.z))) > 0.5 * s.voxel;
+        }
+      }
+  }
+  std::printf(
+      "[ split    ] %lld rays: %lld hit by both marches, %lld by one only, %lld hits "
+      "more than half a voxel apart, %lld split hits off the surface\n",
+      static_cast<long long>(rays), static_cast<long long>(both), static_cast<long long>(one_only),
+      static_cast<long long>(apart), static_cast<long long>(off_surface));
+  EXPECT_GT(both, rays / 4);
+  EXPECT_LE(one_only, rays / 500);
+  EXPECT_LE(apart, both / 500);
+  EXPECT_LE(off_surface, both / 500);
+}
+
 // Marching only where a ray crosses its tile's surface boxes finds what marching the whole range
 // finds: without hints (every ray marches), and with hints that fail (their rays march from in
 // front of the hint, and in front of that where they find nothing).
