@@ -3,7 +3,7 @@
 # short session gets the most out of its minutes: the gpu tests, compute-sanitizer's memcheck on
 # the newest of them, then bench/gpu_loop on the desk and fr1/rpy (fixed grid and 3 levels;
 # Gauss-Newton on the host and on the device, alternated; the coarse occupancy grid off and on;
-# meshing on the device and the host).
+# split marches off and on; meshing on the device and the host).
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time.
 #
@@ -50,7 +50,7 @@ step test_cuda_kernels "$build/tests/test_cuda_kernels"
 if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
-    --gtest_filter='*MeshesOnTheDevice*:*GaussNewtonOnTheDevice*:*HoldsNoMoreMemory*'
+    --gtest_filter='*MeshesOnTheDevice*:*GaussNewtonOnTheDevice*:*HoldsNoMoreMemory*:*SplitMarches*'
 fi
 
 loop="$build/bench/hivox_gpu_loop"
@@ -74,5 +74,18 @@ if [ -n "$fr1" ]; then
     step "fr1_l3_grid_$grid" "$loop" "$fr1" --levels 3 $flag --json "$out/fr1_l3_grid_$grid.json"
   done
 fi
+# Split marches (a warp with at most N marching rays splits them across its lanes) off and on,
+# alternated, where the marches are long (fr1/rpy) and short (the desk).
+for data in desk fr1; do
+  src=$desk
+  [ "$data" = fr1 ] && src=$fr1
+  [ -z "$src" ] && continue
+  run=0
+  for split in 0 1 0 1; do
+    run=$((run + 1))
+    step "${data}_l3_split${split}_run$run" "$loop" "$src" --levels 3 --split-marches "$split" \
+      --json "$out/${data}_l3_split${split}_run$run.json"
+  done
+done
 step desk_l3_mesh "$loop" "$desk" --levels 3 --poses gt --mesh --json "$out/desk_l3_mesh.json"
 echo "logs and numbers in $out"

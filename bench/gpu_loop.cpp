@@ -78,6 +78,7 @@ int main(int argc, char** argv) {
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, gn_on_device = false, no_coarse_grid = false;
+  int split_marches = 0;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -94,6 +95,9 @@ int main(int argc, char** argv) {
   app.add_flag("--gn-on-device", gn_on_device,
                "tracking's Gauss-Newton steps on the device (GpuReconstruction::"
                "set_gauss_newton_on_device)");
+  app.add_option("--split-marches", split_marches,
+                 "split a warp's marches across its lanes where at most this many of its rays "
+                 "march (GpuReconstruction::set_split_marches; 0: each ray its own)");
   app.add_flag("--no-coarse-grid", no_coarse_grid,
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
@@ -156,9 +160,10 @@ int main(int argc, char** argv) {
                     MapSession{static_cast<int64_t>(k), cpu_loop.trajectory().back().T_wc, {}})
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
     gpu->set_gauss_newton_on_device(gn_on_device);
-    std::printf("device: %s; Gauss-Newton on the %s; coarse occupancy grid %s\n",
+    gpu->set_split_marches(split_marches);
+    std::printf("device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d\n",
                 cuda::device_name(0).c_str(), gn_on_device ? "device" : "host",
-                no_coarse_grid ? "off" : "on");
+                no_coarse_grid ? "off" : "on", split_marches);
     std::vector<StampedPose> gt;
     for (std::size_t i = k; i < n; ++i) {
       if (has_gt) gt.push_back({data[i].timestamp_s, *data[i].T_wc_gt});
@@ -239,7 +244,8 @@ int main(int argc, char** argv) {
       out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
           << poses << "\", \"gauss_newton_on_device\": " << (gn_on_device ? "true" : "false")
-          << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true") << ", \"handover\": " << k
+          << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
+          << ", \"split_marches\": " << split_marches << ", \"handover\": " << k
           << ", \"frames_timed\": " << g.frames
           << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms

@@ -127,6 +127,7 @@ struct GpuReconstruction::Impl {
   Buffer<uint32_t> icp_done;
   PinnedBuffer<double> host_sums;
   bool gauss_newton_on_device = false;
+  int split_marches_at_most = 0;        ///< see set_split_marches
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
   PinnedBuffer<kernels::IcpState> host_icp_state;
 
@@ -581,7 +582,7 @@ struct GpuReconstruction::Impl {
       hint.fallback_m = warped.get();
     }
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
-                  tiles, k, hint, out, alloc_counters.get());
+                  tiles, k, hint, out, alloc_counters.get(), split_marches_at_most);
     int32_t hits = 0;
     check_status(cudaMemcpy(&hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t),
                             cudaMemcpyDeviceToHost),
@@ -753,6 +754,12 @@ const TrackResult& GpuReconstruction::last_track() const {
 }
 void GpuReconstruction::set_gauss_newton_on_device(bool on) {
   impl_->gauss_newton_on_device = on;
+}
+void GpuReconstruction::set_split_marches(int at_most) {
+  if (at_most < 0 || at_most > 32)
+    fail(ErrorCode::InvalidArgument, "split marches: at most {} rays a warp is not in [0, 32]",
+         at_most);
+  impl_->split_marches_at_most = at_most;
 }
 
 const MapParams& GpuReconstruction::map_params() const {

@@ -252,6 +252,73 @@ __global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCam
   count_warp(found, &counters->raycast_hits);
 }
 
+/// cast_rays_kernel with the marches of a warp split across its lanes where at most
+/// `split_at_most` of its rays march (kernels::split_march_from_hint): the warp searches its
+/// rays' hints together, then takes the rays whose search failed one after another, each lane
+/// marching a stretch; the winning lane writes the ray's pixel. A warp with more marching rays
+/// marches each whole in its own thread, as cast_rays_kernel does. Every lane of a warp takes
+/// part in its ballots (lanes outside the image march nothing of their own).
+__global__ void cast_rays_split_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
+                                       Rigid3f T_wc, kernels::RangeTiles tiles,
+                                       kernels::RayMarchConstants k, RayHintImages hint,
+                                       kernels::RaycastOutputView out, AllocCounters* counters,
+                                       int split_at_most) {
+  constexpr unsigned kWarp = 0xffffffffu;
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < cam.width && y < cam.height;
+  const int lane = static_cast<int>(lane_index());
+  const int32_t i = in_image ? y * cam.width + x : -1;
+  PixelRay r;
+  if (in_image) r = pixel_ray(cam, T_wc, tiles, k, hint, x, y);
+  kernels::BlockLookupCache cache;
+  kernels::RayHit hit;
+  kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
+  if (in_image)
+    outcome = kernels::search_at_hints(map, cache, T_wc.t, r.dir, r.hints, r.z_max, k, &hit);
+  const bool marches = in_image && outcome == kernels::RayOutcome::Miss && r.z_max > 0.0f;
+  unsigned pending = __ballot_sync(kWarp, marches);
+  if (__popc(pending) > split_at_most) {
+    // Many rays march here: each its own, as cast_rays_kernel does.
+    bool found = outcome != kernels::RayOutcome::Miss;
+    if (marches)
+      found = kernels::march_from_hint(map, cache, T_wc.t, r.dir, r.hints.hint, r.z_min, r.z_max, k,
+                                       &hit);
+    if (in_image) kernels::write_ray(out, map, i, found, hit);
+    count_warp(found, &counters->raycast_hits);
+    return;
+  }
+  if (in_image && !marches)
+    kernels::write_ray(out, map, i, outcome != kernels::RayOutcome::Miss, hit);
+  count_warp(outcome != kernels::RayOutcome::Miss, &counters->raycast_hits);
+  while (pending != 0u) {
+    const int owner = __ffs(static_cast<int>(pending)) - 1;
+    pending &= pending - 1u;
+    const Vec3f dir{__shfl_sync(kWarp, r.dir.x, owner), __shfl_sync(kWarp, r.dir.y, owner),
+                    __shfl_sync(kWarp, r.dir.z, owner)};
+    const float ray_hint = __shfl_sync(kWarp, r.hints.hint, owner);
+    const float z_min = __shfl_sync(kWarp, r.z_min, owner);
+    const float z_max = __shfl_sync(kWarp, r.z_max, owner);
+    const int32_t pixel = __shfl_sync(kWarp, i, owner);
+    kernels::LaneMarch far, front;
+    auto march = [&](float from, float to, bool is_front) {
+      kernels::LaneMarch& m = is_front ? front : far;
+      m = kernels::march_lane(map, cache, T_wc.t, dir, from, to, k, lane, 32);
+      return kernels::split_march_result(__ballot_sync(kWarp, m.found),
+                                         __ballot_sync(kWarp, m.report.known),
+                                         __ballot_sync(kWarp, m.report.started_behind));
+    };
+    const kernels::SplitChoice c =
+        kernels::split_march_from_hint(kernels::hint_stretches(ray_hint, z_min, z_max, k), march);
+    if (c.winner < 0) {
+      if (lane == owner) kernels::write_ray(out, map, pixel, false, hit);
+    } else if (lane == c.winner) {
+      kernels::write_ray(out, map, pixel, true, c.front ? front.hit : far.hit);
+      atomicAdd(&counters->raycast_hits, 1);
+    }
+  }
+}
+
 __global__ void warp_clear_kernel(uint32_t* nearest, int64_t n) {
   const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i < n) nearest[i] = __float_as_uint(FLT_MAX);
@@ -510,7 +577,7 @@ void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n) {
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
-             const kernels::RaycastOutputView& out, AllocCounters* counters) {
+             const kernels::RaycastOutputView& out, AllocCounters* counters, int split_at_most) {
   fill_tiles<<<grid_for(tiles.count()), kThreads>>>(tiles);
   if (k.occupancy.cells != nullptr)
     check_status(
@@ -523,8 +590,12 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
   // Warps of 8x4 pixels: their rays stay closer together than those of 16x2, so they
   // diverge less (1 % faster than 16x2 on the H200).
   const dim3 threads(8, 16);
-  cast_rays_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
-      map, camera, T_wc, tiles, k, hint, out, counters);
+  if (split_at_most > 0)
+    cast_rays_split_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
+        map, camera, T_wc, tiles, k, hint, out, counters, split_at_most);
+  else
+    cast_rays_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
+        map, camera, T_wc, tiles, k, hint, out, counters);
   check_last("raycast");
 }
 

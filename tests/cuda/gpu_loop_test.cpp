@@ -202,9 +202,9 @@ ReconstructionParams params_for(int levels, float voxel_m, float truncation_m) {
 
 /// Fuses `first` frames on the CPU (refining between frames when the map has several levels),
 /// hands the map to the GPU, then fuses (and refines) frames [first, last) at their true poses
-/// on both.
+/// on both. `split_marches`: GpuReconstruction::set_split_marches.
 void compare_fusion(const std::string& spec, int levels, float voxel_m, float truncation_m,
-                    int first, int last) {
+                    int first, int last, int split_marches = 0) {
   SyntheticDataset data(parse_synthetic_spec(spec));
   const CameraRig& rig = data.info().rig;
   const ReconstructionParams p = params_for(levels, voxel_m, truncation_m);
@@ -217,6 +217,7 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
     if (levels > 1) refiner.refine(map, a.visible_blocks, *f.T_wc_gt);
   }
   cuda::GpuReconstruction gpu(p, rig, map);
+  gpu.set_split_marches(split_marches);
   // From the handover on both refine, counting their calls from there.
   Refiner after(p.refine, rig.depth_noise);
   Pose last_pose = Pose::Identity();
@@ -247,6 +248,13 @@ TEST(GpuLoop, FusesTheCpusMapOnAFixedGrid) {
 TEST(GpuLoop, FusesIntoAHierarchyHandedOverByTheCpu) {
   HIVOX_REQUIRE_CUDA();
   compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40);
+}
+
+// The model raycast with every warp's marches split across its lanes (the split taken even where
+// all 32 rays march) finds what the CPU's whole marches find.
+TEST(GpuLoop, SplitMarchesRaycastAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40, 32);
 }
 
 TEST(GpuLoop, TracksAsTheCpuDoes) {

@@ -59,6 +59,13 @@ class GpuReconstruction {
   /// not the default.
   void set_gauss_newton_on_device(bool on);
 
+  /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
+  /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
+  /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of
+  /// waiting for its longest. Modelled on the CPU (bench/ray_cost) to shorten the slowest warps
+  /// by about half; not yet run on a GPU, so not the default.
+  void set_split_marches(int at_most);
+
   const std::vector<StampedPose>& trajectory() const;
   const std::vector<FrameStats>& frames() const;
   /// The last frame's tracking (Good, with no ICP numbers, for a frame fused at a given pose).
