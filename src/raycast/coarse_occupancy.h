@@ -31,11 +31,9 @@ struct SuperBlockBounds {
   }
   /// add(c) where threads may add concurrently (an atomic only where `c` lies outside).
   HIVOX_HD void add_atomic(const Vec3i& c) {
-    int32_t* l = &lo.x;
-    int32_t* h = &hi.x;
     for (int a = 0; a < 3; ++a) {
-      if (c[a] < atomic_load(l + a)) atomic_min(l + a, c[a]);
-      if (c[a] > atomic_load(h + a)) atomic_max(h + a, c[a]);
+      if (c[a] < atomic_load(&lo[a])) atomic_min(&lo[a], c[a]);
+      if (c[a] > atomic_load(&hi[a])) atomic_max(&hi[a], c[a]);
     }
   }
   void merge(const SuperBlockBounds& o) {
