@@ -91,13 +91,16 @@ GrowingBuffer::~GrowingBuffer() {
 void GrowingBuffer::release() {
   const VirtualMemory& vm = VirtualMemory::get();
   if (virtual_) {
-    if (committed_ > 0) vm.unmap(reinterpret_cast<CUdeviceptr>(base_), committed_);
-    for (unsigned long long h : handles_) vm.release(h);
+    // Each mapping whole (the driver unmaps no part of one), then its memory.
+    for (const Mapping& m : mappings_) {
+      vm.unmap(reinterpret_cast<CUdeviceptr>(base_) + m.offset, m.bytes);
+      vm.release(m.handle);
+    }
     if (base_ != nullptr) vm.free(reinterpret_cast<CUdeviceptr>(base_), reserved_);
   } else {
     cudaFree(base_);
   }
-  handles_.clear();
+  mappings_.clear();
   base_ = nullptr;
   reserved_ = committed_ = 0;
 }
@@ -143,12 +146,12 @@ std::size_t GrowingBuffer::commit(std::size_t bytes) {
   const CUresult mapped = vm.map(at, size, 0, h, 0);
   if (mapped != CUDA_SUCCESS) vm.release(h);
   check_driver(mapped, "mapping device memory");
-  handles_.push_back(h);
   const CUresult access_set = vm.set_access(at, size, &access, 1);
   if (access_set != CUDA_SUCCESS) {
     vm.unmap(at, size);
     vm.release(h);
-    handles_.pop_back();
+  } else {
+    mappings_.push_back({h, committed_, size});
   }
   check_driver(access_set, "enabling access to device memory");
   committed_ = target;

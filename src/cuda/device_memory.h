@@ -123,7 +123,11 @@ class GrowingBuffer {
   std::size_t reserved_ = 0, committed_ = 0, chunk_ = 0;
   int device_ = 0;
   bool virtual_ = false;
-  std::vector<unsigned long long> handles_;
+  struct Mapping {
+    unsigned long long handle;  ///< the driver's allocation
+    std::size_t offset, bytes;  ///< where it is mapped from base_
+  };
+  std::vector<Mapping> mappings_;
 };
 
 /// A GrowingBuffer of `T`s: room for `capacity` of them, the first n committed on demand. What
