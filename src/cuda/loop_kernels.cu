@@ -198,8 +198,12 @@ __global__ void project_blocks_kernel(MapView map, int32_t high_water, Rigid3f T
   if (ptr >= high_water) return;
   const BlockMeta m = map.meta[ptr];
   if (m.level < 0) return;
-  if (occupancy.cells != nullptr)
-    occupancy.mark(kernels::CoarseOccupancy::super_block_of(m.pos, m.level, map.levels));
+  if (occupancy.cells != nullptr) {
+    // The bounds cover every block (insertions grow them); a block outside would be a bug, never
+    // a write outside the grid.
+    const Vec3i c = kernels::CoarseOccupancy::super_block_of(m.pos, m.level, map.levels);
+    if (occupancy.covers(c)) occupancy.mark(c);
+  }
   kernels::project_block_to_tiles(T_cw, cam, m.pos, map.level[m.level].block_size_m, min_depth_m,
                                   max_depth_m, tiles);
 }

@@ -80,12 +80,15 @@ struct CoarseOccupancy {
   /// How many cells the grid spans (0 when it has no dims).
   int64_t cell_count() const { return static_cast<int64_t>(dims.x) * dims.y * dims.z; }
   HIVOX_HD Vec3i cell_of(const Vec3f& p_w) const { return floor_to_int(p_w * inv_side_m); }
+  HIVOX_HD bool covers(const Vec3i& c) const {
+    const Vec3i r{c.x - lo.x, c.y - lo.y, c.z - lo.z};
+    return r.x >= 0 && r.y >= 0 && r.z >= 0 && r.x < dims.x && r.y < dims.y && r.z < dims.z;
+  }
   HIVOX_HD bool empty(const Vec3i& c) const {
     if (cells == nullptr) return false;
-    const Vec3i r{c.x - lo.x, c.y - lo.y, c.z - lo.z};
-    if (r.x < 0 || r.y < 0 || r.z < 0 || r.x >= dims.x || r.y >= dims.y || r.z >= dims.z)
-      return true;
-    return cells[(static_cast<int64_t>(r.z) * dims.y + r.y) * dims.x + r.x] == 0;
+    if (!covers(c)) return true;
+    return cells[(static_cast<int64_t>(c.z - lo.z) * dims.y + (c.y - lo.y)) * dims.x +
+                 (c.x - lo.x)] == 0;
   }
   /// Marks super-block `c` (inside the grid) as holding a block; threads may mark concurrently.
   HIVOX_HD void mark(const Vec3i& c) const {
