@@ -412,7 +412,8 @@ struct GpuReconstruction::Impl {
       });
       if (!go.empty()) {
         split_jobs.upload(go.data(), go.size());
-        commit_pool(static_cast<int64_t>(read_counter(kHighWater)) +
+        // The high-water mark as just read: nothing since has taken a block.
+        commit_pool(static_cast<int64_t>(c[kHighWater]) +
                     static_cast<int64_t>(go.size()) * kBlockChildren);
         std::size_t begin = 0;
         while (begin < go.size()) {
