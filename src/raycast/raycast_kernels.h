@@ -510,7 +510,7 @@ struct RayStretch {
 /// that one lane brackets a crossing at a boundary; a lane that starts behind a surface
 /// searches back as far as z_start. The march's hit is the lowest lane's (split_march_result).
 struct LaneMarch {
-  static constexpr float kMinStretchBands = 2.0f;
+  static constexpr float kMinStretchBands = 4.0f;
   bool found = false;
   RayHit hit;
   MarchReport report;
