@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
-# short session gets the most out of its minutes: the gpu tests, compute-sanitizer's memcheck on
-# the newest of them, then bench/gpu_loop on the desk and fr1/rpy (fixed grid and 3 levels;
-# Gauss-Newton on the host and on the device, alternated; the coarse occupancy grid off and on;
-# split marches off and on; meshing on the device and the host).
+# short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
+# tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
+# alternated (split marches, Gauss-Newton on the device, the coarse grid off, all together; 3
+# levels and the fixed grid), meshing on the device against the host, and last compute-sanitizer's
+# memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time.
 #
@@ -47,45 +48,38 @@ nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$out/gpu
 
 step test_cuda_loop "$build/tests/test_cuda_loop"
 step test_cuda_kernels "$build/tests/test_cuda_kernels"
+
+loop="$build/bench/hivox_gpu_loop"
+desk="synthetic:desk?frames=150&noise=kinect"
+# bench NAME DATA LEVELS [FLAGS...]: one run of the loop, its numbers in OUT/NAME.json.
+bench() {
+  local name=$1 data=$2 levels=$3
+  shift 3
+  [ -z "$data" ] && return
+  step "$name" "$loop" "$data" --levels "$levels" "$@" --json "$out/$name.json"
+}
+# Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
+# split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
+# the device, the coarse occupancy grid off; then all the opt-ins together, on the fixed grid too
+# (the hierarchy's target is 1.2x the fixed grid's time).
+for data in fr1 desk; do
+  src=$desk
+  [ "$data" = fr1 ] && src=$fr1
+  bench "${data}_l3_default_a" "$src" 3
+  bench "${data}_l3_split1_a" "$src" 3 --split-marches 1
+  bench "${data}_l3_gn_device_a" "$src" 3 --gn-on-device
+  bench "${data}_l3_default_b" "$src" 3
+  bench "${data}_l3_split1_b" "$src" 3 --split-marches 1
+  bench "${data}_l3_gn_device_b" "$src" 3 --gn-on-device
+  bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
+  bench "${data}_l3_all" "$src" 3 --split-marches 1 --gn-on-device
+  bench "${data}_l1_default" "$src" 1
+  bench "${data}_l1_all" "$src" 1 --split-marches 1 --gn-on-device
+done
+bench desk_l3_mesh "$desk" 3 --poses gt --mesh
 if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
     --gtest_filter='*MeshesOnTheDevice*:*GaussNewtonOnTheDevice*:*HoldsNoMoreMemory*:*SplitMarches*'
 fi
-
-loop="$build/bench/hivox_gpu_loop"
-desk="synthetic:desk?frames=150&noise=kinect"
-# Gauss-Newton on the host and on the device, alternated: a pair per data set.
-for levels in 3 1; do
-  step "desk_l${levels}_gn_host" "$loop" "$desk" --levels "$levels" --json "$out/desk_l${levels}_gn_host.json"
-  step "desk_l${levels}_gn_device" "$loop" "$desk" --levels "$levels" --gn-on-device \
-    --json "$out/desk_l${levels}_gn_device.json"
-  if [ -n "$fr1" ]; then
-    step "fr1_l${levels}_gn_host" "$loop" "$fr1" --levels "$levels" --json "$out/fr1_l${levels}_gn_host.json"
-    step "fr1_l${levels}_gn_device" "$loop" "$fr1" --levels "$levels" --gn-on-device \
-      --json "$out/fr1_l${levels}_gn_device.json"
-  fi
-done
-# The raycast's coarse occupancy grid off and on, alternated (fr1/rpy has the long marches).
-if [ -n "$fr1" ]; then
-  for grid in off on; do
-    flag=""
-    [ "$grid" = off ] && flag=--no-coarse-grid
-    step "fr1_l3_grid_$grid" "$loop" "$fr1" --levels 3 $flag --json "$out/fr1_l3_grid_$grid.json"
-  done
-fi
-# Split marches (a warp with at most N marching rays splits them across its lanes) off and on,
-# alternated, where the marches are long (fr1/rpy) and short (the desk).
-for data in desk fr1; do
-  src=$desk
-  [ "$data" = fr1 ] && src=$fr1
-  [ -z "$src" ] && continue
-  run=0
-  for split in 0 1 0 1; do
-    run=$((run + 1))
-    step "${data}_l3_split${split}_run$run" "$loop" "$src" --levels 3 --split-marches "$split" \
-      --json "$out/${data}_l3_split${split}_run$run.json"
-  done
-done
-step desk_l3_mesh "$loop" "$desk" --levels 3 --poses gt --mesh --json "$out/desk_l3_mesh.json"
 echo "logs and numbers in $out"
