@@ -1,9 +1,9 @@
 // What the device's raycast costs, modelled on the CPU: every model ray of a frame cast alone
 // with the shared kernels::cast_ray, as a GPU thread casts it (the same hints, range tiles and
 // constants as the CUDA loop), timed one by one, and the times gathered into the GPU's warps
-// (8x4 pixels). A warp takes as long as its slowest ray, and with all of a raycast's warps
-// resident at once the kernel takes about as long as its slowest warps: the tail, not the mean,
-// is what a change to the march must shorten. Each variant is timed in turns with the others
+// (8x4 pixels). A warp takes as long as its slowest ray, and a raycast's warps run in one or two
+// waves, so the kernel's time follows its slowest warps: the tail, not the mean, is what a change
+// to the march must shorten. Each variant is timed in turns with the others
 // (the same rays, `--rounds` times, the minimum per ray kept).
 //
 //   ray_cost ../shared/data/tum_fr1_rpy --frames 120 --at 119
