@@ -3,17 +3,18 @@
 // constants as the CUDA loop), timed one by one, and the times gathered into the GPU's warps
 // (8x4 pixels). A warp takes as long as its slowest ray, and a raycast's warps run in one or two
 // waves, so the kernel's time follows its slowest warps: the tail, not the mean, is what a change
-// to the march must shorten. Each variant is timed in turns with the others
+// to the march must shorten. The model shows the warps' divergence, not the latency of a GPU
+// thread's look-ups (the CPU's memory caches are warm, the block cache has 4096 slots): a change
+// that hides latency, such as splitting a march across a warp's lanes, it cannot judge. Its results
+// for one depended on how its caches were kept (from 30 % less to 60 % more warp time), so the
+// split marches are measured on a GPU only. Each variant is timed in turns with the others
 // (the same rays, `--rounds` times, the minimum per ray kept).
 //
 //   ray_cost ../shared/data/tum_fr1_rpy --frames 120 --at 119
 //   ray_cost synthetic:desk?frames=60 --levels 1 --top 10
 //
-// Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step),
-// `no-grid` (unallocated space crossed block by block) and `split` (with the grid, the marches
-// of the rays whose hints failed split across their warp's lanes, kernels::march_lane: a warp
-// searches its rays' hints together, then marches its failed rays one after another, each
-// lane a stretch; its time is its slowest search plus, per marching ray, its slowest lane).
+// Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step) and
+// `no-grid` (unallocated space crossed block by block).
 
 #include <CLI/CLI.hpp>
 
@@ -47,11 +48,8 @@ struct Ray {
   float z_min = 0, z_max = 0;
   kernels::RayHints hints;
   kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
-  double ns = 1e30;     ///< split: the search at the hints only
-  double march_ns = 0;  ///< split: the march's slowest lane per stretch, summed
-  double lanes_ns = 0;  ///< split: all lanes' march times
-  double whole_ns = 0;  ///< split: the ray cast whole (cast_ray), for warps that do not split
-  float depth_m = 0;    ///< the hit's
+  double ns = 1e30;
+  float depth_m = 0;  ///< the hit's
 };
 
 const char* outcome_name(kernels::RayOutcome o) {
@@ -72,62 +70,14 @@ const char* outcome_name(kernels::RayOutcome o) {
 struct Variant {
   std::string name;
   kernels::RayMarchConstants k;
-  bool split = false;
   std::vector<Ray> rays;
 };
 
-constexpr int kLanes = kWarpWidth * kWarpHeight;
-
-/// Casts `r` as the split variant does, timing its parts; the hit's depth and the outcome.
-void cast_split(const MapView& view, std::vector<kernels::BlockLookupCache>& lane_caches,
-                const Vec3f& o, const kernels::RayMarchConstants& k, Ray& r, bool keep) {
-  kernels::BlockLookupCache& cache = lane_caches.front();
-  kernels::RayHit hit;
-  Clock::time_point t0 = Clock::now();
-  kernels::RayOutcome outcome =
-      kernels::search_at_hints(view, cache, o, r.dir, r.hints, r.z_max, k, &hit);
-  const double search_ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
-  double march_ns = 0, lanes_ns = 0;
-  if (outcome == kernels::RayOutcome::Miss && r.z_max > 0.0f) {
-    // A warp's time on each stretch is its slowest lane's.
-    double slowest = 0;
-    auto each_lane = [&](int lane, auto&& march) {
-      if (lane == 0) {
-        march_ns += slowest;
-        slowest = 0;
-      }
-      t0 = Clock::now();
-      march();
-      const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
-      slowest = std::max(slowest, ns);
-      lanes_ns += ns;
-    };
-    if (kernels::split_march_on_cpu(view, lane_caches.data(), o, r.dir, r.hints.hint, r.z_min,
-                                    r.z_max, k, kLanes, &hit, each_lane))
-      outcome = kernels::RayOutcome::Marched;
-    march_ns += slowest;
-  }
-  kernels::RayHit unused;
-  kernels::BlockLookupCache& whole_cache = lane_caches.back();
-  t0 = Clock::now();
-  kernels::cast_ray(view, whole_cache, o, r.dir, r.hints, r.z_min, r.z_max, k, &unused);
-  const double whole_ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
-  r.whole_ns = keep ? whole_ns : std::min(r.whole_ns, whole_ns);
-  if (!keep && search_ns + march_ns >= r.ns + r.march_ns) return;
-  r.ns = search_ns;
-  r.march_ns = march_ns;
-  r.lanes_ns = lanes_ns;
-  r.outcome = outcome;
-  r.depth_m = outcome == kernels::RayOutcome::Miss ? 0.0f : hit.depth_m;
-}
-
-void report(const Variant& v, const PinholeCamera& cam, int top, int split_at_most) {
+void report(const Variant& v, const PinholeCamera& cam, int top) {
   const int wx = (cam.width + kWarpWidth - 1) / kWarpWidth;
   const int wy = (cam.height + kWarpHeight - 1) / kWarpHeight;
   std::vector<double> warp_max(static_cast<std::size_t>(wx) * wy, 0.0);
   std::vector<int> warp_slowest(warp_max.size(), -1);
-  std::vector<double> warp_marches(warp_max.size(), 0.0), warp_whole(warp_max.size(), 0.0);
-  std::vector<int> warp_marching(warp_max.size(), 0);
   double total = 0;
   int64_t by_outcome[4] = {};
   double ns_by_outcome[4] = {};
@@ -135,23 +85,16 @@ void report(const Variant& v, const PinholeCamera& cam, int top, int split_at_mo
     for (int x = 0; x < cam.width; ++x) {
       const int i = y * cam.width + x;
       const Ray& r = v.rays[static_cast<std::size_t>(i)];
-      total += r.ns + r.lanes_ns;
+      total += r.ns;
       const auto o = static_cast<int>(r.outcome);
       ++by_outcome[o];
-      ns_by_outcome[o] += r.ns + r.march_ns;
+      ns_by_outcome[o] += r.ns;
       const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
       if (r.ns > warp_max[w]) {
         warp_max[w] = r.ns;
         warp_slowest[w] = i;
       }
-      warp_marches[w] += r.march_ns;
-      warp_marching[w] += r.march_ns > 0.0;
-      warp_whole[w] = std::max(warp_whole[w], r.whole_ns);
     }
-  // A split warp searches together, then marches its failed rays one after another; with more
-  // than `split_at_most` of them it casts them whole.
-  for (std::size_t w = 0; w < warp_max.size(); ++w)
-    warp_max[w] = warp_marching[w] > split_at_most ? warp_whole[w] : warp_max[w] + warp_marches[w];
   const double simt = std::accumulate(warp_max.begin(), warp_max.end(), 0.0);
   std::vector<std::size_t> order(warp_max.size());
   std::iota(order.begin(), order.end(), 0);
@@ -190,15 +133,12 @@ int main(int argc, char** argv) {
   std::string spec;
   int frames = 120, at = -1, levels = 3, rounds = 3, top = 5;
   std::string dump;
-  int split_at_most = kLanes;
   app.add_option("dataset", spec, "dataset folder or synthetic:NAME")->required();
   app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
   app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
   app.add_option("--levels", levels, "resolution levels (1 = fixed 2 mm grid)");
   app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
   app.add_option("--top", top, "slowest warps to describe");
-  app.add_option("--split-at-most", split_at_most,
-                 "split: warps with more marching rays cast them whole");
   app.add_option("--dump", dump,
                  "write every ray's outcome and hit depth (first variant) here, one line a ray: "
                  "two builds' files are equal where a change keeps the raycast's result");
@@ -251,13 +191,9 @@ int main(int argc, char** argv) {
     variants.push_back(
         {"grid",
          kernels::march_constants(p.raycast, view, kernels::build_coarse_occupancy(map, &cells)),
-         false,
          {}});
-    variants.push_back({"no-grid",
-                        kernels::march_constants(p.raycast, view, kernels::CoarseOccupancy{}),
-                        false,
-                        {}});
-    variants.push_back({"split", variants.front().k, true, {}});
+    variants.push_back(
+        {"no-grid", kernels::march_constants(p.raycast, view, kernels::CoarseOccupancy{}), {}});
 
     const std::size_t pixels = static_cast<std::size_t>(cam.width) * cam.height;
     for (Variant& v : variants) {
@@ -274,14 +210,9 @@ int main(int argc, char** argv) {
           r.dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
         }
     }
-    std::vector<kernels::BlockLookupCache> lane_caches(kLanes);
     for (int round = 0; round < rounds; ++round)
       for (Variant& v : variants)
         for (Ray& r : v.rays) {
-          if (v.split) {
-            cast_split(view, lane_caches, T.t, v.k, r, round == 0);
-            continue;
-          }
           kernels::BlockLookupCache cache;
           kernels::RayHit hit;
           const Clock::time_point t0 = Clock::now();
@@ -291,24 +222,7 @@ int main(int argc, char** argv) {
           r.ns = std::min(r.ns, ns);
           r.depth_m = hit.depth_m;
         }
-    for (const Variant& v : variants) report(v, cam, top, split_at_most);
-    // The split marches against the whole ones: the same outcome and hit at (nearly) every ray?
-    const std::vector<Ray>& whole = variants.front().rays;
-    const std::vector<Ray>& split = variants.back().rays;
-    int64_t outcome_differs = 0, depth_differs = 0, marched = 0;
-    for (std::size_t i = 0; i < pixels; ++i) {
-      marched += whole[i].outcome == kernels::RayOutcome::Marched ||
-                 (whole[i].outcome == kernels::RayOutcome::Miss && whole[i].z_max > 0.0f);
-      if (whole[i].outcome != split[i].outcome)
-        ++outcome_differs;
-      else if (std::abs(whole[i].depth_m - split[i].depth_m) > 1e-3f)
-        ++depth_differs;
-    }
-    std::printf(
-        "split against whole marches: %lld of %lld marching rays end otherwise, %lld hit "
-        "more than 1 mm apart\n",
-        static_cast<long long>(outcome_differs), static_cast<long long>(marched),
-        static_cast<long long>(depth_differs));
+    for (const Variant& v : variants) report(v, cam, top);
     if (!dump.empty()) {
       FILE* out = std::fopen(dump.c_str(), "w");
       if (out == nullptr) fail(ErrorCode::Io, "--dump {}: cannot be written", dump);

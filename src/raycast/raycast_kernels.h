@@ -625,15 +625,12 @@ HIVOX_HD inline SplitChoice split_march_from_hint(const HintStretches& st, Split
   return {false, far.winner};
 }
 
-/// A split march_from_hint on the CPU, lane after lane (the tests, and bench/ray_cost's model of
-/// the GPU's): what a warp's `lanes` lanes find together for one ray, with `caches[lane]` each.
-/// `each_lane(lane, march)` runs `march()` for that lane (a hook for timing it). Returns whether
-/// the ray hit, into `hit`.
-template <typename EachLane>
+/// A split march_from_hint on the CPU, lane after lane (what the raycast tests check against the
+/// whole march): what a warp's `lanes` lanes find together for one ray, with `caches[lane]`
+/// each. Returns whether the ray hit, into `hit`.
 inline bool split_march_on_cpu(const MapView& map, BlockLookupCache* caches, const Vec3f& o,
                                const Vec3f& d, float hint, float z_min, float z_max,
-                               const RayMarchConstants& k, int lanes, RayHit* hit,
-                               EachLane&& each_lane) {
+                               const RayMarchConstants& k, int lanes, RayHit* hit) {
   constexpr int kMostLanes = 32;
   LaneMarch far[kMostLanes], front[kMostLanes];
   lanes = lanes < kMostLanes ? lanes : kMostLanes;
@@ -641,8 +638,7 @@ inline bool split_march_on_cpu(const MapView& map, BlockLookupCache* caches, con
     LaneMarch* m = is_front ? front : far;
     uint32_t found = 0, known = 0, behind = 0;
     for (int lane = 0; lane < lanes; ++lane) {
-      each_lane(lane,
-                [&] { m[lane] = march_lane(map, caches[lane], o, d, from, to, k, lane, lanes); });
+      m[lane] = march_lane(map, caches[lane], o, d, from, to, k, lane, lanes);
       found |= static_cast<uint32_t>(m[lane].found) << lane;
       known |= static_cast<uint32_t>(m[lane].report.known) << lane;
       behind |= static_cast<uint32_t>(m[lane].report.started_behind) << lane;

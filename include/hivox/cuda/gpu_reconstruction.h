@@ -62,8 +62,8 @@ class GpuReconstruction {
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
   /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of
-  /// waiting for its longest. Modelled on the CPU (bench/ray_cost) to shorten the slowest warps
-  /// by about half; not yet run on a GPU, so not the default.
+  /// waiting for its longest: a warp's wait on its look-ups shrinks to its longest stretch's. A
+  /// CPU model cannot judge that gain (bench/ray_cost); not yet run on a GPU, so not the default.
   void set_split_marches(int at_most);
 
   const std::vector<StampedPose>& trajectory() const;
