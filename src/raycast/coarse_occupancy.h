@@ -84,18 +84,16 @@ struct CoarseOccupancy {
     const Vec3i r{c.x - lo.x, c.y - lo.y, c.z - lo.z};
     return r.x >= 0 && r.y >= 0 && r.z >= 0 && r.x < dims.x && r.y < dims.y && r.z < dims.z;
   }
+  /// Cell `c`'s (inside the grid) place in `cells`.
+  HIVOX_HD int64_t index_of(const Vec3i& c) const {
+    return (static_cast<int64_t>(c.z - lo.z) * dims.y + (c.y - lo.y)) * dims.x + (c.x - lo.x);
+  }
   HIVOX_HD bool empty(const Vec3i& c) const {
     if (cells == nullptr) return false;
-    if (!covers(c)) return true;
-    return cells[(static_cast<int64_t>(c.z - lo.z) * dims.y + (c.y - lo.y)) * dims.x +
-                 (c.x - lo.x)] == 0;
+    return !covers(c) || cells[index_of(c)] == 0;
   }
   /// Marks super-block `c` (inside the grid) as holding a block; threads may mark concurrently.
-  HIVOX_HD void mark(const Vec3i& c) const {
-    atomic_store(
-        &cells[(static_cast<int64_t>(c.z - lo.z) * dims.y + (c.y - lo.y)) * dims.x + (c.x - lo.x)],
-        1);
-  }
+  HIVOX_HD void mark(const Vec3i& c) const { atomic_store(&cells[index_of(c)], 1); }
 };
 
 /// The super-blocks that hold the blocks below `high_water` of `map` (levels `levels`).

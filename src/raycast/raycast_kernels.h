@@ -584,14 +584,13 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
   MarchReport behind;
   auto end_at = [&](float z_end) { return z_end < stretch.z_out ? z_end : stretch.z_out; };
   const HintStretches st = hint_stretches(hint, z_min, z_max, k);
-  const float z_from = st.far_from;
   // With a hint, the march behind it stops as soon as it finds it began behind a surface: the
   // march in front of the hint decides then, and the march behind runs whole only where that
   // finds nothing. The same hit as marching behind first, without its cost where the front wins
   // (the slowest rays of a raycast were often these: a hint behind a depth edge, marched to the
   // end of the range before the front was searched).
-  bool found = march_ray(map, cache, o, d, z_from, end_at(st.far_to), k, hit, &behind, stretch.z_in,
-                         st.has_front());
+  bool found = march_ray(map, cache, o, d, st.far_from, end_at(st.far_to), k, hit, &behind,
+                         stretch.z_in, st.has_front());
   if (st.has_front() && (!found || behind.started_behind)) {
     RayHit front;
     if (march_ray(map, cache, o, d, st.front_from, end_at(st.front_to), k, &front, nullptr,
@@ -600,7 +599,8 @@ HIVOX_HD inline bool march_from_hint(const MapView& map, BlockLookupCache& cache
       return true;
     }
     if (behind.started_behind)
-      found = march_ray(map, cache, o, d, z_from, end_at(st.far_to), k, hit, nullptr, stretch.z_in);
+      found = march_ray(map, cache, o, d, st.far_from, end_at(st.far_to), k, hit, nullptr,
+                        stretch.z_in);
   }
   return found;
 }

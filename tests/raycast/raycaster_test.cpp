@@ -424,8 +424,8 @@ TEST(CoarseOccupancy, RefinementKeepsBlocksInTheirSuperBlock) {
         }
 }
 
-// Bounds grown by many threads at once (the device's insertions) are the serial bounds, and the
-// grid covering them is the one build_coarse_occupancy lays out.
+// Bounds grown by many threads at once (the device's insertions) are the serial bounds; a map's
+// bounds, and the grid over them, are those its blocks give by hand.
 TEST(CoarseOccupancy, BoundsGrownConcurrentlyAreTheSerialBounds) {
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> coord(-500, 500);
@@ -449,15 +449,14 @@ TEST(CoarseOccupancy, BoundsGrownConcurrentlyAreTheSerialBounds) {
       kernels::super_block_bounds(map.view().meta, map.block_high_water(), map.levels());
   EXPECT_EQ(b.lo, (Vec3i{-2, 0, 0}));
   EXPECT_EQ(b.hi, (Vec3i{1, 1, 1}));
-  std::vector<int32_t> storage;
-  const kernels::CoarseOccupancy built = kernels::build_coarse_occupancy(map, &storage);
   const kernels::CoarseOccupancy laid =
       kernels::CoarseOccupancy::covering(b, map.view().level[1].block_size_m);
-  EXPECT_EQ(laid.lo, built.lo);
-  EXPECT_EQ(laid.dims, built.dims);
-  EXPECT_FLOAT_EQ(laid.side_m, built.side_m);
-  EXPECT_EQ(laid.cell_count(), static_cast<int64_t>(storage.size()));
+  EXPECT_EQ(laid.lo, (Vec3i{-2, 0, 0}));
+  EXPECT_EQ(laid.dims, (Vec3i{4, 2, 2}));
+  EXPECT_FLOAT_EQ(laid.side_m, 0.64f);  // 4 blocks of 16 cm
+  EXPECT_EQ(laid.cell_count(), 16);
   EXPECT_EQ(laid.cells, nullptr);
+  EXPECT_EQ(kernels::CoarseOccupancy::covering({}, 0.16f).cell_count(), 0);
 }
 
 // Crossing empty super-blocks in one step finds the surfaces block-by-block marching finds.
