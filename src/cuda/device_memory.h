@@ -14,6 +14,14 @@ namespace hivox::cuda {
 /// Throws `Error(Cuda)` naming `what` when `status` is not success.
 void check_status(cudaError_t status, const char* what);
 
+/// Blocking copies of `bytes` (none when 0) to and from device memory.
+inline void copy_to_device(void* device, const void* host, std::size_t bytes) {
+  if (bytes > 0) check_status(cudaMemcpy(device, host, bytes, cudaMemcpyHostToDevice), "upload");
+}
+inline void copy_to_host(void* host, const void* device, std::size_t bytes) {
+  if (bytes > 0) check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), "download");
+}
+
 /// Device memory freed with its owner; its bytes are added to `*total` (when not null).
 template <typename T>
 class Buffer {
@@ -51,13 +59,6 @@ class Buffer {
     void* p = nullptr;
     if (bytes > 0) check_status(cudaMalloc(&p, bytes), "allocation of device memory");
     return p;
-  }
-  static void copy_to_device(void* device, const void* host, std::size_t bytes) {
-    if (bytes > 0) check_status(cudaMemcpy(device, host, bytes, cudaMemcpyHostToDevice), "upload");
-  }
-  static void copy_to_host(void* host, const void* device, std::size_t bytes) {
-    if (bytes > 0)
-      check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), "download");
   }
   void release() {
     cudaFree(ptr_);
@@ -140,14 +141,8 @@ class GrowingArray {
   T* get() const { return static_cast<T*>(buffer_.get()); }
   std::size_t committed_bytes() const { return buffer_.committed(); }
   /// The first `n` elements (committed) from and to the host.
-  void upload(const T* host, std::size_t n) {
-    if (n > 0)
-      check_status(cudaMemcpy(get(), host, n * sizeof(T), cudaMemcpyHostToDevice), "upload");
-  }
-  void download(T* host, std::size_t n) const {
-    if (n > 0)
-      check_status(cudaMemcpy(host, get(), n * sizeof(T), cudaMemcpyDeviceToHost), "download");
-  }
+  void upload(const T* host, std::size_t n) { copy_to_device(get(), host, n * sizeof(T)); }
+  void download(T* host, std::size_t n) const { copy_to_host(host, get(), n * sizeof(T)); }
 
  private:
   GrowingBuffer buffer_;

@@ -235,66 +235,20 @@ __device__ PixelRay pixel_ray(const PinholeCamera& cam, const Rigid3f& T_wc,
   return r;
 }
 
-/// One thread per pixel's ray (kernels::cast_ray). Its map is a __grid_constant__: the functions
-/// it calls take the view by reference, which would otherwise copy it onto each thread's stack.
-__global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
-                                 Rigid3f T_wc, kernels::RangeTiles tiles,
-                                 kernels::RayMarchConstants k, RayHintImages hint,
-                                 kernels::RaycastOutputView out, AllocCounters* counters) {
-  const int x = blockIdx.x * blockDim.x + threadIdx.x;
-  const int y = blockIdx.y * blockDim.y + threadIdx.y;
-  bool found = false;
-  if (x < cam.width && y < cam.height) {
-    const int64_t i = static_cast<int64_t>(y) * cam.width + x;
-    const PixelRay r = pixel_ray(cam, T_wc, tiles, k, hint, x, y);
-    kernels::BlockLookupCache cache;
-    kernels::RayHit hit;
-    found = kernels::cast_ray(map, cache, T_wc.t, r.dir, r.hints, r.z_min, r.z_max, k, &hit) !=
-            kernels::RayOutcome::Miss;
-    kernels::write_ray(out, map, i, found, hit);
-  }
-  count_warp(found, &counters->raycast_hits);
-}
-
-/// cast_rays_kernel with the marches of a warp split across its lanes where at most
-/// `split_at_most` of its rays march (kernels::split_march_from_hint): the warp searches its
-/// rays' hints together, then takes the rays whose search failed one after another, each lane
-/// marching a stretch; the winning lane writes the ray's pixel. A warp with more marching rays
-/// marches each whole in its own thread, as cast_rays_kernel does. Every lane of a warp takes
-/// part in its ballots (lanes outside the image march nothing of their own).
-__global__ void cast_rays_split_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
-                                       Rigid3f T_wc, kernels::RangeTiles tiles,
-                                       kernels::RayMarchConstants k, RayHintImages hint,
-                                       kernels::RaycastOutputView out, AllocCounters* counters,
-                                       int split_at_most) {
+/// With split marches (cast_rays_kernel<true>): where at most `split_at_most` of the warp's rays
+/// march (their hint search failed), the warp takes them one after another, each lane marching
+/// a stretch (kernels::split_march_from_hint); the winning lane writes the ray's pixel. Returns
+/// false, doing nothing, where more rays march: each then marches its own. Every lane of the warp
+/// calls this (lanes outside the image march nothing of their own).
+__device__ bool split_marches(const MapView& map, const Rigid3f& T_wc,
+                              const kernels::RayMarchConstants& k,
+                              const kernels::RaycastOutputView& out, AllocCounters* counters,
+                              const PixelRay& r, int32_t i, bool marches, int split_at_most,
+                              kernels::BlockLookupCache& cache, const kernels::RayHit& hit) {
   constexpr unsigned kWarp = 0xffffffffu;
-  const int x = blockIdx.x * blockDim.x + threadIdx.x;
-  const int y = blockIdx.y * blockDim.y + threadIdx.y;
-  const bool in_image = x < cam.width && y < cam.height;
-  const int lane = static_cast<int>(lane_index());
-  const int32_t i = in_image ? y * cam.width + x : -1;
-  PixelRay r;
-  if (in_image) r = pixel_ray(cam, T_wc, tiles, k, hint, x, y);
-  kernels::BlockLookupCache cache;
-  kernels::RayHit hit;
-  kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
-  if (in_image)
-    outcome = kernels::search_at_hints(map, cache, T_wc.t, r.dir, r.hints, r.z_max, k, &hit);
-  const bool marches = in_image && outcome == kernels::RayOutcome::Miss && r.z_max > 0.0f;
   unsigned pending = __ballot_sync(kWarp, marches);
-  if (__popc(pending) > split_at_most) {
-    // Many rays march here: each its own, as cast_rays_kernel does.
-    bool found = outcome != kernels::RayOutcome::Miss;
-    if (marches)
-      found = kernels::march_from_hint(map, cache, T_wc.t, r.dir, r.hints.hint, r.z_min, r.z_max, k,
-                                       &hit);
-    if (in_image) kernels::write_ray(out, map, i, found, hit);
-    count_warp(found, &counters->raycast_hits);
-    return;
-  }
-  if (in_image && !marches)
-    kernels::write_ray(out, map, i, outcome != kernels::RayOutcome::Miss, hit);
-  count_warp(outcome != kernels::RayOutcome::Miss, &counters->raycast_hits);
+  if (__popc(pending) > split_at_most) return false;
+  const int lane = static_cast<int>(lane_index());
   while (pending != 0u) {
     const int owner = __ffs(static_cast<int>(pending)) - 1;
     pending &= pending - 1u;
@@ -321,6 +275,46 @@ __global__ void cast_rays_split_kernel(const __grid_constant__ MapView map, Pinh
       atomicAdd(&counters->raycast_hits, 1);
     }
   }
+  return true;
+}
+
+/// One thread per pixel's ray: the search at its hints, then, where that fails, its march
+/// (kernels::cast_ray's two steps; with `kSplit`, split_marches may take the marches). Its map is
+/// a __grid_constant__: the functions it calls take the view by reference, which would otherwise
+/// copy it onto each thread's stack.
+template <bool kSplit>
+__global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
+                                 Rigid3f T_wc, kernels::RangeTiles tiles,
+                                 kernels::RayMarchConstants k, RayHintImages hint,
+                                 kernels::RaycastOutputView out, AllocCounters* counters,
+                                 int split_at_most) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < cam.width && y < cam.height;
+  const int32_t i = in_image ? y * cam.width + x : -1;
+  PixelRay r;
+  kernels::BlockLookupCache cache;
+  kernels::RayHit hit;
+  kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
+  if (in_image) {
+    r = pixel_ray(cam, T_wc, tiles, k, hint, x, y);
+    outcome = kernels::search_at_hints(map, cache, T_wc.t, r.dir, r.hints, r.z_max, k, &hit);
+  }
+  bool found = outcome != kernels::RayOutcome::Miss;
+  const bool marches = in_image && !found && r.z_max > 0.0f;
+  if constexpr (kSplit) {
+    if (split_marches(map, T_wc, k, out, counters, r, i, marches, split_at_most, cache, hit)) {
+      // The marches are written; the rest of the warp's rays now.
+      if (in_image && !marches) kernels::write_ray(out, map, i, found, hit);
+      count_warp(found, &counters->raycast_hits);
+      return;
+    }
+  }
+  if (marches)
+    found = kernels::march_from_hint(map, cache, T_wc.t, r.dir, r.hints.hint, r.z_min, r.z_max, k,
+                                     &hit);
+  if (in_image) kernels::write_ray(out, map, i, found, hit);
+  count_warp(found, &counters->raycast_hits);
 }
 
 __global__ void warp_clear_kernel(uint32_t* nearest, int64_t n) {
@@ -594,12 +588,12 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
   // Warps of 8x4 pixels: their rays stay closer together than those of 16x2, so they
   // diverge less (1 % faster than 16x2 on the H200).
   const dim3 threads(8, 16);
+  const dim3 grid = image_grid(camera.width, camera.height, threads);
   if (split_at_most > 0)
-    cast_rays_split_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
-        map, camera, T_wc, tiles, k, hint, out, counters, split_at_most);
+    cast_rays_kernel<true>
+        <<<grid, threads>>>(map, camera, T_wc, tiles, k, hint, out, counters, split_at_most);
   else
-    cast_rays_kernel<<<image_grid(camera.width, camera.height, threads), threads>>>(
-        map, camera, T_wc, tiles, k, hint, out, counters);
+    cast_rays_kernel<false><<<grid, threads>>>(map, camera, T_wc, tiles, k, hint, out, counters, 0);
   check_last("raycast");
 }
 
