@@ -13,8 +13,13 @@
 #include "hivox/core/hd.h"
 #include "hivox/core/threads.h"
 
-#if defined(__CUDACC__)
+// CUDA code: compiled by nvcc, or by the host compiler against the CPU emulation of CUDA
+// (-DHIVOX_CUDA_EMULATION=ON, src/cuda/emulation).
+#if defined(__CUDACC__) || defined(HIVOX_CUDA_EMULATION)
+#define HIVOX_CUDA_CODE 1
 #include <cuda_runtime.h>
+
+#include <utility>
 #endif
 
 namespace hivox {
@@ -46,7 +51,7 @@ void cpu_for(int64_t n, Body&& body, CpuSchedule schedule) {
   }
 }
 
-#if defined(__CUDACC__)
+#if defined(HIVOX_CUDA_CODE)
 template <typename Body>
 __global__ void grid_stride_loop(int64_t n, Body body) {
   const int64_t stride = static_cast<int64_t>(blockDim.x) * gridDim.x;
@@ -55,6 +60,20 @@ __global__ void grid_stride_loop(int64_t n, Body body) {
 }
 #endif
 }  // namespace detail
+
+#if defined(HIVOX_CUDA_CODE)
+/// Launches `kernel(args...)` on a grid of `grid` blocks of `block` threads: CUDA's
+/// `kernel<<<grid, block>>>(args...)`, written once for nvcc and for the CPU emulation (which
+/// runs the grid before it returns). Every kernel of the CUDA loop starts here.
+template <typename... Params, typename... Args>
+void launch(void (*kernel)(Params...), dim3 grid, dim3 block, Args&&... args) {
+#if defined(__CUDACC__)
+  kernel<<<grid, block>>>(std::forward<Args>(args)...);
+#else
+  cuda::emulation::run_grid(grid, block, [&] { kernel(args...); });
+#endif
+}
+#endif
 
 /// Runs `body(i)` for i in [0, n) on `device`. On CUDA (code compiled by nvcc) the body runs on
 /// the GPU and must be a `HIVOX_HD` callable holding views by value; `schedule` applies to the
@@ -67,13 +86,12 @@ void parallel_for(const Device& device, int64_t n, const Body& body, CpuSchedule
       detail::cpu_for(n, body, schedule);
       return;
     case DeviceType::Cuda:
-#if defined(__CUDACC__)
+#if defined(HIVOX_CUDA_CODE)
     {
       constexpr int kThreads = 256;
       const int64_t blocks = (n + kThreads - 1) / kThreads;
-      detail::
-          grid_stride_loop<<<static_cast<unsigned>(blocks < 65535 ? blocks : 65535), kThreads>>>(
-              n, body);
+      launch(detail::grid_stride_loop<Body>, static_cast<unsigned>(blocks < 65535 ? blocks : 65535),
+             kThreads, n, body);
       const cudaError_t e = cudaGetLastError();
       if (e != cudaSuccess) cuda_launch_failed(device, cudaGetErrorString(e));
       return;

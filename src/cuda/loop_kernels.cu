@@ -439,10 +439,10 @@ constexpr int kSums = kernels::kIcpSums;
 
 /// One ICP pass: each block sums its pixels' terms at pose `c.T_wc`, the last block to finish
 /// sums the blocks in doubles into `sums`.
-__device__ __forceinline__ void icp_pass(const kernels::IcpPass& c, const Vec3f* points_c,
-                                         const Vec3f* normals_c, int64_t pixels,
-                                         const Vec3f* model_points, const Vec3f* model_normals,
-                                         float* partials, unsigned* done, double* sums) {
+__device__ HIVOX_FORCEINLINE void icp_pass(const kernels::IcpPass& c, const Vec3f* points_c,
+                                           const Vec3f* normals_c, int64_t pixels,
+                                           const Vec3f* model_points, const Vec3f* model_normals,
+                                           float* partials, unsigned* done, double* sums) {
   // Each thread sums the terms of its pixels (a grid-stride loop: a few pixels a thread).
   float v[kSums];
   for (int k = 0; k < kSums; ++k) v[k] = 0.0f;
@@ -541,8 +541,8 @@ void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const
                  float mu_m, int32_t* stamps, int32_t frame, const BlockKeySet& missing,
                  BlockRef* visible, AllocCounters* counters) {
   const dim3 threads(16, 8);
-  find_blocks_kernel<<<image_grid(depth.depth_m.width, depth.depth_m.height, threads), threads>>>(
-      map, depth, T_wc, mu_m, stamps, frame, missing, visible, counters);
+  launch(find_blocks_kernel, image_grid(depth.depth_m.width, depth.depth_m.height, threads),
+         threads, map, depth, T_wc, mu_m, stamps, frame, missing, visible, counters);
   check_last("allocation (finding blocks)");
 }
 
@@ -550,8 +550,8 @@ void insert_blocks(const MutableMapView& map, const BlockKeySet& missing, int32_
                    BlockRef* visible, int32_t* stamps, int32_t frame, AllocCounters* counters,
                    kernels::SuperBlockBounds* bounds) {
   if (count <= 0) return;
-  insert_blocks_kernel<<<static_cast<unsigned>(count), 128>>>(map, missing, visible, stamps, frame,
-                                                              counters, bounds);
+  launch(insert_blocks_kernel, static_cast<unsigned>(count), 128, map, missing, visible, stamps,
+         frame, counters, bounds);
   check_last("allocation (inserting blocks)");
 }
 
@@ -560,15 +560,17 @@ void integrate(const MutableMapView& map, const BlockRef* blocks, int32_t max_bl
                const kernels::ColorFrameView& color, const kernels::IntegrationConstants& k) {
   if (max_blocks <= 0) return;
   if (k.bilinear_depth)
-    integrate_kernel<true><<<max_blocks, kBlockVoxels>>>(map, blocks, counters, depth, color, k);
+    launch(integrate_kernel<true>, max_blocks, kBlockVoxels, map, blocks, counters, depth, color,
+           k);
   else
-    integrate_kernel<false><<<max_blocks, kBlockVoxels>>>(map, blocks, counters, depth, color, k);
+    launch(integrate_kernel<false>, max_blocks, kBlockVoxels, map, blocks, counters, depth, color,
+           k);
   check_last("integration");
 }
 
 void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n) {
   if (n <= 0) return;
-  pack_color_kernel<<<grid_for(n), kThreads>>>(rgb, packed, n);
+  launch(pack_color_kernel, grid_for(n), kThreads, rgb, packed, n);
   check_last("packing colour");
 }
 
@@ -576,54 +578,55 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
              const kernels::RaycastOutputView& out, AllocCounters* counters, int split_at_most) {
-  fill_tiles<<<grid_for(tiles.count()), kThreads>>>(tiles);
+  launch(fill_tiles, grid_for(tiles.count()), kThreads, tiles);
   if (k.occupancy.cells != nullptr)
     check_status(
         cudaMemsetAsync(k.occupancy.cells, 0,
                         static_cast<std::size_t>(k.occupancy.cell_count()) * sizeof(int32_t)),
         "clearing the coarse occupancy grid");
   if (high_water > 0)
-    project_blocks_kernel<<<grid_for(high_water), kThreads>>>(
-        map, high_water, T_wc.inverse(), camera, min_depth_m, max_depth_m, tiles, k.occupancy);
+    launch(project_blocks_kernel, grid_for(high_water), kThreads, map, high_water, T_wc.inverse(),
+           camera, min_depth_m, max_depth_m, tiles, k.occupancy);
   // Warps of 8x4 pixels: their rays stay closer together than those of 16x2, so they
   // diverge less (1 % faster than 16x2 on the H200).
   const dim3 threads(8, 16);
   const dim3 grid = image_grid(camera.width, camera.height, threads);
   if (split_at_most > 0)
-    cast_rays_kernel<true>
-        <<<grid, threads>>>(map, camera, T_wc, tiles, k, hint, out, counters, split_at_most);
+    launch(cast_rays_kernel<true>, grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
+           split_at_most);
   else
-    cast_rays_kernel<false><<<grid, threads>>>(map, camera, T_wc, tiles, k, hint, out, counters, 0);
+    launch(cast_rays_kernel<false>, grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
+           0);
   check_last("raycast");
 }
 
 void warp_depth(const kernels::WarpView& view, const float* depth, const Vec3f* points,
                 const Vec3f* normals, int64_t from_pixels, uint32_t* nearest, float* out) {
   const int64_t n = static_cast<int64_t>(view.width) * view.height;
-  warp_clear_kernel<<<grid_for(n), kThreads>>>(nearest, n);
+  launch(warp_clear_kernel, grid_for(n), kThreads, nearest, n);
   if (from_pixels > 0)
-    warp_land_kernel<<<grid_for(from_pixels), kThreads>>>(view, depth, points, normals, from_pixels,
-                                                          nearest);
+    launch(warp_land_kernel, grid_for(from_pixels), kThreads, view, depth, points, normals,
+           from_pixels, nearest);
   const dim3 threads(32, 8);
-  warp_resolve_kernel<<<image_grid(view.width, view.height, threads), threads>>>(view, nearest,
-                                                                                 out);
+  launch(warp_resolve_kernel, image_grid(view.width, view.height, threads), threads, view, nearest,
+         out);
   check_last("warping the previous raycast");
 }
 
 void filter_depth(const float* in, float* out, int width, int height, int radius,
                   float inv_2sigma_px2, float inv_2sigma_d2, float min_m, float max_m) {
   const dim3 threads(32, 8);
-  filter_depth_kernel<<<image_grid(width, height, threads), threads>>>(
-      ImageView<const float>{in, width, height}, out, radius, inv_2sigma_px2, inv_2sigma_d2, min_m,
-      max_m);
+  launch(filter_depth_kernel, image_grid(width, height, threads), threads,
+         ImageView<const float>{in, width, height}, out, radius, inv_2sigma_px2, inv_2sigma_d2,
+         min_m, max_m);
   check_last("depth filter");
 }
 
 void downsample_depth(const float* in, float* out, int out_width, int out_height,
                       float max_jump_ratio) {
   const dim3 threads(32, 8);
-  downsample_depth_kernel<<<image_grid(out_width, out_height, threads), threads>>>(
-      in, out, out_width, out_height, max_jump_ratio);
+  launch(downsample_depth_kernel, image_grid(out_width, out_height, threads), threads, in, out,
+         out_width, out_height, max_jump_ratio);
   check_last("depth downsampling");
 }
 
@@ -631,9 +634,9 @@ void points_and_normals(const float* depth, const PinholeCamera& camera, float m
                         Vec3f* points, Vec3f* normals, int32_t* valid) {
   const dim3 threads(32, 8);
   const dim3 grid = image_grid(camera.width, camera.height, threads);
-  unproject_kernel<<<grid, threads>>>(depth, camera, points);
-  normals_kernel<<<grid, threads>>>(ImageView<const Vec3f>{points, camera.width, camera.height},
-                                    max_jump_ratio, normals, valid);
+  launch(unproject_kernel, grid, threads, depth, camera, points);
+  launch(normals_kernel, grid, threads, ImageView<const Vec3f>{points, camera.width, camera.height},
+         max_jump_ratio, normals, valid);
   check_last("points and normals");
 }
 
@@ -641,9 +644,9 @@ void downsample_model(const Vec3f* points, const Vec3f* normals, const float* de
                       Vec3f* out_points, Vec3f* out_normals, float* out_depth, int out_width,
                       int out_height, float max_jump_ratio) {
   const dim3 threads(32, 8);
-  downsample_model_kernel<<<image_grid(out_width, out_height, threads), threads>>>(
-      points, normals, depth, in_width, out_points, out_normals, out_depth, out_width, out_height,
-      max_jump_ratio);
+  launch(downsample_model_kernel, image_grid(out_width, out_height, threads), threads, points,
+         normals, depth, in_width, out_points, out_normals, out_depth, out_width, out_height,
+         max_jump_ratio);
   check_last("model downsampling");
 }
 
@@ -671,8 +674,8 @@ void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f
                 int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                 float* partials, unsigned* done, double* sums, double* host_sums) {
   const unsigned blocks = icp_blocks(pixels);
-  icp_kernel<<<blocks, kThreads>>>(pass, points_c, normals_c, pixels, model_points, model_normals,
-                                   partials, done, sums);
+  launch(icp_kernel, blocks, kThreads, pass, points_c, normals_c, pixels, model_points,
+         model_normals, partials, done, sums);
   check_last("ICP reduction");
   if (cudaMemcpy(host_sums, sums, kSums * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
     check_last("ICP reduction (copying the sums)");
@@ -683,9 +686,9 @@ void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, con
                         float* partials, unsigned* done, double* sums, kernels::IcpState* state,
                         int level, double convergence_step) {
   const unsigned blocks = icp_blocks(pixels);
-  icp_state_kernel<<<blocks, kThreads>>>(pass, points_c, normals_c, pixels, model_points,
-                                         model_normals, partials, done, sums, state, level);
-  icp_step_kernel<<<1, 1>>>(state, sums, level, convergence_step);
+  launch(icp_state_kernel, blocks, kThreads, pass, points_c, normals_c, pixels, model_points,
+         model_normals, partials, done, sums, state, level);
+  launch(icp_step_kernel, 1, 1, state, sums, level, convergence_step);
   check_last("ICP pass");
 }
 

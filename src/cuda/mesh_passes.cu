@@ -5,6 +5,7 @@
 
 #include <cuda_runtime.h>
 
+#include "core/parallel.h"
 #include "cuda/loop_kernels.h"
 
 namespace hivox::cuda {
@@ -69,15 +70,15 @@ int mesh_thread_count(int64_t blocks, int most) {
 void count_meshes(const MapView& map, const kernels::MeshPassInput& in, void* scratch, int threads,
                   kernels::BlockMeshCount* counts) {
   if (in.block_count == 0) return;
-  count_meshes_kernel<<<mesh_grid(threads), kMeshThreadsPerBlock>>>(
-      map, in, static_cast<kernels::MeshBlockScratch*>(scratch), counts);
+  launch(count_meshes_kernel, mesh_grid(threads), kMeshThreadsPerBlock, map, in,
+         static_cast<kernels::MeshBlockScratch*>(scratch), counts);
 }
 
 void write_meshes(const MapView& map, const kernels::MeshPassInput& in, void* scratch, int threads,
                   const kernels::MeshArrays& out) {
   if (in.block_count == 0) return;
-  write_meshes_kernel<<<mesh_grid(threads), kMeshThreadsPerBlock>>>(
-      map, in, static_cast<kernels::MeshBlockScratch*>(scratch), out);
+  launch(write_meshes_kernel, mesh_grid(threads), kMeshThreadsPerBlock, map, in,
+         static_cast<kernels::MeshBlockScratch*>(scratch), out);
 }
 
 void resolve_corners(const kernels::MeshPassInput& in, const uint16_t* edges,
@@ -85,8 +86,8 @@ void resolve_corners(const kernels::MeshPassInput& in, const uint16_t* edges,
                      unsigned long long* unresolved) {
   if (n == 0) return;
   constexpr int kThreads = 256;
-  resolve_corners_kernel<<<static_cast<unsigned>((n + kThreads - 1) / kThreads), kThreads>>>(
-      in, edges, corners, n, vertex_index, unresolved);
+  launch(resolve_corners_kernel, static_cast<unsigned>((n + kThreads - 1) / kThreads), kThreads, in,
+         edges, corners, n, vertex_index, unresolved);
 }
 
 }  // namespace hivox::cuda

@@ -3,6 +3,7 @@
 
 #include <cuda_runtime.h>
 
+#include "core/parallel.h"
 #include "cuda/device_helpers.cuh"
 #include "cuda/loop_kernels.h"
 #include "hivox/map/hierarchy_edit.h"
@@ -296,50 +297,50 @@ void split_candidates(const MapView& map, const BlockRef* visible, int32_t max_v
                       const RefineLists& lists) {
   if (max_visible <= 0) return;
   const auto blocks = static_cast<unsigned>((max_visible + kWarpsPerBlock - 1) / kWarpsPerBlock);
-  split_candidates_kernel<<<blocks, kThreads>>>(map, visible, counters, k, lists);
+  launch(split_candidates_kernel, blocks, kThreads, map, visible, counters, k, lists);
   check_last("refinement (split candidates)");
 }
 
 void merge_candidates(const MapView& map, int32_t max_parents, const RefineConstants& k,
                       const RefineLists& lists) {
   if (max_parents <= 0) return;
-  merge_candidates_kernel<<<static_cast<unsigned>(max_parents), kBlockChildren * 32>>>(map, k,
-                                                                                       lists);
+  launch(merge_candidates_kernel, static_cast<unsigned>(max_parents), kBlockChildren * 32, map, k,
+         lists);
   check_last("refinement (merge candidates)");
 }
 
 void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n) {
   if (n <= 0) return;
-  merge_lookup_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
+  launch(merge_lookup_kernel, grid_for(n), kThreads, map, jobs, n);
   check_last("merging (looking up)");
 }
 
 void merge_apply(const MutableMapView& map, MergeJob* jobs, int32_t n) {
   if (n <= 0) return;
-  merge_fill_kernel<<<static_cast<unsigned>(n), kBlockVoxels>>>(map, jobs);
-  merge_publish_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
-  merge_return_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
+  launch(merge_fill_kernel, static_cast<unsigned>(n), kBlockVoxels, map, jobs);
+  launch(merge_publish_kernel, grid_for(n), kThreads, map, jobs, n);
+  launch(merge_return_kernel, grid_for(n), kThreads, map, jobs, n);
   check_last("merging");
 }
 
 void split_check(const MapView& map, SplitJob* jobs, int32_t n) {
   if (n <= 0) return;
-  split_check_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
+  launch(split_check_kernel, grid_for(n), kThreads, map, jobs, n);
   check_last("splitting (checking)");
 }
 
 void split_apply_level(const MutableMapView& map, SplitJob* jobs, int32_t n, float weight_scale) {
   if (n <= 0) return;
-  split_sources_kernel<<<grid_for(n), kThreads>>>(map.read, jobs, n);
-  split_fill_kernel<<<static_cast<unsigned>(n) * kBlockChildren, kBlockVoxels>>>(map, jobs,
-                                                                                 weight_scale);
-  split_publish_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
+  launch(split_sources_kernel, grid_for(n), kThreads, map.read, jobs, n);
+  launch(split_fill_kernel, static_cast<unsigned>(n) * kBlockChildren, kBlockVoxels, map, jobs,
+         weight_scale);
+  launch(split_publish_kernel, grid_for(n), kThreads, map, jobs, n);
   check_last("splitting");
 }
 
 void split_finish(const MutableMapView& map, const SplitJob* jobs, int32_t n) {
   if (n <= 0) return;
-  split_finish_kernel<<<grid_for(n), kThreads>>>(map, jobs, n);
+  launch(split_finish_kernel, grid_for(n), kThreads, map, jobs, n);
   check_last("splitting (returning the parents' blocks)");
 }
 

@@ -41,14 +41,14 @@ struct DeviceBuffer {
   }
 };
 
-/// Times the launches `launch` makes (ms, on the default stream).
-template <typename Launch>
-double timed(Launch&& launch) {
+/// Times the launches `launches` makes (ms, on the default stream).
+template <typename Launches>
+double timed(Launches&& launches) {
   cudaEvent_t start, stop;
   check(cudaEventCreate(&start), "cudaEventCreate");
   check(cudaEventCreate(&stop), "cudaEventCreate");
   check(cudaEventRecord(start), "cudaEventRecord");
-  launch();
+  launches();
   check(cudaGetLastError(), "kernel launch");
   check(cudaEventRecord(stop), "cudaEventRecord");
   check(cudaEventSynchronize(stop), "kernel");
@@ -258,18 +258,19 @@ DeviceRaycast raycast_on_device(const DeviceMap& map, const kernels::CoarseOccup
     result.range_ms = std::min(
         result.range_ms, timed([&] {
           constexpr int kThreads = 256;
-          fill<<<(tile_count + kThreads - 1) / kThreads, kThreads>>>(z_min.ptr, tile_count,
-                                                                     FLT_MAX);
-          fill<<<(tile_count + kThreads - 1) / kThreads, kThreads>>>(z_max.ptr, tile_count, 0.0f);
-          project_blocks<<<(map.high_water() + kThreads - 1) / kThreads, kThreads>>>(
-              map.view(), map.high_water(), T_cw, camera, range.min_m, range.max_m, tiles);
+          launch(fill, (tile_count + kThreads - 1) / kThreads, kThreads, z_min.ptr, tile_count,
+                 FLT_MAX);
+          launch(fill, (tile_count + kThreads - 1) / kThreads, kThreads, z_max.ptr, tile_count,
+                 0.0f);
+          launch(project_blocks, (map.high_water() + kThreads - 1) / kThreads, kThreads, map.view(),
+                 map.high_water(), T_cw, camera, range.min_m, range.max_m, tiles);
         }));
     result.rays_ms = std::min(result.rays_ms, timed([&] {
                                 const dim3 threads(16, 8);
                                 const dim3 grid((w + threads.x - 1) / threads.x,
                                                 (h + threads.y - 1) / threads.y);
-                                cast_rays<<<grid, threads>>>(map.view(), camera, T_wc, tiles,
-                                                             start->ptr, fallback->ptr, k, out);
+                                launch(cast_rays, grid, threads, map.view(), camera, T_wc, tiles,
+                                       start->ptr, fallback->ptr, k, out);
                               }));
   }
   result.depth_m.resize(pixels);
@@ -300,8 +301,8 @@ kernels::IcpState gauss_newton_on_device(const kernels::PoseD& start,
         "upload");
   check(cudaMemcpy(d_sums, sums.data(), sums.size() * sizeof(double), cudaMemcpyHostToDevice),
         "upload");
-  gauss_newton<<<1, 1>>>(state, d_levels, d_sums, static_cast<int>(levels.size()),
-                         convergence_step);
+  launch(gauss_newton, 1, 1, state, d_levels, d_sums, static_cast<int>(levels.size()),
+         convergence_step);
   check(cudaGetLastError(), "gauss_newton");
   check(cudaMemcpy(&host, state, sizeof(host), cudaMemcpyDeviceToHost), "download");
   cudaFree(state);

@@ -1,0 +1,642 @@
+// The CPU emulation of the CUDA the loop uses (README.md in this folder): grids over the host's
+// threads, a block's threads as fibers, device memory as tracked host memory, the driver's
+// virtual memory as reserved host addresses.
+
+#include <omp.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <boost/context/fiber.hpp>
+#include <boost/context/stack_context.hpp>
+#include <chrono>
+#include <cstdarg>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <string_view>
+#include <vector>
+
+#include "cuda.h"
+#include "cuda_runtime.h"
+
+thread_local uint3 threadIdx{0, 0, 0};
+thread_local uint3 blockIdx{0, 0, 0};
+thread_local uint3 blockDim{1, 1, 1};
+thread_local uint3 gridDim{1, 1, 1};
+
+namespace hivox::cuda::emulation {
+namespace {
+
+namespace ctx = boost::context;
+
+[[noreturn]] __attribute__((format(printf, 1, 2))) void die(const char* format, ...) {
+  std::fprintf(stderr, "hivox CUDA emulation: ");
+  va_list args;
+  va_start(args, format);
+  std::vfprintf(stderr, format, args);
+  va_end(args);
+  std::fprintf(stderr, "\n");
+  std::fflush(stderr);
+  std::abort();
+}
+
+// ---- fibers ------------------------------------------------------------------------------------
+
+/// Fiber stacks, kept for reuse by the host thread that made them; a guard page below each
+/// turns an overflow into a fault.
+class StackPool {
+ public:
+  static constexpr std::size_t kBytes = 256 * 1024;
+
+  ctx::stack_context allocate() {
+    std::vector<void*>& free = free_list();
+    void* base = nullptr;
+    if (!free.empty()) {
+      base = free.back();
+      free.pop_back();
+    } else {
+      base = mmap(nullptr, kBytes + page(), PROT_READ | PROT_WRITE,
+                  MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+      if (base == MAP_FAILED) die("no memory for a thread's stack");
+      mprotect(base, page(), PROT_NONE);
+    }
+    ctx::stack_context sc;
+    sc.size = kBytes;
+    sc.sp = static_cast<char*>(base) + page() + kBytes;
+    return sc;
+  }
+  void deallocate(ctx::stack_context& sc) {
+    free_list().push_back(static_cast<char*>(sc.sp) - sc.size - page());
+  }
+
+ private:
+  static std::size_t page() {
+    static const std::size_t bytes = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+    return bytes;
+  }
+  static std::vector<void*>& free_list() {
+    thread_local std::vector<void*> stacks;
+    return stacks;
+  }
+};
+
+enum class Wait : uint8_t { None, Barrier, Warp, Done };
+
+/// One thread of the running block.
+struct Thread {
+  uint3 idx{0, 0, 0};  // threadIdx
+  Wait wait = Wait::None;
+  ctx::fiber parked;           // its fiber while it waits
+  WarpOp op = WarpOp::Ballot;  // the warp operation it waits in
+  unsigned mask = 0, arg = 0;
+  uint64_t value = 0, result = 0;
+};
+
+/// The block a host thread runs. Its threads start one after another on a fiber, which moves on
+/// to the next thread when one finishes. A thread that has to wait parks its fiber and switches
+/// straight to a thread whose wait is over, or to a new fiber for the next thread, or (when
+/// neither is left) back to the scheduler, which then either finds every thread finished or
+/// reports the deadlock.
+struct Block {
+  static constexpr int kScheduler = -2, kFinished = -1;
+
+  const std::function<void()>* body = nullptr;
+  uint3 dim{1, 1, 1};
+  int n = 0;
+  std::vector<Thread> threads;
+  std::vector<unsigned> warp_arrived;  // per warp: the lanes in a warp operation
+  std::vector<int> ready;              // threads whose wait is over
+  int next = 0, done = 0, at_barrier = 0;
+  int current = -1;        // the thread running now
+  int switched_from = -1;  // what just switched away: a thread, kScheduler or kFinished
+  ctx::fiber scheduler;    // the scheduler's continuation while the threads run
+
+  void enter(int id) {
+    current = id;
+    threadIdx = threads[static_cast<std::size_t>(id)].idx;
+  }
+
+  /// Keeps the continuation of what just switched here, so that it can be resumed.
+  void file(ctx::fiber&& from) {
+    if (!from) return;
+    if (switched_from == kScheduler)
+      scheduler = std::move(from);
+    else if (switched_from >= 0)
+      threads[static_cast<std::size_t>(switched_from)].parked = std::move(from);
+  }
+
+  /// What runs next: a thread whose wait is over, else a new fiber for the next thread, else
+  /// (`or_scheduler`) the scheduler; an empty fiber when nothing can run.
+  ctx::fiber take_next(bool or_scheduler) {
+    if (!ready.empty()) {
+      const int id = ready.back();
+      ready.pop_back();
+      return std::move(threads[static_cast<std::size_t>(id)].parked);
+    }
+    if (next < n) return worker();
+    return or_scheduler ? std::move(scheduler) : ctx::fiber{};
+  }
+
+  /// Parks the running thread until its wait is over.
+  void park() {
+    const int me = current;
+    switched_from = me;
+    file(take_next(true).resume());
+    enter(me);
+  }
+
+  /// Releases the barrier when every thread that has not finished is at it.
+  bool release_barrier(int self) {
+    if (at_barrier == 0 || next < n || at_barrier + done < n) return false;
+    for (int i = 0; i < n; ++i) {
+      Thread& t = threads[static_cast<std::size_t>(i)];
+      if (t.wait != Wait::Barrier) continue;
+      t.wait = Wait::None;
+      if (i != self) ready.push_back(i);
+    }
+    at_barrier = 0;
+    return true;
+  }
+
+  ctx::fiber worker() {
+    return ctx::fiber(std::allocator_arg, StackPool{}, [this](ctx::fiber&& from) {
+      file(std::move(from));
+      while (next < n) {
+        const int id = next++;
+        enter(id);
+        (*body)();
+        threads[static_cast<std::size_t>(id)].wait = Wait::Done;
+        ++done;
+        release_barrier(-1);
+      }
+      switched_from = kFinished;
+      return take_next(true);
+    });
+  }
+
+  [[noreturn]] void deadlock() const {
+    char waits[512] = "";
+    std::size_t used = 0;
+    for (int i = 0; i < n && used + 32 < sizeof waits; ++i) {
+      const Thread& t = threads[static_cast<std::size_t>(i)];
+      if (t.wait == Wait::Barrier)
+        used += static_cast<std::size_t>(
+            std::snprintf(waits + used, sizeof waits - used, " %d:barrier", i));
+      else if (t.wait == Wait::Warp)
+        used += static_cast<std::size_t>(
+            std::snprintf(waits + used, sizeof waits - used, " %d:warp(mask %08x)", i, t.mask));
+    }
+    die("block (%u,%u,%u) of %d threads cannot go on: %d finished, the others wait for threads "
+        "that cannot come (%s )",
+        blockIdx.x, blockIdx.y, blockIdx.z, n, done, waits);
+  }
+
+  void run(const std::function<void()>& thread, uint3 block_dim) {
+    body = &thread;
+    dim = block_dim;
+    n = static_cast<int>(dim.x * dim.y * dim.z);
+    threads.clear();
+    threads.resize(static_cast<std::size_t>(n));
+    for (unsigned i = 0; i < static_cast<unsigned>(n); ++i)
+      threads[i].idx = uint3{i % dim.x, (i / dim.x) % dim.y, i / (dim.x * dim.y)};
+    warp_arrived.assign(static_cast<std::size_t>((n + 31) / 32), 0u);
+    ready.clear();
+    next = done = at_barrier = 0;
+    while (done < n) {
+      ctx::fiber f = take_next(false);
+      if (!f) deadlock();
+      switched_from = kScheduler;
+      file(std::move(f).resume());
+    }
+    current = -1;
+  }
+};
+
+thread_local Block* running = nullptr;
+
+Block& running_block(const char* what) {
+  if (running == nullptr || running->current < 0) die("%s called outside a kernel", what);
+  return *running;
+}
+
+// ---- the runtime's state -----------------------------------------------------------------------
+
+thread_local cudaError_t last_error = cudaSuccess;
+
+cudaError_t record(cudaError_t e) {
+  if (e != cudaSuccess) last_error = e;
+  return e;
+}
+
+/// Device memory: what cudaMalloc gave and what is reserved for virtual memory, by start.
+struct DeviceMemory {
+  std::mutex mutex;
+  std::map<uintptr_t, std::size_t> ranges;
+
+  void add(const void* p, std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex);
+    ranges[reinterpret_cast<uintptr_t>(p)] = bytes;
+  }
+  bool remove(const void* p) {
+    std::lock_guard<std::mutex> lock(mutex);
+    return ranges.erase(reinterpret_cast<uintptr_t>(p)) == 1;
+  }
+  /// Whether [p, p + bytes) lies in one range.
+  bool holds(const void* p, std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const uintptr_t a = reinterpret_cast<uintptr_t>(p);
+    auto it = ranges.upper_bound(a);
+    if (it == ranges.begin()) return false;
+    --it;
+    return a + bytes <= it->first + it->second;
+  }
+};
+
+DeviceMemory& device_memory() {
+  static DeviceMemory memory;
+  return memory;
+}
+
+std::size_t stack_limit = 1024;
+/// Launches sized by the multiprocessor count (the ICP's grid-stride reduction) get smaller grids
+/// than on an H100 (132): the same code with fewer threads, each taking more of the items.
+constexpr int kMultiprocessors = 16;
+constexpr std::size_t kGranularity = std::size_t{2} << 20;
+
+void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
+                const char* what) {
+  DeviceMemory& memory = device_memory();
+  const bool dst_device = kind == cudaMemcpyHostToDevice || kind == cudaMemcpyDeviceToDevice;
+  const bool src_device = kind == cudaMemcpyDeviceToHost || kind == cudaMemcpyDeviceToDevice;
+  if (dst_device && !memory.holds(dst, bytes))
+    die("%s of %zu bytes writes to %p, outside device memory", what, bytes, dst);
+  if (src_device && !memory.holds(src, bytes))
+    die("%s of %zu bytes reads from %p, outside device memory", what, bytes, src);
+  if (kind == cudaMemcpyHostToDevice && memory.holds(src, 1))
+    die("%s host-to-device reads from device memory at %p", what, src);
+  if (kind == cudaMemcpyDeviceToHost && memory.holds(dst, 1))
+    die("%s device-to-host writes to device memory at %p", what, dst);
+}
+
+struct Event {
+  std::chrono::steady_clock::time_point at;
+};
+
+// ---- the driver's virtual memory ---------------------------------------------------------------
+
+struct Allocation {
+  std::size_t bytes = 0;
+};
+
+CUresult vm_granularity(std::size_t* granularity, const CUmemAllocationProp*,
+                        CUmemAllocationGranularity_flags) {
+  *granularity = kGranularity;
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_reserve(CUdeviceptr* ptr, std::size_t size, std::size_t, CUdeviceptr,
+                    unsigned long long) {
+  if (size == 0 || size % kGranularity != 0) return CUDA_ERROR_INVALID_VALUE;
+  void* p = mmap(nullptr, size, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (p == MAP_FAILED) return CUDA_ERROR_OUT_OF_MEMORY;
+  device_memory().add(p, size);
+  *ptr = reinterpret_cast<CUdeviceptr>(p);
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_free(CUdeviceptr ptr, std::size_t size) {
+  void* p = reinterpret_cast<void*>(ptr);
+  if (!device_memory().remove(p)) return CUDA_ERROR_INVALID_VALUE;
+  munmap(p, size);
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_create(CUmemGenericAllocationHandle* handle, std::size_t size,
+                   const CUmemAllocationProp*, unsigned long long) {
+  if (size == 0 || size % kGranularity != 0) return CUDA_ERROR_INVALID_VALUE;
+  *handle = reinterpret_cast<CUmemGenericAllocationHandle>(new Allocation{size});
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_release(CUmemGenericAllocationHandle handle) {
+  delete reinterpret_cast<Allocation*>(handle);
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_map(CUdeviceptr ptr, std::size_t size, std::size_t offset,
+                CUmemGenericAllocationHandle handle, unsigned long long) {
+  const Allocation* a = reinterpret_cast<const Allocation*>(handle);
+  if (a == nullptr || offset + size > a->bytes || ptr % kGranularity != 0 ||
+      !device_memory().holds(reinterpret_cast<void*>(ptr), size))
+    return CUDA_ERROR_INVALID_VALUE;
+  return CUDA_SUCCESS;  // accessible only once cuMemSetAccess opens it
+}
+
+CUresult vm_unmap(CUdeviceptr ptr, std::size_t size) {
+  void* p = reinterpret_cast<void*>(ptr);
+  madvise(p, size, MADV_DONTNEED);
+  return mprotect(p, size, PROT_NONE) == 0 ? CUDA_SUCCESS : CUDA_ERROR_INVALID_VALUE;
+}
+
+CUresult vm_set_access(CUdeviceptr ptr, std::size_t size, const CUmemAccessDesc* desc,
+                       std::size_t count) {
+  if (count != 1 || desc->flags != CU_MEM_ACCESS_FLAGS_PROT_READWRITE)
+    return CUDA_ERROR_INVALID_VALUE;
+  return mprotect(reinterpret_cast<void*>(ptr), size, PROT_READ | PROT_WRITE) == 0
+             ? CUDA_SUCCESS
+             : CUDA_ERROR_INVALID_VALUE;
+}
+
+CUresult vm_device(CUdevice* device, int ordinal) {
+  if (ordinal != 0) return CUDA_ERROR_INVALID_DEVICE;
+  *device = 0;
+  return CUDA_SUCCESS;
+}
+
+CUresult vm_attribute(int* value, CUdevice_attribute attribute, CUdevice device) {
+  if (device != 0) return CUDA_ERROR_INVALID_DEVICE;
+  *value = attribute == CU_DEVICE_ATTRIBUTE_VIRTUAL_MEMORY_MANAGEMENT_SUPPORTED ? 1 : 0;
+  return CUDA_SUCCESS;
+}
+
+}  // namespace
+
+// ---- kernels -----------------------------------------------------------------------------------
+
+void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
+  const uint64_t threads = uint64_t{block.x} * block.y * block.z;
+  if (grid.x == 0 || grid.y == 0 || grid.z == 0 || grid.y > 65535 || grid.z > 65535 ||
+      threads == 0 || threads > 1024 || block.z > 64) {
+    record(cudaErrorInvalidConfiguration);
+    return;
+  }
+  if (running != nullptr) die("a kernel launched from a kernel");
+  const int64_t blocks = int64_t{grid.x} * grid.y * grid.z;
+  const uint3 g{grid.x, grid.y, grid.z}, b{block.x, block.y, block.z};
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int64_t i = 0; i < blocks; ++i) {
+    thread_local Block state;
+    running = &state;
+    gridDim = g;
+    blockDim = b;
+    blockIdx = uint3{static_cast<unsigned>(i % g.x), static_cast<unsigned>((i / g.x) % g.y),
+                     static_cast<unsigned>(i / (int64_t{g.x} * g.y))};
+    state.run(thread, b);
+    running = nullptr;
+  }
+}
+
+unsigned lane() {
+  return static_cast<unsigned>(running_block("a warp function").current) & 31u;
+}
+
+uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
+  Block& b = running_block("a warp operation");
+  const int id = b.current;
+  const unsigned lane = static_cast<unsigned>(id) & 31u;
+  const int base = id - static_cast<int>(lane);
+  if ((mask >> lane & 1u) == 0)
+    die("block (%u,%u,%u) thread %d: a warp operation whose mask %08x leaves out its own lane",
+        blockIdx.x, blockIdx.y, blockIdx.z, id, mask);
+  if (base + 32 - __builtin_clz(mask) > b.n)
+    die("block (%u,%u,%u) thread %d: warp mask %08x names lanes beyond the block's %d threads",
+        blockIdx.x, blockIdx.y, blockIdx.z, id, mask, b.n);
+  Thread& me = b.threads[static_cast<std::size_t>(id)];
+  me.op = op;
+  me.mask = mask;
+  me.value = value;
+  me.arg = arg;
+  me.wait = Wait::Warp;
+  unsigned& arrived = b.warp_arrived[static_cast<std::size_t>(id / 32)];
+  arrived |= 1u << lane;
+  if ((arrived & mask) != mask) {
+    b.park();
+    return me.result;
+  }
+  // Every lane of the mask is here: each gets its result.
+  arrived &= ~mask;
+  uint64_t ballot = 0;
+  for (unsigned l = 0; l < 32; ++l) {
+    if ((mask >> l & 1u) == 0) continue;
+    const Thread& t = b.threads[static_cast<std::size_t>(base) + l];
+    if (t.op != op || t.mask != mask)
+      die("block (%u,%u,%u) warp %d: lanes %u and %u meet in different warp operations or masks "
+          "(%08x, %08x)",
+          blockIdx.x, blockIdx.y, blockIdx.z, id / 32, lane, l, mask, t.mask);
+    if (t.value != 0) ballot |= uint64_t{1} << l;
+  }
+  for (unsigned l = 0; l < 32; ++l) {
+    if ((mask >> l & 1u) == 0) continue;
+    Thread& t = b.threads[static_cast<std::size_t>(base) + l];
+    unsigned src = l;
+    switch (op) {
+      case WarpOp::Ballot:
+        t.result = ballot;
+        break;
+      case WarpOp::Shuffle:
+        src = t.arg;
+        break;
+      case WarpOp::ShuffleDown:
+        src = l + t.arg < 32 ? l + t.arg : l;
+        break;
+    }
+    if (op != WarpOp::Ballot) {
+      if ((mask >> src & 1u) == 0)
+        die("block (%u,%u,%u) warp %d: lane %u reads lane %u, outside the mask %08x", blockIdx.x,
+            blockIdx.y, blockIdx.z, id / 32, l, src, mask);
+      t.result = b.threads[static_cast<std::size_t>(base) + src].value;
+    }
+    t.wait = Wait::None;
+    if (base + static_cast<int>(l) != id) b.ready.push_back(base + static_cast<int>(l));
+  }
+  return me.result;
+}
+
+}  // namespace hivox::cuda::emulation
+
+namespace e = hivox::cuda::emulation;
+
+void __syncthreads() {
+  e::Block& b = e::running_block("__syncthreads");
+  b.threads[static_cast<std::size_t>(b.current)].wait = e::Wait::Barrier;
+  ++b.at_barrier;
+  if (!b.release_barrier(b.current)) b.park();
+}
+
+// ---- the runtime -------------------------------------------------------------------------------
+
+cudaError_t cudaGetDeviceCount(int* count) {
+  *count = 1;
+  return cudaSuccess;
+}
+cudaError_t cudaGetDevice(int* device) {
+  *device = 0;
+  return cudaSuccess;
+}
+cudaError_t cudaSetDevice(int device) {
+  return e::record(device == 0 ? cudaSuccess : cudaErrorInvalidDevice);
+}
+cudaError_t cudaGetDeviceProperties(cudaDeviceProp* prop, int device) {
+  if (device != 0) return e::record(cudaErrorInvalidDevice);
+  *prop = cudaDeviceProp{};
+  std::snprintf(prop->name, sizeof prop->name, "CPU emulation of CUDA (%d threads)",
+                omp_get_max_threads());
+  prop->totalGlobalMem = std::size_t{80} << 30;
+  prop->multiProcessorCount = e::kMultiprocessors;
+  prop->major = 9;
+  prop->minor = 0;
+  prop->warpSize = 32;
+  prop->maxThreadsPerBlock = 1024;
+  return cudaSuccess;
+}
+cudaError_t cudaDeviceGetAttribute(int* value, cudaDeviceAttr attr, int device) {
+  if (device != 0) return e::record(cudaErrorInvalidDevice);
+  if (attr != cudaDevAttrMultiProcessorCount) return e::record(cudaErrorInvalidValue);
+  *value = e::kMultiprocessors;
+  return cudaSuccess;
+}
+cudaError_t cudaDeviceGetLimit(std::size_t* value, cudaLimit limit) {
+  if (limit != cudaLimitStackSize) return e::record(cudaErrorInvalidValue);
+  *value = e::stack_limit;
+  return cudaSuccess;
+}
+cudaError_t cudaDeviceSetLimit(cudaLimit limit, std::size_t value) {
+  if (limit != cudaLimitStackSize) return e::record(cudaErrorInvalidValue);
+  e::stack_limit = value;
+  return cudaSuccess;
+}
+cudaError_t cudaDeviceSynchronize() {
+  return e::last_error;
+}
+cudaError_t cudaGetLastError() {
+  const cudaError_t error = e::last_error;
+  e::last_error = cudaSuccess;
+  return error;
+}
+cudaError_t cudaPeekAtLastError() {
+  return e::last_error;
+}
+const char* cudaGetErrorString(cudaError_t error) {
+  switch (error) {
+    case cudaSuccess:
+      return "no error";
+    case cudaErrorInvalidValue:
+      return "invalid argument";
+    case cudaErrorMemoryAllocation:
+      return "out of memory";
+    case cudaErrorInvalidConfiguration:
+      return "invalid configuration argument";
+    case cudaErrorNoDevice:
+      return "no CUDA-capable device is detected";
+    case cudaErrorInvalidDevice:
+      return "invalid device ordinal";
+    case cudaErrorInvalidResourceHandle:
+      return "invalid resource handle";
+  }
+  return "unrecognized error code";
+}
+
+cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
+  // Whole pages of fresh memory; small ones filled with a pattern, as a GPU's are not cleared.
+  const std::size_t size = std::max<std::size_t>(bytes, 1);
+  void* p = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE,
+                 -1, 0);
+  if (p == MAP_FAILED) return e::record(cudaErrorMemoryAllocation);
+  if (size <= (std::size_t{64} << 20)) std::memset(p, 0xA5, size);
+  e::device_memory().add(p, size);
+  *ptr = p;
+  return cudaSuccess;
+}
+cudaError_t cudaFree(void* ptr) {
+  if (ptr == nullptr) return cudaSuccess;
+  std::size_t size = 0;
+  {
+    e::DeviceMemory& memory = e::device_memory();
+    std::lock_guard<std::mutex> lock(memory.mutex);
+    auto it = memory.ranges.find(reinterpret_cast<uintptr_t>(ptr));
+    if (it == memory.ranges.end()) return e::record(cudaErrorInvalidValue);
+    size = it->second;
+    memory.ranges.erase(it);
+  }
+  munmap(ptr, size);
+  return cudaSuccess;
+}
+cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {
+  *ptr = std::malloc(std::max<std::size_t>(bytes, 1));
+  return *ptr != nullptr ? cudaSuccess : e::record(cudaErrorMemoryAllocation);
+}
+cudaError_t cudaFreeHost(void* ptr) {
+  std::free(ptr);
+  return cudaSuccess;
+}
+
+cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
+  if (bytes == 0) return cudaSuccess;
+  e::check_copy(dst, src, bytes, kind, "cudaMemcpy");
+  std::memcpy(dst, src, bytes);
+  return cudaSuccess;
+}
+cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
+                            cudaStream_t) {
+  if (bytes == 0) return cudaSuccess;
+  e::check_copy(dst, src, bytes, kind, "cudaMemcpyAsync");
+  std::memcpy(dst, src, bytes);
+  return cudaSuccess;
+}
+cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
+  if (bytes == 0) return cudaSuccess;
+  if (!e::device_memory().holds(ptr, bytes))
+    e::die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
+  std::memset(ptr, value, bytes);
+  return cudaSuccess;
+}
+cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t) {
+  return cudaMemset(ptr, value, bytes);
+}
+
+cudaError_t cudaEventCreate(cudaEvent_t* event) {
+  *event = reinterpret_cast<cudaEvent_t>(new e::Event{});
+  return cudaSuccess;
+}
+cudaError_t cudaEventDestroy(cudaEvent_t event) {
+  delete reinterpret_cast<e::Event*>(event);
+  return cudaSuccess;
+}
+cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t) {
+  reinterpret_cast<e::Event*>(event)->at = std::chrono::steady_clock::now();
+  return cudaSuccess;
+}
+cudaError_t cudaEventSynchronize(cudaEvent_t) {
+  return e::last_error;
+}
+cudaError_t cudaEventElapsedTime(float* ms, cudaEvent_t start, cudaEvent_t end) {
+  *ms = std::chrono::duration<float, std::milli>(reinterpret_cast<e::Event*>(end)->at -
+                                                 reinterpret_cast<e::Event*>(start)->at)
+            .count();
+  return cudaSuccess;
+}
+
+cudaError_t cudaGetDriverEntryPointByVersion(const char* symbol, void** function, unsigned,
+                                             unsigned long long,
+                                             cudaDriverEntryPointQueryResult* status) {
+  static const std::map<std::string_view, void*> table = {
+      {"cuMemGetAllocationGranularity", reinterpret_cast<void*>(&e::vm_granularity)},
+      {"cuMemAddressReserve", reinterpret_cast<void*>(&e::vm_reserve)},
+      {"cuMemAddressFree", reinterpret_cast<void*>(&e::vm_free)},
+      {"cuMemCreate", reinterpret_cast<void*>(&e::vm_create)},
+      {"cuMemRelease", reinterpret_cast<void*>(&e::vm_release)},
+      {"cuMemMap", reinterpret_cast<void*>(&e::vm_map)},
+      {"cuMemUnmap", reinterpret_cast<void*>(&e::vm_unmap)},
+      {"cuMemSetAccess", reinterpret_cast<void*>(&e::vm_set_access)},
+      {"cuDeviceGet", reinterpret_cast<void*>(&e::vm_device)},
+      {"cuDeviceGetAttribute", reinterpret_cast<void*>(&e::vm_attribute)},
+  };
+  const auto it = table.find(symbol);
+  *function = it != table.end() ? it->second : nullptr;
+  if (status != nullptr)
+    *status = it != table.end() ? cudaDriverEntryPointSuccess : cudaDriverEntryPointSymbolNotFound;
+  return cudaSuccess;
+}

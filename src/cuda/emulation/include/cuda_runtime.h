@@ -1,0 +1,162 @@
+#pragma once
+/// @file
+/// CUDA's device-side language, emulated on the CPU for the CUDA loop's code (compiled by the
+/// host compiler with -DHIVOX_CUDA_EMULATION; src/cuda/emulation/README.md): the qualifiers,
+/// the built-in indices, __syncthreads, the warp operations and the atomics the kernels use.
+/// A grid's blocks run on the host's threads; a block's threads run as fibers that switch only
+/// at __syncthreads and warp operations, so that these wait for the threads they name as on a
+/// GPU. A thread that waits for a thread that cannot come (one that has exited, a lane outside
+/// the block) stops the program with a message naming the kernel's block and thread.
+
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <type_traits>
+
+#include "cuda_runtime_api.h"
+
+#define __global__
+#define __device__
+#define __host__
+#define __grid_constant__
+#define __launch_bounds__(...)
+/// Shared memory is the block's: its threads are fibers of one host thread, which runs one
+/// block at a time.
+#define __shared__ static thread_local
+
+// The running thread's indices (set by the emulator before it runs or resumes a thread).
+extern thread_local uint3 threadIdx;
+extern thread_local uint3 blockIdx;
+extern thread_local uint3 blockDim;
+extern thread_local uint3 gridDim;
+
+namespace hivox::cuda::emulation {
+
+/// Runs `thread` for every thread of a grid of `grid` blocks of `block` threads, with the
+/// built-in indices set; returns when all have finished. A configuration a GPU refuses (no
+/// blocks, more than 1024 threads a block) sets the last error instead, as a launch would.
+void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread);
+
+enum class WarpOp : uint8_t { Shuffle, ShuffleDown, Ballot };
+
+/// A warp operation of the running thread: waits until every lane of `mask` is in it, then
+/// returns this lane's result (the value of lane `arg`, of lane + `arg`, or the ballot).
+uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg);
+
+/// This thread's lane in its warp.
+unsigned lane();
+
+template <typename T>
+uint64_t to_bits(T v) {
+  static_assert(sizeof(T) <= 8 && std::is_trivially_copyable_v<T>);
+  uint64_t bits = 0;
+  std::memcpy(&bits, &v, sizeof(T));
+  return bits;
+}
+template <typename T>
+T from_bits(uint64_t bits) {
+  T v;
+  std::memcpy(&v, &bits, sizeof(T));
+  return v;
+}
+
+/// `*p = op(*p, v)` atomically (a compare-and-swap loop on its bits); returns the old value.
+template <typename T>
+T atomic_rmw(T* p, T v, T (*op)(T, T)) {
+  using Bits = std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>;
+  Bits* b = reinterpret_cast<Bits*>(p);
+  Bits old = __atomic_load_n(b, __ATOMIC_RELAXED);
+  for (;;) {
+    T was;
+    std::memcpy(&was, &old, sizeof(T));
+    const T now = op(was, v);
+    Bits next;
+    std::memcpy(&next, &now, sizeof(T));
+    if (__atomic_compare_exchange_n(b, &old, next, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
+      return was;
+  }
+}
+
+}  // namespace hivox::cuda::emulation
+
+void __syncthreads();
+inline void __threadfence() {
+  __atomic_thread_fence(__ATOMIC_SEQ_CST);
+}
+
+/// The lanes that run this instruction together: on a GPU with independent thread scheduling
+/// any set that holds the caller; here the caller alone (its fellows may be elsewhere).
+inline unsigned __activemask() {
+  return 1u << hivox::cuda::emulation::lane();
+}
+inline unsigned __ballot_sync(unsigned mask, int predicate) {
+  return static_cast<unsigned>(hivox::cuda::emulation::warp_op(
+      hivox::cuda::emulation::WarpOp::Ballot, mask, predicate != 0 ? 1 : 0, 0));
+}
+template <typename T>
+T __shfl_sync(unsigned mask, T value, int src_lane, int width = 32) {
+  (void)width;
+  namespace e = hivox::cuda::emulation;
+  return e::from_bits<T>(e::warp_op(e::WarpOp::Shuffle, mask, e::to_bits(value),
+                                    static_cast<unsigned>(src_lane) & 31u));
+}
+template <typename T>
+T __shfl_down_sync(unsigned mask, T value, unsigned delta, int width = 32) {
+  (void)width;
+  namespace e = hivox::cuda::emulation;
+  return e::from_bits<T>(e::warp_op(e::WarpOp::ShuffleDown, mask, e::to_bits(value), delta));
+}
+
+inline int __popc(unsigned x) {
+  return __builtin_popcount(x);
+}
+inline int __ffs(int x) {
+  return __builtin_ffs(x);
+}
+inline float __uint_as_float(unsigned x) {
+  return hivox::cuda::emulation::from_bits<float>(x);
+}
+inline unsigned __float_as_uint(float x) {
+  return static_cast<unsigned>(hivox::cuda::emulation::to_bits(x));
+}
+template <typename T>
+T __ldcg(const T* p) {
+  return *p;
+}
+
+template <typename T>
+T atomicAdd(T* p, std::type_identity_t<T> v) {
+  if constexpr (std::is_floating_point_v<T>)
+    return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return a + b; });
+  else
+    return __atomic_fetch_add(p, v, __ATOMIC_RELAXED);
+}
+template <typename T>
+T atomicSub(T* p, std::type_identity_t<T> v) {
+  return __atomic_fetch_sub(p, v, __ATOMIC_RELAXED);
+}
+template <typename T>
+T atomicOr(T* p, std::type_identity_t<T> v) {
+  return __atomic_fetch_or(p, v, __ATOMIC_RELAXED);
+}
+template <typename T>
+T atomicAnd(T* p, std::type_identity_t<T> v) {
+  return __atomic_fetch_and(p, v, __ATOMIC_RELAXED);
+}
+template <typename T>
+T atomicExch(T* p, std::type_identity_t<T> v) {
+  return __atomic_exchange_n(p, v, __ATOMIC_RELAXED);
+}
+template <typename T>
+T atomicCAS(T* p, std::type_identity_t<T> expected, std::type_identity_t<T> desired) {
+  __atomic_compare_exchange_n(p, &expected, desired, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED);
+  return expected;
+}
+template <typename T>
+T atomicMin(T* p, std::type_identity_t<T> v) {
+  return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return b < a ? b : a; });
+}
+template <typename T>
+T atomicMax(T* p, std::type_identity_t<T> v) {
+  return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return a < b ? b : a; });
+}
