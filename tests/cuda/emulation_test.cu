@@ -1,0 +1,191 @@
+// The CPU emulation of CUDA (src/cuda/emulation) on kernels whose results are known by hand:
+// barriers, shared memory, warp operations, atomics, the launch errors a GPU gives, and the
+// misuses it stops with a message. Built only with -DHIVOX_CUDA_EMULATION=ON.
+
+#include <cuda.h>
+#include <cuda_runtime.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+#include "core/parallel.h"
+
+namespace hivox::test {
+namespace {
+
+template <typename T>
+T* device_array(std::size_t n) {
+  T* p = nullptr;
+  EXPECT_EQ(cudaMalloc(&p, n * sizeof(T)), cudaSuccess);
+  return p;
+}
+
+template <typename T>
+std::vector<T> download(const T* p, std::size_t n) {
+  std::vector<T> host(n);
+  EXPECT_EQ(cudaMemcpy(host.data(), p, n * sizeof(T), cudaMemcpyDeviceToHost), cudaSuccess);
+  return host;
+}
+
+/// Each block sums its threads' values through shared memory: a tree with a barrier per step.
+__global__ void block_sums(const int* in, int* out) {
+  __shared__ int s[256];
+  const unsigned t = threadIdx.x;
+  s[t] = in[blockIdx.x * blockDim.x + t];
+  __syncthreads();
+  for (unsigned half = blockDim.x / 2; half > 0; half /= 2) {
+    if (t < half) s[t] += s[t + half];
+    __syncthreads();
+  }
+  if (t == 0) out[blockIdx.x] = s[0];
+}
+
+TEST(CudaEmulation, BarriersOrderASharedMemoryTreeSum) {
+  constexpr int kBlocks = 7, kThreads = 256;
+  std::vector<int> values(kBlocks * kThreads);
+  std::iota(values.begin(), values.end(), 1);
+  int* in = device_array<int>(values.size());
+  int* out = device_array<int>(kBlocks);
+  ASSERT_EQ(cudaMemcpy(in, values.data(), values.size() * sizeof(int), cudaMemcpyHostToDevice),
+            cudaSuccess);
+  launch(block_sums, kBlocks, kThreads, in, out);
+  ASSERT_EQ(cudaGetLastError(), cudaSuccess);
+  const std::vector<int> sums = download(out, kBlocks);
+  for (int b = 0; b < kBlocks; ++b) {
+    const int first = b * kThreads + 1, last = first + kThreads - 1;
+    EXPECT_EQ(sums[b], (first + last) * kThreads / 2) << "block " << b;
+  }
+  cudaFree(in);
+  cudaFree(out);
+}
+
+/// Per thread: the warp's sum of lane numbers by shuffles down, lane 5's value broadcast, the
+/// ballot of the even lanes, and a slot taken with one atomic per thread.
+__global__ void warp_ops(int* sums, int* broadcast, unsigned* ballots, int* counter, int* slots) {
+  const int lane = static_cast<int>(threadIdx.x & 31u);
+  int x = lane;
+  for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(0xFFFFFFFFu, x, o);
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  sums[i] = x;
+  broadcast[i] = __shfl_sync(0xFFFFFFFFu, lane * 10, 5);
+  ballots[i] = __ballot_sync(0xFFFFFFFFu, lane % 2 == 0);
+  slots[atomicAdd(counter, 1)] = i;
+}
+
+TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
+  constexpr int kBlocks = 3, kThreads = 128, kN = kBlocks * kThreads;
+  int* sums = device_array<int>(kN);
+  int* broadcast = device_array<int>(kN);
+  unsigned* ballots = device_array<unsigned>(kN);
+  int* counter = device_array<int>(1);
+  int* slots = device_array<int>(kN);
+  ASSERT_EQ(cudaMemset(counter, 0, sizeof(int)), cudaSuccess);
+  launch(warp_ops, kBlocks, kThreads, sums, broadcast, ballots, counter, slots);
+  ASSERT_EQ(cudaGetLastError(), cudaSuccess);
+  const std::vector<int> s = download(sums, kN), b = download(broadcast, kN);
+  const std::vector<unsigned> v = download(ballots, kN);
+  std::vector<int> taken = download(slots, kN);
+  for (int i = 0; i < kN; ++i) {
+    // Lane 0 holds the whole warp's sum 0 + 1 + ... + 31; lane l the sum of a shrinking tree.
+    if (i % 32 == 0) {
+      EXPECT_EQ(s[i], 496) << "thread " << i;
+    }
+    EXPECT_EQ(b[i], 50) << "thread " << i;
+    EXPECT_EQ(v[i], 0x55555555u) << "thread " << i;
+  }
+  EXPECT_EQ(download(counter, 1)[0], kN);
+  std::sort(taken.begin(), taken.end());
+  for (int i = 0; i < kN; ++i) ASSERT_EQ(taken[i], i);  // every slot once
+  for (void* p :
+       {static_cast<void*>(sums), static_cast<void*>(broadcast), static_cast<void*>(ballots),
+        static_cast<void*>(counter), static_cast<void*>(slots)})
+    cudaFree(p);
+}
+
+__global__ void nothing() {}
+
+TEST(CudaEmulation, ALaunchAGpuRefusesSetsTheLastError) {
+  launch(nothing, 0, 32);
+  EXPECT_EQ(cudaGetLastError(), cudaErrorInvalidConfiguration);
+  launch(nothing, 1, 2048);
+  EXPECT_EQ(cudaGetLastError(), cudaErrorInvalidConfiguration);
+  launch(nothing, 1, 1024);
+  EXPECT_EQ(cudaGetLastError(), cudaSuccess);
+}
+
+/// Lane 31 leaves before the warp's shuffle that names it.
+__global__ void shuffle_without_lane_31(int* out) {
+  if (threadIdx.x == 31) return;
+  out[threadIdx.x] = __shfl_sync(0xFFFFFFFFu, 1, 0);
+}
+
+/// Lanes 0-15 shuffle among themselves, reading lane 20.
+__global__ void shuffle_outside_mask(int* out) {
+  if (threadIdx.x < 16)
+    out[threadIdx.x] = __shfl_sync(0x0000FFFFu, static_cast<int>(threadIdx.x), 20);
+}
+
+/// Every lane names lane 0 alone.
+__global__ void mask_without_own_lane(int* out) {
+  out[threadIdx.x] = __shfl_sync(0x1u, static_cast<int>(threadIdx.x), 0);
+}
+
+TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
+  int* out = device_array<int>(32);
+  EXPECT_DEATH(launch(shuffle_without_lane_31, 1, 32, out),
+               "block \\(0,0,0\\) of 32 threads cannot go on: 1 finished");
+  EXPECT_DEATH(launch(shuffle_outside_mask, 1, 32, out), "reads lane 20, outside the mask");
+  EXPECT_DEATH(launch(mask_without_own_lane, 1, 32, out), "thread 1: .* leaves out its own lane");
+  int host[4] = {};
+  EXPECT_DEATH(cudaMemcpy(host, host + 2, sizeof(int), cudaMemcpyDeviceToHost),
+               "reads from .*, outside device memory");
+  EXPECT_DEATH(cudaMemcpy(out, out, sizeof(int), cudaMemcpyHostToDevice),
+               "host-to-device reads from device memory");
+  cudaFree(out);
+}
+
+/// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).
+template <typename F>
+F entry(const char* name) {
+  void* p = nullptr;
+  cudaDriverEntryPointQueryResult status{};
+  EXPECT_EQ(cudaGetDriverEntryPointByVersion(name, &p, 12000, cudaEnableDefault, &status),
+            cudaSuccess);
+  EXPECT_EQ(status, cudaDriverEntryPointSuccess) << name;
+  return reinterpret_cast<F>(p);
+}
+
+TEST(CudaEmulationDeathTest, VirtualMemoryIsOpenOnlyWhereCommittedAndOpened) {
+  const auto reserve = entry<decltype(&cuMemAddressReserve)>("cuMemAddressReserve");
+  const auto create = entry<decltype(&cuMemCreate)>("cuMemCreate");
+  const auto map = entry<decltype(&cuMemMap)>("cuMemMap");
+  const auto set_access = entry<decltype(&cuMemSetAccess)>("cuMemSetAccess");
+  const auto granularity =
+      entry<decltype(&cuMemGetAllocationGranularity)>("cuMemGetAllocationGranularity");
+  CUmemAllocationProp prop{};
+  prop.type = CU_MEM_ALLOCATION_TYPE_PINNED;
+  prop.location.type = CU_MEM_LOCATION_TYPE_DEVICE;
+  std::size_t chunk = 0;
+  ASSERT_EQ(granularity(&chunk, &prop, CU_MEM_ALLOC_GRANULARITY_RECOMMENDED), CUDA_SUCCESS);
+  CUdeviceptr base = 0;
+  ASSERT_EQ(reserve(&base, 4 * chunk, 0, 0, 0), CUDA_SUCCESS);
+  CUmemGenericAllocationHandle h = 0;
+  ASSERT_EQ(create(&h, chunk, &prop, 0), CUDA_SUCCESS);
+  ASSERT_EQ(map(base, chunk, 0, h, 0), CUDA_SUCCESS);
+  char* bytes = reinterpret_cast<char*>(base);
+  EXPECT_DEATH(bytes[0] = 1, "");  // mapped, not yet opened
+  CUmemAccessDesc access{};
+  access.location = prop.location;
+  access.flags = CU_MEM_ACCESS_FLAGS_PROT_READWRITE;
+  ASSERT_EQ(set_access(base, chunk, &access, 1), CUDA_SUCCESS);
+  bytes[0] = 1;
+  bytes[chunk - 1] = 2;
+  EXPECT_EQ(bytes[0] + bytes[chunk - 1], 3);
+  EXPECT_DEATH(bytes[chunk] = 1, "");  // reserved, not committed
+}
+
+}  // namespace
+}  // namespace hivox::test
