@@ -405,7 +405,7 @@ PYBIND11_MODULE(hivox, m) {
             TriangleMesh mesh;
             {
               py::gil_scoped_release release;
-              mesh = extract_mesh(r.map(), params);
+              mesh = r.extract_mesh(params);
             }
             return mesh_dict(mesh);
           },
@@ -415,7 +415,7 @@ PYBIND11_MODULE(hivox, m) {
           "write_mesh",
           [](const Reconstruction& r, const std::filesystem::path& path, const MeshParams& params) {
             py::gil_scoped_release release;
-            const TriangleMesh mesh = extract_mesh(r.map(), params);
+            const TriangleMesh mesh = r.extract_mesh(params);
             if (path.extension() == ".obj")
               write_obj(path, mesh);
             else

@@ -981,6 +981,9 @@ class CudaLoop final : public DeviceLoop {
   int64_t map_memory_bytes() const override { return gpu_->map_memory_bytes(); }
   void download_map(VoxelBlockMap& map) const override { gpu_->download_map(map); }
   RaycastResult model() const override { return gpu_->download_model(); }
+  TriangleMesh extract_mesh(const MeshParams& params, RemovedPieces* removed) const override {
+    return gpu_->extract_mesh(params, removed);
+  }
 
  private:
   std::unique_ptr<GpuReconstruction> gpu_;

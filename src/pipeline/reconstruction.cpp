@@ -115,6 +115,11 @@ const RaycastResult& Reconstruction::last_raycast() const {
   return device_model_;
 }
 
+TriangleMesh Reconstruction::extract_mesh(const MeshParams& params, RemovedPieces* removed) const {
+  if (loop_) return loop_->extract_mesh(params, removed);
+  return hivox::extract_mesh(*map_, params, removed);
+}
+
 int64_t Reconstruction::dropped_blocks() const {
   return loop_ ? loop_->dropped_blocks() : map_->dropped_blocks();
 }

@@ -328,7 +328,7 @@ class Run {
                           rec_->map().params(), out, "overview_"));
     }
     Stopwatch mesh_watch;
-    const TriangleMesh mesh = extract_mesh(rec_->map(), params_.mesh);
+    const TriangleMesh mesh = rec_->extract_mesh(params_.mesh);
     summary_.mesh_vertices = mesh.vertex_count();
     summary_.mesh_triangles = mesh.triangle_count();
     if (files) {

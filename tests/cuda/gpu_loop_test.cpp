@@ -563,8 +563,17 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   int64_t hits = 0;
   for (std::size_t i = 0; i < render.depth_m.size(); ++i) hits += render.depth_m.data()[i] > 0;
   EXPECT_GT(hits, 200000);
+  // The Reconstruction meshes on the device: the mesh of its map downloaded, vertex for vertex.
+  const TriangleMesh on_device = gpu->extract_mesh();
+  const TriangleMesh on_host = extract_mesh(gpu->map());
+  ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count());
+  EXPECT_EQ(on_device.triangle_count(), on_host.triangle_count());
+  float farthest = 0.0f;
+  for (std::size_t i = 0; i < on_host.positions_w.size(); ++i)
+    farthest = std::max(farthest, norm(on_device.positions_w[i] - on_host.positions_w[i]));
+  EXPECT_LT(farthest, 1e-6f);
 
-  // A whole run, as `hivox reconstruct --device cuda` makes it.
+  // A whole run, as `hivox reconstruct --device cuda` makes it (meshed on the device).
   TempDir dir;
   RunParams run;
   run.reconstruction = params_for(3, 0.002f, 0.024f);

@@ -10,6 +10,7 @@
 #include "hivox/core/dataset.h"
 #include "hivox/core/pose.h"
 #include "hivox/map/voxel_block_map.h"
+#include "hivox/mesh/extract_mesh.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/track/tracker.h"
 
@@ -37,6 +38,8 @@ class DeviceLoop {
   virtual void download_map(VoxelBlockMap& map) const = 0;
   /// The last model raycast, copied to the host.
   virtual RaycastResult model() const = 0;
+  /// The map's mesh, made on the device: what hivox::extract_mesh gives for the downloaded map.
+  virtual TriangleMesh extract_mesh(const MeshParams& params, RemovedPieces* removed) const = 0;
 };
 
 }  // namespace hivox

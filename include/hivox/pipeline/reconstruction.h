@@ -149,6 +149,9 @@ class Reconstruction {
   /// The raycast of the last frame (empty before the first, or without raycast_every_frame), at
   /// the tracking model's resolution (`track.model_subsample`); `render` gives full renders.
   const RaycastResult& last_raycast() const;
+  /// The map's mesh (hivox::extract_mesh); on another device, made there, without copying the
+  /// map to the host.
+  TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
   /// Raycasts the model from any pose with any camera (renders, overviews).
   const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
                               float max_depth_m = 0.0f);
