@@ -185,6 +185,12 @@ TEST(CudaEmulationDeathTest, VirtualMemoryIsOpenOnlyWhereCommittedAndOpened) {
   bytes[chunk - 1] = 2;
   EXPECT_EQ(bytes[0] + bytes[chunk - 1], 3);
   EXPECT_DEATH(bytes[chunk] = 1, "");  // reserved, not committed
+  const auto unmap = entry<decltype(&cuMemUnmap)>("cuMemUnmap");
+  const auto release = entry<decltype(&cuMemRelease)>("cuMemRelease");
+  const auto free = entry<decltype(&cuMemAddressFree)>("cuMemAddressFree");
+  EXPECT_EQ(unmap(base, chunk), CUDA_SUCCESS);
+  EXPECT_EQ(release(h), CUDA_SUCCESS);
+  EXPECT_EQ(free(base, 4 * chunk), CUDA_SUCCESS);
 }
 
 }  // namespace
