@@ -132,16 +132,8 @@ T atomicAdd(T* p, std::type_identity_t<T> v) {
     return __atomic_fetch_add(p, v, __ATOMIC_RELAXED);
 }
 template <typename T>
-T atomicSub(T* p, std::type_identity_t<T> v) {
-  return __atomic_fetch_sub(p, v, __ATOMIC_RELAXED);
-}
-template <typename T>
 T atomicOr(T* p, std::type_identity_t<T> v) {
   return __atomic_fetch_or(p, v, __ATOMIC_RELAXED);
-}
-template <typename T>
-T atomicAnd(T* p, std::type_identity_t<T> v) {
-  return __atomic_fetch_and(p, v, __ATOMIC_RELAXED);
 }
 template <typename T>
 T atomicExch(T* p, std::type_identity_t<T> v) {
