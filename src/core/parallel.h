@@ -75,9 +75,9 @@ void launch(void (*kernel)(Params...), dim3 grid, dim3 block, Args&&... args) {
 }
 #endif
 
-/// Runs `body(i)` for i in [0, n) on `device`. On CUDA (code compiled by nvcc) the body runs on
-/// the GPU and must be a `HIVOX_HD` callable holding views by value; `schedule` applies to the
-/// CPU only.
+/// Runs `body(i)` for i in [0, n) on `device`. On CUDA (code compiled by nvcc, or for the CPU
+/// emulation of CUDA) the body runs on the GPU and must be a `HIVOX_HD` callable holding views by
+/// value; `schedule` applies to the CPU only.
 template <typename Body>
 void parallel_for(const Device& device, int64_t n, const Body& body, CpuSchedule schedule = {}) {
   if (n <= 0) return;
