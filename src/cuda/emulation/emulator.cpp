@@ -83,7 +83,13 @@ class StackPool {
   }
 };
 
-enum class Wait : uint8_t { None, Barrier, Warp, Done };
+/// Item `i` of a grid or block of `dim` (x fastest), as CUDA numbers threads and blocks.
+uint3 unflatten(int64_t i, uint3 dim) {
+  return uint3{static_cast<unsigned>(i % dim.x), static_cast<unsigned>((i / dim.x) % dim.y),
+               static_cast<unsigned>(i / (int64_t{dim.x} * dim.y))};
+}
+
+enum class Wait : uint8_t { None, Barrier, Warp };
 
 /// One thread of the running block.
 struct Thread {
@@ -104,7 +110,6 @@ struct Block {
   static constexpr int kScheduler = -2, kFinished = -1;
 
   const std::function<void()>* body = nullptr;
-  uint3 dim{1, 1, 1};
   int n = 0;
   std::vector<Thread> threads;
   std::vector<unsigned> warp_arrived;  // per warp: the lanes in a warp operation
@@ -168,7 +173,6 @@ struct Block {
         const int id = next++;
         enter(id);
         (*body)();
-        threads[static_cast<std::size_t>(id)].wait = Wait::Done;
         ++done;
         release_barrier(-1);
       }
@@ -194,14 +198,12 @@ struct Block {
         blockIdx.x, blockIdx.y, blockIdx.z, n, done, waits);
   }
 
-  void run(const std::function<void()>& thread, uint3 block_dim) {
+  void run(const std::function<void()>& thread, uint3 dim) {
     body = &thread;
-    dim = block_dim;
     n = static_cast<int>(dim.x * dim.y * dim.z);
     threads.clear();
     threads.resize(static_cast<std::size_t>(n));
-    for (unsigned i = 0; i < static_cast<unsigned>(n); ++i)
-      threads[i].idx = uint3{i % dim.x, (i / dim.x) % dim.y, i / (dim.x * dim.y)};
+    for (int i = 0; i < n; ++i) threads[static_cast<std::size_t>(i)].idx = unflatten(i, dim);
     warp_arrived.assign(static_cast<std::size_t>((n + 31) / 32), 0u);
     ready.clear();
     next = done = at_barrier = 0;
@@ -266,8 +268,8 @@ std::size_t stack_limit = 1024;
 constexpr int kMultiprocessors = 16;
 constexpr std::size_t kGranularity = std::size_t{2} << 20;
 
-void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
-                const char* what) {
+void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
+  const char* what = "cudaMemcpy";
   DeviceMemory& memory = device_memory();
   const bool dst_device = kind == cudaMemcpyHostToDevice || kind == cudaMemcpyDeviceToDevice;
   const bool src_device = kind == cudaMemcpyDeviceToHost || kind == cudaMemcpyDeviceToDevice;
@@ -382,8 +384,7 @@ void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
     running = &state;
     gridDim = g;
     blockDim = b;
-    blockIdx = uint3{static_cast<unsigned>(i % g.x), static_cast<unsigned>((i / g.x) % g.y),
-                     static_cast<unsigned>(i / (int64_t{g.x} * g.y))};
+    blockIdx = unflatten(i, g);
     state.run(thread, b);
     running = nullptr;
   }
@@ -567,16 +568,13 @@ cudaError_t cudaFreeHost(void* ptr) {
 
 cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
   if (bytes == 0) return cudaSuccess;
-  e::check_copy(dst, src, bytes, kind, "cudaMemcpy");
+  e::check_copy(dst, src, bytes, kind);
   std::memcpy(dst, src, bytes);
   return cudaSuccess;
 }
 cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
                             cudaStream_t) {
-  if (bytes == 0) return cudaSuccess;
-  e::check_copy(dst, src, bytes, kind, "cudaMemcpyAsync");
-  std::memcpy(dst, src, bytes);
-  return cudaSuccess;
+  return cudaMemcpy(dst, src, bytes, kind);  // synchronous here
 }
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
   if (bytes == 0) return cudaSuccess;

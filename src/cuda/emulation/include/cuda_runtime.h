@@ -8,6 +8,8 @@
 /// GPU. A thread that waits for a thread that cannot come (one that has exited, a lane outside
 /// the block) stops the program with a message naming the kernel's block and thread.
 
+#include <atomic>
+#include <bit>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -60,21 +62,15 @@ T from_bits(uint64_t bits) {
   return v;
 }
 
-/// `*p = op(*p, v)` atomically (a compare-and-swap loop on its bits); returns the old value.
-template <typename T>
-T atomic_rmw(T* p, T v, T (*op)(T, T)) {
-  using Bits = std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>;
-  Bits* b = reinterpret_cast<Bits*>(p);
-  Bits old = __atomic_load_n(b, __ATOMIC_RELAXED);
-  for (;;) {
-    T was;
-    std::memcpy(&was, &old, sizeof(T));
-    const T now = op(was, v);
-    Bits next;
-    std::memcpy(&next, &now, sizeof(T));
-    if (__atomic_compare_exchange_n(b, &old, next, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
-      return was;
+/// Stores `v` at `p` while `keeps(v, *p)`; returns the value held before (the atomic minimum
+/// and maximum).
+template <typename T, typename Keeps>
+T atomic_keep(T* p, T v, Keeps keeps) {
+  std::atomic_ref<T> a(*p);
+  T old = a.load(std::memory_order_relaxed);
+  while (keeps(v, old) && !a.compare_exchange_weak(old, v, std::memory_order_relaxed)) {
   }
+  return old;
 }
 
 }  // namespace hivox::cuda::emulation
@@ -114,41 +110,39 @@ inline int __ffs(int x) {
   return __builtin_ffs(x);
 }
 inline float __uint_as_float(unsigned x) {
-  return hivox::cuda::emulation::from_bits<float>(x);
+  return std::bit_cast<float>(x);
 }
 inline unsigned __float_as_uint(float x) {
-  return static_cast<unsigned>(hivox::cuda::emulation::to_bits(x));
+  return std::bit_cast<unsigned>(x);
 }
 template <typename T>
 T __ldcg(const T* p) {
   return *p;
 }
 
+// CUDA's atomics are relaxed.
 template <typename T>
 T atomicAdd(T* p, std::type_identity_t<T> v) {
-  if constexpr (std::is_floating_point_v<T>)
-    return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return a + b; });
-  else
-    return __atomic_fetch_add(p, v, __ATOMIC_RELAXED);
+  return std::atomic_ref<T>(*p).fetch_add(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicOr(T* p, std::type_identity_t<T> v) {
-  return __atomic_fetch_or(p, v, __ATOMIC_RELAXED);
+  return std::atomic_ref<T>(*p).fetch_or(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicExch(T* p, std::type_identity_t<T> v) {
-  return __atomic_exchange_n(p, v, __ATOMIC_RELAXED);
+  return std::atomic_ref<T>(*p).exchange(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicCAS(T* p, std::type_identity_t<T> expected, std::type_identity_t<T> desired) {
-  __atomic_compare_exchange_n(p, &expected, desired, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED);
-  return expected;
+  std::atomic_ref<T>(*p).compare_exchange_strong(expected, desired, std::memory_order_relaxed);
+  return expected;  // on failure compare_exchange wrote the value held here
 }
 template <typename T>
 T atomicMin(T* p, std::type_identity_t<T> v) {
-  return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return b < a ? b : a; });
+  return hivox::cuda::emulation::atomic_keep(p, v, std::less<T>());
 }
 template <typename T>
 T atomicMax(T* p, std::type_identity_t<T> v) {
-  return hivox::cuda::emulation::atomic_rmw<T>(p, v, [](T a, T b) { return a < b ? b : a; });
+  return hivox::cuda::emulation::atomic_keep(p, v, std::greater<T>());
 }
