@@ -437,15 +437,30 @@ __global__ void downsample_model_kernel(const Vec3f* points, const Vec3f* normal
 // The sums in the layout of track/gauss_newton.h: A upper (21), b (6), r2, distance, inliers.
 constexpr int kSums = kernels::kIcpSums;
 
+/// A step of the warp's reduce-scatter of `v` (32 slots, the first 2 `kHalf` live): lanes
+/// `kHalf` apart swap halves, each keeping the half its bit `kHalf` picks, plus the partner's copy.
+template <int kHalf>
+__device__ HIVOX_FORCEINLINE void reduce_scatter_step(float (&v)[32], int lane) {
+  const bool upper = (lane & kHalf) != 0;
+#pragma unroll
+  for (int j = 0; j < kHalf; ++j) {
+    const float lo = v[j], hi = v[j + kHalf];
+    v[j] = (upper ? hi : lo) + __shfl_xor_sync(0xFFFFFFFFu, upper ? lo : hi, kHalf);
+  }
+}
+
 /// One ICP pass: each block sums its pixels' terms at pose `c.T_wc`, the last block to finish
 /// sums the blocks in doubles into `sums`.
 __device__ HIVOX_FORCEINLINE void icp_pass(const kernels::IcpPass& c, const Vec3f* points_c,
                                            const Vec3f* normals_c, int64_t pixels,
                                            const Vec3f* model_points, const Vec3f* model_normals,
                                            float* partials, unsigned* done, double* sums) {
-  // Each thread sums the terms of its pixels (a grid-stride loop: a few pixels a thread).
-  float v[kSums];
-  for (int k = 0; k < kSums; ++k) v[k] = 0.0f;
+  // Each thread sums the terms of its pixels (a grid-stride loop: a few pixels a thread), in 32
+  // slots (the sums and zeros) for the warp's reduce-scatter below.
+  static_assert(kSums <= 32, "one sum a lane in the warp's reduce-scatter");
+  float v[32];
+#pragma unroll
+  for (int k = 0; k < 32; ++k) v[k] = 0.0f;
   const int64_t stride = static_cast<int64_t>(gridDim.x) * blockDim.x;
   for (int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x; i < pixels;
        i += stride) {
@@ -469,14 +484,18 @@ __device__ HIVOX_FORCEINLINE void icp_pass(const kernels::IcpPass& c, const Vec3
       v[kernels::kIcpInliers] += 1.0f;
     }
   }
-  // The block's sums: within each warp by shuffles, then across the warps.
+  // The block's sums: within each warp by a reduce-scatter, then across the warps. At each step
+  // lanes o apart swap halves of their live slots: a lane keeps the half its bit o picks, adds
+  // the partner's copy of it, and sends the other. 16 + 8 + 4 + 2 + 1 = 31 shuffles leave lane l
+  // with the warp's sum l (a shuffle per sum and step, 150, without the halving).
   __shared__ float warp_sums[kThreads / 32][kSums];
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-  for (int k = 0; k < kSums; ++k) {
-    float x = v[k];
-    for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(0xFFFFFFFFu, x, o);
-    if (lane == 0) warp_sums[warp][k] = x;
-  }
+  reduce_scatter_step<16>(v, lane);
+  reduce_scatter_step<8>(v, lane);
+  reduce_scatter_step<4>(v, lane);
+  reduce_scatter_step<2>(v, lane);
+  reduce_scatter_step<1>(v, lane);
+  if (lane < kSums) warp_sums[warp][lane] = v[0];
   __syncthreads();
   if (threadIdx.x < kSums) {
     float x = 0.0f;

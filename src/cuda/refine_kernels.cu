@@ -30,11 +30,12 @@ __device__ float depth_of(const RefineConstants& k, const MapView& map, const Ve
 
 constexpr unsigned kFullWarp = 0xFFFFFFFFu;
 
-/// Lane 0's sum of `x` over the warp, handed to every lane (the same value in all of them).
+/// The sum of `x` over the warp by a butterfly of xor shuffles. Every lane ends with the same
+/// value: at each step the two lanes of a pair add the same two numbers.
 template <typename T>
 __device__ T warp_sum(T x) {
-  for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(kFullWarp, x, o);
-  return __shfl_sync(kFullWarp, x, 0);
+  for (int o = 16; o > 0; o >>= 1) x += __shfl_xor_sync(kFullWarp, x, o);
+  return x;
 }
 
 /// The block's complexity by one whole warp: the detail criterion's samples

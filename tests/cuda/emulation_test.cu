@@ -62,14 +62,20 @@ TEST(CudaEmulation, BarriersOrderASharedMemoryTreeSum) {
   cudaFree(out);
 }
 
-/// Per thread: the warp's sum of lane numbers by shuffles down, lane 5's value broadcast, the
-/// ballot of the even lanes, and a slot taken with one atomic per thread.
-__global__ void warp_ops(int* sums, int* broadcast, unsigned* ballots, int* counter, int* slots) {
+/// Per thread: the warp's sum of lane numbers by shuffles down and by a butterfly of xor
+/// shuffles, lane 5's value broadcast, the ballot of the even lanes, and a slot taken with one
+/// atomic per thread.
+__global__ void warp_ops(int* sums, int* butterfly, int* broadcast, unsigned* ballots, int* counter,
+                         int* slots) {
   const int lane = static_cast<int>(threadIdx.x & 31u);
-  int x = lane;
-  for (int o = 16; o > 0; o >>= 1) x += __shfl_down_sync(0xFFFFFFFFu, x, o);
+  int x = lane, y = lane;
+  for (int o = 16; o > 0; o >>= 1) {
+    x += __shfl_down_sync(0xFFFFFFFFu, x, o);
+    y += __shfl_xor_sync(0xFFFFFFFFu, y, o);
+  }
   const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   sums[i] = x;
+  butterfly[i] = y;
   broadcast[i] = __shfl_sync(0xFFFFFFFFu, lane * 10, 5);
   ballots[i] = __ballot_sync(0xFFFFFFFFu, lane % 2 == 0);
   slots[atomicAdd(counter, 1)] = i;
@@ -78,14 +84,16 @@ __global__ void warp_ops(int* sums, int* broadcast, unsigned* ballots, int* coun
 TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
   constexpr int kBlocks = 3, kThreads = 128, kN = kBlocks * kThreads;
   int* sums = device_array<int>(kN);
+  int* butterfly = device_array<int>(kN);
   int* broadcast = device_array<int>(kN);
   unsigned* ballots = device_array<unsigned>(kN);
   int* counter = device_array<int>(1);
   int* slots = device_array<int>(kN);
   ASSERT_EQ(cudaMemset(counter, 0, sizeof(int)), cudaSuccess);
-  launch(warp_ops, kBlocks, kThreads, sums, broadcast, ballots, counter, slots);
+  launch(warp_ops, kBlocks, kThreads, sums, butterfly, broadcast, ballots, counter, slots);
   ASSERT_EQ(cudaGetLastError(), cudaSuccess);
-  const std::vector<int> s = download(sums, kN), b = download(broadcast, kN);
+  const std::vector<int> s = download(sums, kN), x = download(butterfly, kN),
+                         b = download(broadcast, kN);
   const std::vector<unsigned> v = download(ballots, kN);
   std::vector<int> taken = download(slots, kN);
   for (int i = 0; i < kN; ++i) {
@@ -93,6 +101,7 @@ TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
     if (i % 32 == 0) {
       EXPECT_EQ(s[i], 496) << "thread " << i;
     }
+    EXPECT_EQ(x[i], 496) << "thread " << i;  // the butterfly gives every lane the sum
     EXPECT_EQ(b[i], 50) << "thread " << i;
     EXPECT_EQ(v[i], 0x55555555u) << "thread " << i;
   }
@@ -100,8 +109,8 @@ TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
   std::sort(taken.begin(), taken.end());
   for (int i = 0; i < kN; ++i) ASSERT_EQ(taken[i], i);  // every slot once
   for (void* p :
-       {static_cast<void*>(sums), static_cast<void*>(broadcast), static_cast<void*>(ballots),
-        static_cast<void*>(counter), static_cast<void*>(slots)})
+       {static_cast<void*>(sums), static_cast<void*>(butterfly), static_cast<void*>(broadcast),
+        static_cast<void*>(ballots), static_cast<void*>(counter), static_cast<void*>(slots)})
     cudaFree(p);
 }
 

@@ -443,6 +443,9 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
       case WarpOp::ShuffleDown:
         src = l + t.arg < 32 ? l + t.arg : l;
         break;
+      case WarpOp::ShuffleXor:
+        src = l ^ t.arg;
+        break;
     }
     if (op != WarpOp::Ballot) {
       if ((mask >> src & 1u) == 0)

@@ -39,10 +39,11 @@ namespace hivox::cuda::emulation {
 /// blocks, more than 1024 threads a block) sets the last error instead, as a launch would.
 void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread);
 
-enum class WarpOp : uint8_t { Shuffle, ShuffleDown, Ballot };
+enum class WarpOp : uint8_t { Shuffle, ShuffleDown, ShuffleXor, Ballot };
 
 /// A warp operation of the running thread: waits until every lane of `mask` is in it, then
-/// returns this lane's result (the value of lane `arg`, of lane + `arg`, or the ballot).
+/// returns this lane's result (the value of lane `arg`, of lane + `arg`, of lane ^ `arg`, or the
+/// ballot).
 uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg);
 
 /// This thread's lane in its warp.
@@ -101,6 +102,14 @@ T __shfl_down_sync(unsigned mask, T value, unsigned delta, int width = 32) {
   (void)width;
   namespace e = hivox::cuda::emulation;
   return e::from_bits<T>(e::warp_op(e::WarpOp::ShuffleDown, mask, e::to_bits(value), delta));
+}
+
+template <typename T>
+T __shfl_xor_sync(unsigned mask, T value, int lane_mask, int width = 32) {
+  (void)width;
+  namespace e = hivox::cuda::emulation;
+  return e::from_bits<T>(e::warp_op(e::WarpOp::ShuffleXor, mask, e::to_bits(value),
+                                    static_cast<unsigned>(lane_mask) & 31u));
 }
 
 inline int __popc(unsigned x) {
