@@ -13,10 +13,7 @@
 #include "hivox/core/hd.h"
 #include "hivox/core/threads.h"
 
-// CUDA code: compiled by nvcc, or by the host compiler against the CPU emulation of CUDA
-// (-DHIVOX_CUDA_EMULATION=ON, src/cuda/emulation).
-#if defined(__CUDACC__) || defined(HIVOX_CUDA_EMULATION)
-#define HIVOX_CUDA_CODE 1
+#if defined(HIVOX_CUDA_CODE)  // (hd.h)
 #include <cuda_runtime.h>
 
 #include <utility>
@@ -67,10 +64,10 @@ __global__ void grid_stride_loop(int64_t n, Body body) {
 /// runs the grid before it returns). Every kernel of the CUDA loop starts here.
 template <typename... Params, typename... Args>
 void launch(void (*kernel)(Params...), dim3 grid, dim3 block, Args&&... args) {
-#if defined(__CUDACC__)
-  kernel<<<grid, block>>>(std::forward<Args>(args)...);
-#else
+#if defined(HIVOX_CUDA_EMULATION)
   cuda::emulation::run_grid(grid, block, [&] { kernel(args...); });
+#else
+  kernel<<<grid, block>>>(std::forward<Args>(args)...);
 #endif
 }
 #endif

@@ -1,10 +1,16 @@
 #pragma once
 /// @file
-/// Host/device qualifiers. Math shared by the CPU and the (future) CUDA drivers is written once
+/// Host/device qualifiers. Math shared by the CPU and the CUDA drivers is written once
 /// as `HIVOX_HD inline` functions on plain types; this header is the only place that knows
 /// whether a CUDA compiler is looking.
 
 #define HIVOX_PRAGMA(x) _Pragma(#x)
+
+/// Defined in CUDA code: compiled by nvcc, or by the host compiler against the CPU emulation of
+/// CUDA (-DHIVOX_CUDA_EMULATION=ON, src/cuda/emulation). Kernels and launches are written there.
+#if defined(__CUDACC__) || defined(HIVOX_CUDA_EMULATION)
+#define HIVOX_CUDA_CODE 1
+#endif
 
 #if defined(__CUDACC__)
 #define HIVOX_HD __host__ __device__
