@@ -500,29 +500,12 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
     ASSERT_EQ(a.normals_w.size(), b.normals_w.size());
     ASSERT_EQ(a.colors.size(), b.colors.size());
     EXPECT_EQ(cpu_removed.pieces, gpu_removed.pieces);
-    int64_t far = 0, normal_far = 0, color_far = 0, level_differ = 0;
-    for (std::size_t v = 0; v < a.positions_w.size(); ++v) {
-      const Vec3f d = a.positions_w[v] - b.positions_w[v];
-      far += d.x * d.x + d.y * d.y + d.z * d.z > 1e-12f;  // 1 micrometre
-      if (!a.normals_w.empty()) {
-        const Vec3f& n = a.normals_w[v];
-        const Vec3f& m = b.normals_w[v];
-        normal_far += n.x * m.x + n.y * m.y + n.z * m.z < 0.9999f;
-      }
-      if (!a.colors.empty())
-        color_far += std::abs(a.colors[v].r - b.colors[v].r) > 1 ||
-                     std::abs(a.colors[v].g - b.colors[v].g) > 1 ||
-                     std::abs(a.colors[v].b - b.colors[v].b) > 1;
-      level_differ += a.levels[v] != b.levels[v];
-    }
-    EXPECT_EQ(far, 0);
-    EXPECT_EQ(normal_far, 0);
-    EXPECT_EQ(color_far, 0);
-    EXPECT_EQ(level_differ, 0);
-    int64_t triangles_differ = 0;
-    for (std::size_t t = 0; t < a.triangles.size(); ++t)
-      triangles_differ += a.triangles[t] != b.triangles[t];
-    EXPECT_EQ(triangles_differ, 0);
+    const test::MeshDifferences d = test::mesh_differences(a, b);
+    EXPECT_EQ(d.positions, 0);
+    EXPECT_EQ(d.normals, 0);
+    EXPECT_EQ(d.colors, 0);
+    EXPECT_EQ(d.levels, 0);
+    EXPECT_EQ(d.triangles, 0);
   }
   // An empty map gives an empty mesh.
   cuda::GpuReconstruction empty(p, data.info().rig);
@@ -568,10 +551,7 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   const TriangleMesh on_host = extract_mesh(gpu->map());
   ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count());
   EXPECT_EQ(on_device.triangle_count(), on_host.triangle_count());
-  float farthest = 0.0f;
-  for (std::size_t i = 0; i < on_host.positions_w.size(); ++i)
-    farthest = std::max(farthest, norm(on_device.positions_w[i] - on_host.positions_w[i]));
-  EXPECT_LT(farthest, 1e-6f);
+  EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f);
 
   // A whole run, as `hivox reconstruct --device cuda` makes it (meshed on the device).
   TempDir dir;

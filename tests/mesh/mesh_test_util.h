@@ -1,8 +1,11 @@
 #pragma once
 // Maps for mesh tests: written directly from an exact signed distance function, or fused from
-// depth images of the analytic scene.
+// depth images of the analytic scene; and how two meshes differ.
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <functional>
 #include <memory>
 #include <utility>
@@ -12,6 +15,7 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/params.h"
+#include "hivox/mesh/triangle_mesh.h"
 #include "map/map_access.h"
 
 namespace hivox::test {
@@ -129,6 +133,32 @@ inline std::vector<std::pair<const char*, MeshParams>> mesh_param_cases() {
   cases[3].second.min_weight = 3;
   cases[3].second.min_piece_triangles = 50;
   return cases;
+}
+
+/// How many of two meshes' vertices and triangles differ, index for index (the meshes have the
+/// same counts): positions more than 1 micrometre apart, normals more than ~0.8 degrees apart,
+/// colours more than 1 apart in a channel, levels, triangles.
+struct MeshDifferences {
+  int64_t positions = 0, normals = 0, colors = 0, levels = 0, triangles = 0;
+  float farthest_m = 0.0f;  ///< the largest distance between two vertices of the same index
+};
+inline MeshDifferences mesh_differences(const TriangleMesh& a, const TriangleMesh& b) {
+  MeshDifferences d;
+  for (std::size_t v = 0; v < a.positions_w.size() && v < b.positions_w.size(); ++v) {
+    const float apart = norm(a.positions_w[v] - b.positions_w[v]);
+    d.farthest_m = std::max(d.farthest_m, apart);
+    d.positions += apart > 1e-6f;
+    if (v < a.normals_w.size() && v < b.normals_w.size())
+      d.normals += dot(a.normals_w[v], b.normals_w[v]) < 0.9999f;
+    if (v < a.colors.size() && v < b.colors.size())
+      d.colors += std::abs(a.colors[v].r - b.colors[v].r) > 1 ||
+                  std::abs(a.colors[v].g - b.colors[v].g) > 1 ||
+                  std::abs(a.colors[v].b - b.colors[v].b) > 1;
+    if (v < a.levels.size() && v < b.levels.size()) d.levels += a.levels[v] != b.levels[v];
+  }
+  for (std::size_t t = 0; t < a.triangles.size() && t < b.triangles.size(); ++t)
+    d.triangles += a.triangles[t] != b.triangles[t];
+  return d;
 }
 
 inline Eigen::Vector3d to_eigen(const Vec3f& v) {
