@@ -46,6 +46,9 @@ constexpr int kBlockFreeCount = kMaxLevels;  // free pool blocks
 constexpr int kLevelCount = kMaxLevels + 1;  // kMaxLevels: blocks per level
 constexpr int kHighWater = 2 * kMaxLevels + 1;
 constexpr int kCounters = 2 * kMaxLevels + 2;
+/// Refinement's candidate lists come back with their counts up to this many entries (a few
+/// hundred are usual); the rest in a second copy.
+constexpr std::size_t kRefineListHead = 1024;
 
 /// Stack bytes a GPU thread gets (see Impl's constructor).
 constexpr std::size_t kStackBytes = 4096;
@@ -126,6 +129,7 @@ struct GpuReconstruction::Impl {
   Buffer<double> icp_sums;
   Buffer<uint32_t> icp_done;
   PinnedBuffer<double> host_sums;
+  PinnedBuffer<int32_t> host_valid_pixels;  ///< the frame's valid pixels, read with the sums
   bool gauss_newton_on_device = false;
   int split_marches_at_most = 0;        ///< see set_split_marches
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
@@ -139,6 +143,13 @@ struct GpuReconstruction::Impl {
   Buffer<int32_t> refine_counts;
   Buffer<MergeJob> merge_jobs;
   Buffer<SplitJob> split_jobs;
+  // The host's page-locked copies: the counts and the lists' first entries come back in one
+  // round trip, the jobs go down without one.
+  PinnedBuffer<int32_t> host_refine_counts, host_map_counters;
+  PinnedBuffer<BlockRef> host_splits;
+  PinnedBuffer<BlockKey> host_merges;
+  PinnedBuffer<MergeJob> host_merge_jobs;
+  PinnedBuffer<SplitJob> host_split_jobs;
   int64_t refine_calls = 0;
 
   std::vector<StampedPose> trajectory;
@@ -292,6 +303,7 @@ struct GpuReconstruction::Impl {
     icp_done.reset(1, &total_bytes);
     check_status(cudaMemset(icp_done.get(), 0, sizeof(uint32_t)), "clearing the ICP counter");
     host_sums.reserve(kernels::kIcpSums);
+    host_valid_pixels.reserve(1);
     icp_state.reset(1, &total_bytes);
     host_icp_state.reserve(1);
     if (map_params.levels > 1) {
@@ -310,6 +322,17 @@ struct GpuReconstruction::Impl {
     if (b.size() >= n) return;
     total_bytes -= static_cast<int64_t>(b.size() * sizeof(T));  // the old buffer goes
     b.reset(n + n / 2, &total_bytes);
+  }
+
+  /// Queues the copy of `n` elements between page-locked `host` memory and the device: no wait
+  /// (the next synchronisation, or a blocking copy, ends it).
+  template <typename T>
+  static void upload_async(T* device, const T* host, std::size_t n, const char* what) {
+    check_status(cudaMemcpyAsync(device, host, n * sizeof(T), cudaMemcpyHostToDevice), what);
+  }
+  template <typename T>
+  static void download_async(T* host, const T* device, std::size_t n, const char* what) {
+    check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost), what);
   }
 
   int32_t read_counter(int index) const {
@@ -345,31 +368,47 @@ struct GpuReconstruction::Impl {
                     parent_list.get(), static_cast<int32_t>(parent_list.size())},
         refine_counts.get()};
     split_candidates(view.read, visible.get(), visible_count, alloc_counters.get(), k, lists);
-    int32_t counts[3];
-    refine_counts.download(counts, 3);
-    merge_candidates(view.read, std::min(counts[1], lists.parents.capacity), k, lists);
-    refine_counts.download(counts, 3);
+    // Each visible block has at most one parent: a bound for the parents split_candidates counts.
+    merge_candidates(view.read, std::min(visible_count, lists.parents.capacity), k, lists);
+    // The counts and the lists' first entries in one round trip; longer lists, rarely, in a second.
+    const std::size_t head = std::min<std::size_t>(kRefineListHead, split_list.size());
+    int32_t* counts = host_refine_counts.reserve(3);
+    BlockRef* split_head = host_splits.reserve(head);
+    BlockKey* merge_head = host_merges.reserve(head);
+    download_async(counts, refine_counts.get(), 3, "refinement (counts)");
+    download_async(split_head, split_list.get(), head, "refinement (split list)");
+    download_async(merge_head, merge_list.get(), head, "refinement (merge list)");
+    synchronize("refinement (candidates)");
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
-    split_list.download(splits.data(), splits.size());
-    merge_list.download(merges.data(), merges.size());
+    std::copy_n(split_head, std::min(head, splits.size()), splits.data());
+    std::copy_n(merge_head, std::min(head, merges.size()), merges.data());
+    if (splits.size() > head) split_list.download(splits.data() + head, splits.size() - head, head);
+    if (merges.size() > head) merge_list.download(merges.data() + head, merges.size() - head, head);
 
     // Merges, in key order (the CPU's merge_blocks).
     std::sort(merges.begin(), merges.end());
     std::vector<MergeJob> mj(merges.size());
     for (std::size_t i = 0; i < merges.size(); ++i) mj[i].parent = merges[i];
+    int32_t* c = host_map_counters.reserve(kCounters);
     if (!mj.empty()) {
       ensure(merge_jobs, mj.size());
-      merge_jobs.upload(mj.data(), mj.size());
+      MergeJob* staged = host_merge_jobs.reserve(mj.size());
+      std::copy(mj.begin(), mj.end(), staged);
+      upload_async(merge_jobs.get(), staged, mj.size(), "merging (the jobs)");
       merge_lookup(view.read, merge_jobs.get(), static_cast<int32_t>(mj.size()));
-      merge_jobs.download(mj.data(), mj.size());
+      download_async(staged, merge_jobs.get(), mj.size(), "merging (the jobs)");
+      download_async(c, counters.get(), kCounters, "merging (the counters)");
+      synchronize("merging (looking up)");
+      mj.assign(staged, staged + mj.size());
       std::erase_if(mj, [](const MergeJob& m) { return m.ok == 0; });
-      const int64_t room = read_counter(kBlockFreeCount);
+      const int64_t room = c[kBlockFreeCount];
       if (static_cast<int64_t>(mj.size()) > room) {  // a merge needs a block before it frees 8
         s.refine_waiting += static_cast<int64_t>(mj.size()) - room;
         mj.resize(static_cast<std::size_t>(room));
       }
-      merge_jobs.upload(mj.data(), mj.size());
+      std::copy(mj.begin(), mj.end(), staged);
+      upload_async(merge_jobs.get(), staged, mj.size(), "merging (the jobs)");
       commit_pool(static_cast<int64_t>(high_water) + static_cast<int64_t>(mj.size()));
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
@@ -386,12 +425,15 @@ struct GpuReconstruction::Impl {
     for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
     if (!sj.empty()) {
       ensure(split_jobs, sj.size());
-      split_jobs.upload(sj.data(), sj.size());
+      SplitJob* staged = host_split_jobs.reserve(sj.size());
+      std::copy(sj.begin(), sj.end(), staged);
+      upload_async(split_jobs.get(), staged, sj.size(), "splitting (the jobs)");
       split_check(view.read, split_jobs.get(), static_cast<int32_t>(sj.size()));
-      split_jobs.download(sj.data(), sj.size());
+      download_async(staged, split_jobs.get(), sj.size(), "splitting (the jobs)");
+      download_async(c, counters.get(), kCounters, "splitting (the counters)");
+      synchronize("splitting (checking)");
+      sj.assign(staged, staged + sj.size());
       std::erase_if(sj, [](const SplitJob& j) { return j.ok == 0; });
-      int32_t c[kCounters];
-      counters.download(c, kCounters);
       kernels::SplitRoom room{c[kBlockFreeCount], {}};
       for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
       std::vector<SplitJob> go;
@@ -411,7 +453,8 @@ struct GpuReconstruction::Impl {
         return a.parent.level < b.parent.level;
       });
       if (!go.empty()) {
-        split_jobs.upload(go.data(), go.size());
+        std::copy(go.begin(), go.end(), staged);
+        upload_async(split_jobs.get(), staged, go.size(), "splitting (the jobs)");
         // The high-water mark as just read: nothing since has taken a block.
         commit_pool(static_cast<int64_t>(c[kHighWater]) +
                     static_cast<int64_t>(go.size()) * kBlockChildren);
@@ -511,9 +554,8 @@ struct GpuReconstruction::Impl {
     s.allocate_ms = stage.lap_ms();
     cuda::integrate(view, visible.get(), found + to_insert, alloc_counters.get(), f.depth, f.color,
                     f.constants);
-    synchronize("integration");
-    s.integrate_ms = stage.lap_ms();
-    // The counters, the high-water mark and the super-blocks' bounds in one round trip.
+    // The counters, the high-water mark and the super-blocks' bounds in one round trip, which
+    // also ends the integration's time.
     int32_t* hw = host_high_water.reserve(1);
     kernels::SuperBlockBounds* hb = host_bounds.reserve(1);
     check_status(
@@ -525,7 +567,8 @@ struct GpuReconstruction::Impl {
     check_status(cudaMemcpyAsync(hb, occupancy_bounds.get(), sizeof(kernels::SuperBlockBounds),
                                  cudaMemcpyDeviceToHost),
                  "reading the super-blocks' bounds");
-    synchronize("reading the counters");
+    synchronize("integration");
+    s.integrate_ms = stage.lap_ms();
     high_water = *hw;
     bounds = *hb;
     s.valid_pixels = c->valid_pixels;
@@ -622,8 +665,9 @@ struct GpuReconstruction::Impl {
                          out.camera.height, tp.max_depth_jump_ratio);
       }
     }
-    int32_t valid_pixels = 0;
-    check_status(cudaMemcpy(&valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
+    // The valid pixels come back with the first pass's sums (or the state): no round trip here.
+    int32_t* valid_pixels = host_valid_pixels.reserve(1);
+    check_status(cudaMemcpyAsync(valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
                  "tracking (preprocessing)");
     result.preprocess_ms = watch.lap_ms();
     const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
@@ -645,7 +689,9 @@ struct GpuReconstruction::Impl {
       return out;
     };
     if (!gauss_newton_on_device) {
-      icp::align_and_judge(tp, reduce, valid_pixels, T_init, &result);
+      const icp::Alignment a = icp::align(tp, reduce, T_init);
+      synchronize("tracking");  // the valid pixels' copy is done (without passes too)
+      icp::judge_alignment(tp, a, reduce, *valid_pixels, T_init, &result);
       result.icp_ms = watch.lap_ms();
       return result;
     }
@@ -669,7 +715,7 @@ struct GpuReconstruction::Impl {
     check_status(
         cudaMemcpy(state, icp_state.get(), sizeof(kernels::IcpState), cudaMemcpyDeviceToHost),
         "tracking (Gauss-Newton)");
-    icp::judge_alignment(tp, icp::alignment_of(*state), reduce, valid_pixels, T_init, &result);
+    icp::judge_alignment(tp, icp::alignment_of(*state), reduce, *valid_pixels, T_init, &result);
     result.icp_ms = watch.lap_ms();
     return result;
   }

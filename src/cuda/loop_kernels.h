@@ -158,7 +158,8 @@ struct RefineLists {
 void split_candidates(const MapView& map, const BlockRef* visible, int32_t max_visible,
                       const AllocCounters* counters, const RefineConstants& k,
                       const RefineLists& lists);
-/// Merge candidates among the first `lists.counts[1]` parents (at most `max_parents`).
+/// Merge candidates among the first `lists.counts[1]` parents, a count the kernel reads:
+/// `max_parents` (the grid) may be a bound the host knows without reading it back.
 void merge_candidates(const MapView& map, int32_t max_parents, const RefineConstants& k,
                       const RefineLists& lists);
 

@@ -100,7 +100,7 @@ __global__ void __launch_bounds__(kThreads)
 
 /// One CUDA block per parent, one warp per child: each warp judges its child, then the first
 /// warp decides (the CPU Refiner's merge test), checking the merged block on voxels the whole
-/// block gathered.
+/// block gathered. The grid is a bound: the blocks past the parents' count, read here, return.
 __global__ void __launch_bounds__(kBlockChildren * 32)
     merge_candidates_kernel(MapView map, RefineConstants k, RefineLists lists) {
   const int32_t i = blockIdx.x;

@@ -57,17 +57,6 @@ double rotation_deg(const Pose& T) {
   return rotation_angle_rad(T) * 180.0 / std::numbers::pi;
 }
 
-/// Gauss-Newton through the shared state machine (kernels::icp_update), one pass at a time.
-Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_wc_init) {
-  kernels::IcpState s = kernels::icp_start(to_posed(T_wc_init));
-  for (int level = params.levels() - 1; level >= 0 && s.diverged == 0; --level)
-    for (int it = 0; it < params.iterations[static_cast<std::size_t>(level)]; ++it) {
-      if (kernels::icp_skips(s, level)) break;
-      kernels::icp_update(s, reduce(level, from_posed(s.T)).v, level, params.convergence_step);
-    }
-  return alignment_of(s);
-}
-
 void judge(const TrackParams& params, const Alignment& a, int64_t valid_pixels,
            const Pose& T_wc_init, TrackResult* result) {
   const System& fin = a.fin;
@@ -107,6 +96,16 @@ void judge(const TrackParams& params, const Alignment& a, int64_t valid_pixels,
 }
 
 }  // namespace
+
+Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_wc_init) {
+  kernels::IcpState s = kernels::icp_start(to_posed(T_wc_init));
+  for (int level = params.levels() - 1; level >= 0 && s.diverged == 0; --level)
+    for (int it = 0; it < params.iterations[static_cast<std::size_t>(level)]; ++it) {
+      if (kernels::icp_skips(s, level)) break;
+      kernels::icp_update(s, reduce(level, from_posed(s.T)).v, level, params.convergence_step);
+    }
+  return alignment_of(s);
+}
 
 void align_and_judge(const TrackParams& params, const Reduce& reduce, int64_t valid_pixels,
                      const Pose& T_wc_init, TrackResult* result) {

@@ -67,6 +67,10 @@ struct Alignment {
   int iterations = 0;
   bool diverged = false;
 };
+/// align_and_judge's alignment alone: Gauss-Newton through the shared state machine
+/// (kernels::icp_update), one `reduce` pass at a time.
+Alignment align(const TrackParams& params, const Reduce& reduce, const Pose& T_wc_init);
+
 /// The alignment a run of the shared state machine ended in, on whichever device stepped it.
 Alignment alignment_of(const kernels::IcpState& s);
 

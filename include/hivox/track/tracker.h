@@ -30,7 +30,7 @@ struct TrackResult {
   double rms_m = 0;          ///< RMS point-to-plane residual of the inliers
   double condition = 0;      ///< smallest / largest eigenvalue of the normalised system (0..1)
   int iterations = 0;        ///< Gauss-Newton iterations run, all levels
-  double preprocess_ms = 0;
+  double preprocess_ms = 0;  ///< on a GPU: launching the preprocessing (its kernels end in icp_ms)
   double icp_ms = 0;
 };
 
