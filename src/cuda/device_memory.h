@@ -22,6 +22,20 @@ inline void copy_to_host(void* host, const void* device, std::size_t bytes) {
   if (bytes > 0) check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), "download");
 }
 
+/// Queued copies of `n` elements between page-locked host memory and the device: the host does
+/// not wait (the next synchronisation, or a blocking copy, ends them). `what` names the copy in
+/// errors.
+template <typename T>
+void upload_async(T* device, const T* host, std::size_t n, const char* what) {
+  if (n > 0)
+    check_status(cudaMemcpyAsync(device, host, n * sizeof(T), cudaMemcpyHostToDevice), what);
+}
+template <typename T>
+void download_async(T* host, const T* device, std::size_t n, const char* what) {
+  if (n > 0)
+    check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost), what);
+}
+
 /// Device memory freed with its owner; its bytes are added to `*total` (when not null).
 template <typename T>
 class Buffer {

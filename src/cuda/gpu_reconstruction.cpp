@@ -324,17 +324,6 @@ struct GpuReconstruction::Impl {
     b.reset(n + n / 2, &total_bytes);
   }
 
-  /// Queues the copy of `n` elements between page-locked `host` memory and the device: no wait
-  /// (the next synchronisation, or a blocking copy, ends it).
-  template <typename T>
-  static void upload_async(T* device, const T* host, std::size_t n, const char* what) {
-    check_status(cudaMemcpyAsync(device, host, n * sizeof(T), cudaMemcpyHostToDevice), what);
-  }
-  template <typename T>
-  static void download_async(T* host, const T* device, std::size_t n, const char* what) {
-    check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost), what);
-  }
-
   int32_t read_counter(int index) const {
     int32_t v = 0;
     counters.download(&v, 1, static_cast<std::size_t>(index));
@@ -492,9 +481,7 @@ struct GpuReconstruction::Impl {
     const std::size_t pixels = f.depth_m.size();
     float* staged = staged_depth.reserve(pixels);
     parallel_copy(staged, f.depth_m.data(), pixels * sizeof(float));
-    check_status(
-        cudaMemcpyAsync(depth.get(), staged, pixels * sizeof(float), cudaMemcpyHostToDevice),
-        "uploading the depth");
+    upload_async(depth.get(), staged, pixels, "uploading the depth");
     frame.depth.depth_m.data = depth.get();
     if (color_image.size() > 0 && in.color != nullptr) {
       const PinholeCamera& cc = rig.color_camera;
@@ -505,9 +492,7 @@ struct GpuReconstruction::Impl {
       const std::size_t n = f.color.size();
       Rgb8* staged_c = staged_color.reserve(n);
       parallel_copy(staged_c, f.color.data(), n * sizeof(Rgb8));
-      check_status(
-          cudaMemcpyAsync(color_image.get(), staged_c, n * sizeof(Rgb8), cudaMemcpyHostToDevice),
-          "uploading the colour");
+      upload_async(color_image.get(), staged_c, n, "uploading the colour");
       kernels::ColorFrameView& color = frame.color;
       color.image = {color_image.get(), cc.width, cc.height};
       color.camera = cc;
@@ -558,15 +543,9 @@ struct GpuReconstruction::Impl {
     // also ends the integration's time.
     int32_t* hw = host_high_water.reserve(1);
     kernels::SuperBlockBounds* hb = host_bounds.reserve(1);
-    check_status(
-        cudaMemcpyAsync(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
-        "reading the counters");
-    check_status(
-        cudaMemcpyAsync(hw, view.block_high_water, sizeof(int32_t), cudaMemcpyDeviceToHost),
-        "reading the high-water mark");
-    check_status(cudaMemcpyAsync(hb, occupancy_bounds.get(), sizeof(kernels::SuperBlockBounds),
-                                 cudaMemcpyDeviceToHost),
-                 "reading the super-blocks' bounds");
+    download_async(c, alloc_counters.get(), 1, "reading the counters");
+    download_async(hw, view.block_high_water, 1, "reading the high-water mark");
+    download_async(hb, occupancy_bounds.get(), 1, "reading the super-blocks' bounds");
     synchronize("integration");
     s.integrate_ms = stage.lap_ms();
     high_water = *hw;
@@ -667,8 +646,7 @@ struct GpuReconstruction::Impl {
     }
     // The valid pixels come back with the first pass's sums (or the state): no round trip here.
     int32_t* valid_pixels = host_valid_pixels.reserve(1);
-    check_status(cudaMemcpyAsync(valid_pixels, valid, sizeof(int32_t), cudaMemcpyDeviceToHost),
-                 "tracking (preprocessing)");
+    download_async(valid_pixels, valid, 1, "tracking (preprocessing)");
     result.preprocess_ms = watch.lap_ms();
     const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
     // A pass's constants at pyramid level `level` (the pose: `T_wc`, unless the device's state
@@ -699,9 +677,7 @@ struct GpuReconstruction::Impl {
     // where its sums end (a pass at a stopped level does nothing); the state is read back once.
     kernels::IcpState* state = host_icp_state.reserve(1);
     *state = kernels::icp_start(icp::to_posed(T_init));
-    check_status(
-        cudaMemcpyAsync(icp_state.get(), state, sizeof(kernels::IcpState), cudaMemcpyHostToDevice),
-        "tracking (Gauss-Newton's start)");
+    upload_async(icp_state.get(), state, 1, "tracking (Gauss-Newton's start)");
     for (int level = tp.levels() - 1; level >= 0; --level) {
       const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
       const ImageLevel& M = model[static_cast<std::size_t>(level)];

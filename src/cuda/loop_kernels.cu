@@ -484,10 +484,9 @@ __device__ HIVOX_FORCEINLINE void icp_pass(const kernels::IcpPass& c, const Vec3
       v[kernels::kIcpInliers] += 1.0f;
     }
   }
-  // The block's sums: within each warp by a reduce-scatter, then across the warps. At each step
-  // lanes o apart swap halves of their live slots: a lane keeps the half its bit o picks, adds
-  // the partner's copy of it, and sends the other. 16 + 8 + 4 + 2 + 1 = 31 shuffles leave lane l
-  // with the warp's sum l (a shuffle per sum and step, 150, without the halving).
+  // The block's sums: within each warp by a reduce-scatter (16 + 8 + 4 + 2 + 1 = 31 shuffles,
+  // against 150 for a tree per sum), which leaves lane l with the warp's sum l; then across the
+  // warps.
   __shared__ float warp_sums[kThreads / 32][kSums];
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   reduce_scatter_step<16>(v, lane);

@@ -63,6 +63,12 @@ T from_bits(uint64_t bits) {
   return v;
 }
 
+/// warp_op for a value of any type up to 8 bytes.
+template <typename T>
+T shuffle(WarpOp op, unsigned mask, T value, unsigned arg) {
+  return from_bits<T>(warp_op(op, mask, to_bits(value), arg));
+}
+
 /// Stores `v` at `p` while `keeps(v, *p)`; returns the value held before (the atomic minimum
 /// and maximum).
 template <typename T, typename Keeps>
@@ -90,26 +96,21 @@ inline unsigned __ballot_sync(unsigned mask, int predicate) {
   return static_cast<unsigned>(hivox::cuda::emulation::warp_op(
       hivox::cuda::emulation::WarpOp::Ballot, mask, predicate != 0 ? 1 : 0, 0));
 }
+// Shuffles over whole warps (`width` 32, the only one the loop uses).
 template <typename T>
-T __shfl_sync(unsigned mask, T value, int src_lane, int width = 32) {
-  (void)width;
-  namespace e = hivox::cuda::emulation;
-  return e::from_bits<T>(e::warp_op(e::WarpOp::Shuffle, mask, e::to_bits(value),
-                                    static_cast<unsigned>(src_lane) & 31u));
+T __shfl_sync(unsigned mask, T value, int src_lane, int = 32) {
+  return hivox::cuda::emulation::shuffle(hivox::cuda::emulation::WarpOp::Shuffle, mask, value,
+                                         static_cast<unsigned>(src_lane) & 31u);
 }
 template <typename T>
-T __shfl_down_sync(unsigned mask, T value, unsigned delta, int width = 32) {
-  (void)width;
-  namespace e = hivox::cuda::emulation;
-  return e::from_bits<T>(e::warp_op(e::WarpOp::ShuffleDown, mask, e::to_bits(value), delta));
+T __shfl_down_sync(unsigned mask, T value, unsigned delta, int = 32) {
+  return hivox::cuda::emulation::shuffle(hivox::cuda::emulation::WarpOp::ShuffleDown, mask, value,
+                                         delta);
 }
-
 template <typename T>
-T __shfl_xor_sync(unsigned mask, T value, int lane_mask, int width = 32) {
-  (void)width;
-  namespace e = hivox::cuda::emulation;
-  return e::from_bits<T>(e::warp_op(e::WarpOp::ShuffleXor, mask, e::to_bits(value),
-                                    static_cast<unsigned>(lane_mask) & 31u));
+T __shfl_xor_sync(unsigned mask, T value, int lane_mask, int = 32) {
+  return hivox::cuda::emulation::shuffle(hivox::cuda::emulation::WarpOp::ShuffleXor, mask, value,
+                                         static_cast<unsigned>(lane_mask) & 31u);
 }
 
 inline int __popc(unsigned x) {
