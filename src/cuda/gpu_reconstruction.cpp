@@ -324,6 +324,30 @@ struct GpuReconstruction::Impl {
     b.reset(n + n / 2, &total_bytes);
   }
 
+  /// Runs `check(device jobs, n)` on `jobs` and brings them back with the map's counters (into
+  /// `c`) in one round trip; keeps the jobs the check left `ok`.
+  template <typename Job, typename Check>
+  void check_jobs(std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host, int32_t* c,
+                  const char* what, Check&& check) {
+    ensure(device, jobs.size());
+    send_jobs(jobs, device, host, what);
+    check(device.get(), static_cast<int32_t>(jobs.size()));
+    Job* staged = host.reserve(jobs.size());
+    download_async(staged, device.get(), jobs.size(), what);
+    download_async(c, counters.get(), kCounters, what);
+    synchronize(what);
+    jobs.assign(staged, staged + jobs.size());
+    std::erase_if(jobs, [](const Job& j) { return j.ok == 0; });
+  }
+  /// Sends `jobs` to the device (it holds as many) through page-locked `host` memory: no wait.
+  template <typename Job>
+  static void send_jobs(const std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host,
+                        const char* what) {
+    Job* staged = host.reserve(jobs.size());
+    std::copy(jobs.begin(), jobs.end(), staged);
+    upload_async(device.get(), staged, jobs.size(), what);
+  }
+
   int32_t read_counter(int index) const {
     int32_t v = 0;
     counters.download(&v, 1, static_cast<std::size_t>(index));
@@ -381,23 +405,14 @@ struct GpuReconstruction::Impl {
     for (std::size_t i = 0; i < merges.size(); ++i) mj[i].parent = merges[i];
     int32_t* c = host_map_counters.reserve(kCounters);
     if (!mj.empty()) {
-      ensure(merge_jobs, mj.size());
-      MergeJob* staged = host_merge_jobs.reserve(mj.size());
-      std::copy(mj.begin(), mj.end(), staged);
-      upload_async(merge_jobs.get(), staged, mj.size(), "merging (the jobs)");
-      merge_lookup(view.read, merge_jobs.get(), static_cast<int32_t>(mj.size()));
-      download_async(staged, merge_jobs.get(), mj.size(), "merging (the jobs)");
-      download_async(c, counters.get(), kCounters, "merging (the counters)");
-      synchronize("merging (looking up)");
-      mj.assign(staged, staged + mj.size());
-      std::erase_if(mj, [](const MergeJob& m) { return m.ok == 0; });
+      check_jobs(mj, merge_jobs, host_merge_jobs, c, "merging (looking up)",
+                 [&](MergeJob* jobs, int32_t n) { merge_lookup(view.read, jobs, n); });
       const int64_t room = c[kBlockFreeCount];
       if (static_cast<int64_t>(mj.size()) > room) {  // a merge needs a block before it frees 8
         s.refine_waiting += static_cast<int64_t>(mj.size()) - room;
         mj.resize(static_cast<std::size_t>(room));
       }
-      std::copy(mj.begin(), mj.end(), staged);
-      upload_async(merge_jobs.get(), staged, mj.size(), "merging (the jobs)");
+      send_jobs(mj, merge_jobs, host_merge_jobs, "merging (the jobs)");
       commit_pool(static_cast<int64_t>(high_water) + static_cast<int64_t>(mj.size()));
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
@@ -413,16 +428,8 @@ struct GpuReconstruction::Impl {
     std::vector<SplitJob> sj(splits.size());
     for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
     if (!sj.empty()) {
-      ensure(split_jobs, sj.size());
-      SplitJob* staged = host_split_jobs.reserve(sj.size());
-      std::copy(sj.begin(), sj.end(), staged);
-      upload_async(split_jobs.get(), staged, sj.size(), "splitting (the jobs)");
-      split_check(view.read, split_jobs.get(), static_cast<int32_t>(sj.size()));
-      download_async(staged, split_jobs.get(), sj.size(), "splitting (the jobs)");
-      download_async(c, counters.get(), kCounters, "splitting (the counters)");
-      synchronize("splitting (checking)");
-      sj.assign(staged, staged + sj.size());
-      std::erase_if(sj, [](const SplitJob& j) { return j.ok == 0; });
+      check_jobs(sj, split_jobs, host_split_jobs, c, "splitting (checking)",
+                 [&](SplitJob* jobs, int32_t n) { split_check(view.read, jobs, n); });
       kernels::SplitRoom room{c[kBlockFreeCount], {}};
       for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
       std::vector<SplitJob> go;
@@ -442,8 +449,7 @@ struct GpuReconstruction::Impl {
         return a.parent.level < b.parent.level;
       });
       if (!go.empty()) {
-        std::copy(go.begin(), go.end(), staged);
-        upload_async(split_jobs.get(), staged, go.size(), "splitting (the jobs)");
+        send_jobs(go, split_jobs, host_split_jobs, "splitting (the jobs)");
         // The high-water mark as just read: nothing since has taken a block.
         commit_pool(static_cast<int64_t>(c[kHighWater]) +
                     static_cast<int64_t>(go.size()) * kBlockChildren);
