@@ -17,6 +17,10 @@
 
 namespace hivox::detail {
 
+/// Frames that carry no time (numbered files, 7-Scenes, InfiniTAM) are stamped at this rate:
+/// the Kinect and most recorders run at 30 Hz.
+constexpr double kFrameRateHz = 30.0;
+
 /// The files of one frame.
 struct FrameFiles {
   std::filesystem::path depth;

@@ -23,8 +23,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kFrameRateHz = 30.0;  // numbered frames carry no time; recorders run at 30 Hz
-
 /// The image files of `dir` with one of `extensions`, sorted by name (numbered names sort in
 /// frame order when zero-padded, as recorders write them).
 std::vector<fs::path> images_in(const fs::path& dir,

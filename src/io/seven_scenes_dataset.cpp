@@ -15,7 +15,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kFrameRateHz = 30.0;  // 7-Scenes has no timestamps; the Kinect ran at 30 Hz
 constexpr uint16_t kInvalidDepth = 65535;
 
 struct SequenceFrame {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -14,7 +15,6 @@ namespace hivox {
 namespace {
 
 constexpr double kHalfPi = 1.5707963267948966;
-constexpr double kTwoPi = 6.283185307179586;
 
 std::uint64_t mix64(std::uint64_t z) {
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
@@ -44,8 +44,8 @@ class PixelRng {
     const double u1 = 1.0 - uniform(slot);  // (0, 1]
     const double u2 = uniform(slot + 1);
     const double r = std::sqrt(-2.0 * std::log(u1));
-    *a = r * std::cos(kTwoPi * u2);
-    *b = r * std::sin(kTwoPi * u2);
+    *a = r * std::cos(2.0 * std::numbers::pi * u2);
+    *b = r * std::sin(2.0 * std::numbers::pi * u2);
   }
 
  private:

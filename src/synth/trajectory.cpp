@@ -1,6 +1,7 @@
 #include "hivox/synth/trajectory.h"
 
 #include <cmath>
+#include <numbers>
 
 #include <fmt/format.h>
 
@@ -8,9 +9,7 @@
 
 namespace hivox {
 
-namespace {
-constexpr double kTwoPi = 6.283185307179586;
-}
+namespace {}
 
 void CameraPath::validate() const {
   if (!target_w.allFinite())
@@ -43,7 +42,7 @@ std::string CameraPath::to_string() const {
 }
 
 Pose camera_pose(const CameraPath& path, double s) {
-  const double w = kTwoPi * s;
+  const double w = 2.0 * std::numbers::pi * s;
   const bool orbit = path.kind == PathKind::Orbit;
   const double azimuth = path.azimuth_rad + (orbit ? w : path.sweep_rad * std::sin(w));
   const double elevation =
