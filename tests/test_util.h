@@ -25,6 +25,12 @@ Error error_of(F&& f) {
   return Error(ErrorCode::Cuda, "(no error thrown)");
 }
 
+/// The message of the error a call throws; records a test failure when it throws none.
+template <typename F>
+std::string message_of(F&& f) {
+  return error_of(std::forward<F>(f)).what();
+}
+
 inline bool contains(const std::string& s, const std::string& part) {
   return s.find(part) != std::string::npos;
 }

@@ -133,7 +133,7 @@ void print_map_info(const std::string& path) {
 
 // ---- mesh -------------------------------------------------------------------------------------
 
-struct MeshOptions {
+struct MapMeshOptions {
   std::string map;
   std::string out;
   MeshParams mesh;
@@ -143,7 +143,7 @@ struct MeshOptions {
   bool quiet = false;
 };
 
-void run_mesh(const MeshOptions& o) {
+void run_mesh(const MapMeshOptions& o) {
   const fs::path out(o.out);
   const std::string ext = out.extension().string();
   if (ext != ".ply" && ext != ".obj")
@@ -288,7 +288,7 @@ bool print_map_file_info(const std::string& path) {
 
 void add_map_commands(CLI::App& app) {
   {
-    auto o = std::make_shared<MeshOptions>();
+    auto o = std::make_shared<MapMeshOptions>();
     auto threads = std::make_shared<int>(0);
     CLI::App* cmd = app.add_subcommand(
         "mesh",

@@ -34,7 +34,7 @@ TriangleMesh cube(float s) {
   return m;
 }
 
-MeshEvalParams few(int64_t samples = 20000) {
+MeshEvalParams mesh_samples(int64_t samples = 20000) {
   MeshEvalParams p;
   p.samples = samples;
   p.thresholds_m = {0.001, 0.005, 0.01};
@@ -43,7 +43,7 @@ MeshEvalParams few(int64_t samples = 20000) {
 
 TEST(MeshEval, IdenticalMeshesAreZeroApartWithFScoreOne) {
   const TriangleMesh m = plane(40, 30, 0.01f, 0.0f);
-  const MeshEvalResult r = evaluate_mesh(m, m, few());
+  const MeshEvalResult r = evaluate_mesh(m, m, mesh_samples());
   EXPECT_LT(r.accuracy.max_m, 1e-6);
   EXPECT_LT(r.completeness.max_m, 1e-6);
   EXPECT_LT(r.chamfer_m, 1e-6);
@@ -54,7 +54,7 @@ TEST(MeshEval, IdenticalMeshesAreZeroApartWithFScoreOne) {
   }
   EXPECT_EQ(r.mesh_samples, 20000);
   // Also with big triangles (a cube of 12): every sample lies on the other's surface.
-  const MeshEvalResult c = evaluate_mesh(cube(1.0f), cube(1.0f), few());
+  const MeshEvalResult c = evaluate_mesh(cube(1.0f), cube(1.0f), mesh_samples());
   EXPECT_LT(c.accuracy.max_m, 1e-6);
 }
 
@@ -62,7 +62,7 @@ TEST(MeshEval, AShiftedPlaneIsTheShiftAwayEverywhere) {
   const float d = 0.003f;
   // The shifted plane's samples all project inside the reference: every distance is d.
   const MeshEvalResult r =
-      evaluate_mesh(plane(40, 30, 0.01f, d), plane(40, 30, 0.01f, 0.0f), few());
+      evaluate_mesh(plane(40, 30, 0.01f, d), plane(40, 30, 0.01f, 0.0f), mesh_samples());
   EXPECT_NEAR(r.accuracy.mean_m, d, 1e-6);
   EXPECT_NEAR(r.accuracy.median_m, d, 1e-6);
   EXPECT_NEAR(r.accuracy.max_m, d, 1e-6);
@@ -76,7 +76,7 @@ TEST(MeshEval, AShiftedPlaneIsTheShiftAwayEverywhere) {
 TEST(MeshEval, HalfAPlaneIsAccurateButHalfComplete) {
   const TriangleMesh full = plane(40, 20, 0.01f, 0.0f);  // 0.4 x 0.2 m
   const TriangleMesh half = plane(20, 20, 0.01f, 0.0f);  // x in [0, 0.2]
-  const MeshEvalResult r = evaluate_mesh(half, full, few(40000));
+  const MeshEvalResult r = evaluate_mesh(half, full, mesh_samples(40000));
   EXPECT_LT(r.accuracy.max_m, 1e-6);
   EXPECT_EQ(r.fscores[1].precision, 1.0);
   // The other half of the reference is 0..0.2 m from the mesh (mean 0.1 m), and within 5 mm
@@ -91,7 +91,7 @@ TEST(MeshEval, HalfAPlaneIsAccurateButHalfComplete) {
 TEST(MeshEval, AReferenceFilterLimitsCompletenessToWhatItKeeps) {
   const TriangleMesh full = plane(40, 20, 0.01f, 0.0f);  // 0.4 x 0.2 m
   const TriangleMesh half = plane(20, 20, 0.01f, 0.0f);  // x in [0, 0.2]
-  MeshEvalParams p = few(40000);
+  MeshEvalParams p = mesh_samples(40000);
   // The part of the reference the "cameras saw": the half the mesh covers.
   p.reference_filter = [](const Vec3f& q) { return q.x <= 0.2f; };
   const MeshEvalResult r = evaluate_mesh(half, full, p);
@@ -105,7 +105,7 @@ TEST(MeshEval, AReferenceFilterLimitsCompletenessToWhatItKeeps) {
 
 TEST(MeshEval, CubesOfTwoSizesAreHalfTheirDifferenceApart) {
   // Samples of the inner cube's faces lie 0.1 m inside the outer cube's faces.
-  const MeshEvalResult r = evaluate_mesh(cube(1.0f), cube(1.2f), few());
+  const MeshEvalResult r = evaluate_mesh(cube(1.0f), cube(1.2f), mesh_samples());
   EXPECT_NEAR(r.accuracy.mean_m, 0.1, 1e-5);
   EXPECT_NEAR(r.accuracy.max_m, 0.1, 1e-5);
   // The outer cube's samples: 0.1 m from the inner faces in front of them, more near the edges.
@@ -183,8 +183,8 @@ TEST(MeshEval, RefusesMeshesWithoutSurfaceAndBadSettings) {
   TriangleMesh flat;
   flat.positions_w = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
   flat.triangles = {{0, 1, 2}};  // collinear: no area
-  EXPECT_THROW(evaluate_mesh(flat, cube(1.0f), few()), Error);
-  EXPECT_THROW(evaluate_mesh(cube(1.0f), TriangleMesh{}, few()), Error);
+  EXPECT_THROW(evaluate_mesh(flat, cube(1.0f), mesh_samples()), Error);
+  EXPECT_THROW(evaluate_mesh(cube(1.0f), TriangleMesh{}, mesh_samples()), Error);
   MeshEvalParams p;
   p.samples = 0;
   EXPECT_THROW(p.validate(), Error);

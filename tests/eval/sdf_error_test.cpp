@@ -31,7 +31,7 @@ std::unique_ptr<VoxelBlockMap> exact_map(float voxel_m, double half_m, const tes
   return map;
 }
 
-SdfErrorParams few(int64_t samples = 20000) {
+SdfErrorParams sdf_samples(int64_t samples = 20000) {
   SdfErrorParams p;
   p.samples = samples;
   return p;
@@ -45,7 +45,7 @@ TEST(SdfError, APlaneScoresZeroAtEveryResolution) {
   const TriangleMesh mesh = extract_mesh(*fine);
   ASSERT_GT(mesh.triangle_count(), 100);
   const NamedMap maps[] = {{"fine", fine.get()}, {"coarse", coarse.get()}};
-  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, few());
+  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, sdf_samples());
   ASSERT_EQ(r.samples, 20000);
   ASSERT_EQ(r.maps.size(), 2u);
   EXPECT_EQ(r.maps[0].name, "fine");
@@ -73,7 +73,7 @@ TEST(SdfError, ASphereIsBoundedByTheCurvatureTerm) {
   const auto coarse = exact_map(static_cast<float>(coarse_m), 0.13, sphere);
   const TriangleMesh mesh = extract_mesh(*fine);
   const NamedMap maps[] = {{"fine", fine.get()}, {"coarse", coarse.get()}};
-  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, few());
+  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, sdf_samples());
   const double fine_bound = fine_m * fine_m / (4 * radius);
   const double bound = (coarse_m * coarse_m + fine_m * fine_m) / (4 * radius);
   EXPECT_EQ(r.maps[1].found, r.samples);
@@ -96,7 +96,7 @@ TEST(SdfError, PointsOutsideAMapAreNotFound) {
   test::write_sdf_blocks(*half, 0, {-3, -3, -3}, {-1, 2, 2}, kMu, plane);
   const TriangleMesh mesh = extract_mesh(*fine);
   const NamedMap maps[] = {{"half", half.get()}};
-  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, few());
+  const SdfErrorResult r = evaluate_sdf_error(mesh, maps, sdf_samples());
   // Points with x < 0 are found except within one coarse voxel of the border, where the
   // interpolation would need the missing block's voxels.
   EXPECT_GT(r.maps[0].coverage, 0.42);
@@ -115,11 +115,11 @@ TEST(SdfError, RefusesBadInput) {
   const auto fine = exact_map(0.002f, 0.05, plane);
   const TriangleMesh mesh = extract_mesh(*fine);
   const NamedMap null_map[] = {{"x", nullptr}};
-  EXPECT_THROW(evaluate_sdf_error(mesh, null_map, few()), Error);
+  EXPECT_THROW(evaluate_sdf_error(mesh, null_map, sdf_samples()), Error);
   const NamedMap maps[] = {{"fine", fine.get()}};
-  EXPECT_THROW(evaluate_sdf_error(TriangleMesh{}, maps, few()), Error);
-  EXPECT_THROW(evaluate_sdf_error(mesh, maps, few(0)), Error);
-  SdfErrorParams p = few();
+  EXPECT_THROW(evaluate_sdf_error(TriangleMesh{}, maps, sdf_samples()), Error);
+  EXPECT_THROW(evaluate_sdf_error(mesh, maps, sdf_samples(0)), Error);
+  SdfErrorParams p = sdf_samples();
   p.min_weight = 0;
   EXPECT_THROW(evaluate_sdf_error(mesh, maps, p), Error);
 }

@@ -100,7 +100,7 @@ TEST(TumDataset, AmbiguousFoldersDecidedByBitDepth) {
     TempDir dir;
     write_depth(dir / "frames/a.png", raw_depth(5000));
     write_colour(dir / "frames/b.png", colour(9));
-    write_intrinsics(dir / "intrinsics.json", small_camera(), 5000.0);
+    write_intrinsics(dir / "intrinsics.json", tiny_camera(), 5000.0);
     write_text(dir / "associations.txt", depth_first ? "2.0 frames/a.png 2.01 frames/b.png\n"
                                                      : "2.01 frames/b.png 2.0 frames/a.png\n");
     auto reader = open_dataset(dir.path().string());
@@ -139,7 +139,7 @@ TEST(TumDataset, RgbAndDepthListsAreAssociated) {
   }
   write_text(dir / "rgb.txt", rgb_txt);
   write_text(dir / "depth.txt", depth_txt);
-  write_intrinsics(dir / "intrinsics.json", small_camera(), 5000.0);
+  write_intrinsics(dir / "intrinsics.json", tiny_camera(), 5000.0);
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->size(), 2u);
   const RgbdFrame f0 = reader->read(0);
@@ -157,7 +157,7 @@ TEST(TumDataset, DepthListWithoutColour) {
   write_depth(dir / "depth/b.png", raw_depth(6000));
   write_depth(dir / "depth/a.png", raw_depth(5000));
   write_text(dir / "depth.txt", "2.0 depth/b.png\n1.0 depth/a.png\n");
-  write_intrinsics(dir / "intrinsics.json", small_camera(), 5000.0);
+  write_intrinsics(dir / "intrinsics.json", tiny_camera(), 5000.0);
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->size(), 2u);
   EXPECT_FALSE(reader->info().has_color);
@@ -299,7 +299,7 @@ TEST(DatasetCalibration, ExplicitChoicesBeatTheFolder) {
 TEST(DatasetCalibration, TumDefaultDepthScaleWhenFileHasNone) {
   TempDir dir;
   write_small_tum(dir.path());
-  write_intrinsics(dir / "intrinsics.json", small_camera(), 0.0);
+  write_intrinsics(dir / "intrinsics.json", tiny_camera(), 0.0);
   auto reader = open_dataset(dir.path().string());
   EXPECT_EQ(reader->info().rig.depth_scale, 5000.0);
   EXPECT_NE(reader->info().depth_scale_source.find("TUM default"), std::string::npos);
@@ -403,7 +403,7 @@ void write_seven_scenes(const std::filesystem::path& scene) {
     }
   }
   write_text(scene / "seq-01/notes.txt", "not a frame\n");
-  write_intrinsics(scene / "intrinsics.json", small_camera(), 0.0);  // no scale: preset's 1000
+  write_intrinsics(scene / "intrinsics.json", tiny_camera(), 0.0);  // no scale: preset's 1000
 }
 
 TEST(SevenScenesDataset, SequencesFramesAndPoses) {
@@ -677,7 +677,7 @@ TEST(DatasetBadInput, AssociationLists) {
 
 TEST(DatasetBadInput, RgbDepthLists) {
   TempDir dir;
-  write_intrinsics(dir / "intrinsics.json", small_camera(), 5000.0);
+  write_intrinsics(dir / "intrinsics.json", tiny_camera(), 5000.0);
   write_text(dir / "depth.txt", "# nothing\n");
   expect_error([&] { open_dataset(dir.path().string()); }, ErrorCode::InvalidData,
                {"depth.txt", "lists no images"});
@@ -739,7 +739,7 @@ TEST(DatasetBadInput, BadIntrinsics) {
   // A broken folder file does not matter when the user gives the intrinsics.
   DatasetParams params;
   params.intrinsics_path = dir / "given.json";
-  write_intrinsics(params.intrinsics_path, small_camera(), 5000.0);
+  write_intrinsics(params.intrinsics_path, tiny_camera(), 5000.0);
   EXPECT_EQ(open_dataset(dir.path().string(), params)->size(), 3u);
   params.intrinsics_path = dir / "absent.json";
   expect_error([&] { open_dataset(dir.path().string(), params); }, ErrorCode::Io, {"absent.json"});

@@ -34,7 +34,7 @@ void expect_error(F&& f, ErrorCode code, std::initializer_list<std::string> part
 constexpr int kWidth = 8, kHeight = 6;
 
 /// The camera of the small test images.
-inline PinholeCamera small_camera() {
+inline PinholeCamera tiny_camera() {
   return PinholeCamera{10.0f, 10.0f, 3.5f, 2.5f, kWidth, kHeight};
 }
 
@@ -112,7 +112,7 @@ inline void write_small_tum(const fs::path& dir) {
              "1.119 4 5 6 0 0 0.7071067811865476 0.7071067811865476\n"
              "1.179 7 8 9 0 0 0 1\n"
              "1.221 7 8 9 0 0 0 1\n");
-  write_intrinsics(dir / "intrinsics.json", small_camera(), 5000.0);
+  write_intrinsics(dir / "intrinsics.json", tiny_camera(), 5000.0);
 }
 
 }  // namespace hivox::test

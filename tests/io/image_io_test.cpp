@@ -12,16 +12,6 @@ namespace {
 
 using test::TempDir;
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(ImageIo, Depth16PngRoundTrip) {
   TempDir dir;
   Image<uint16_t> depth(37, 21);
@@ -92,26 +82,28 @@ TEST(ImageIo, DepthConversion) {
   const Image<uint16_t> back = depth_to_raw(tum, 5000.0);
   EXPECT_EQ(back(1, 0), 5000);
   EXPECT_EQ(back(0, 0), 0);
-  EXPECT_NE(error_of([&] { depth_to_metres(raw, 0.0); }).find("depth_scale"), std::string::npos);
-  EXPECT_NE(error_of([&] { depth_to_metres(raw, -5.0); }).find("depth_scale"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { depth_to_metres(raw, 0.0); }).find("depth_scale"),
+            std::string::npos);
+  EXPECT_NE(test::message_of([&] { depth_to_metres(raw, -5.0); }).find("depth_scale"),
+            std::string::npos);
 }
 
 TEST(ImageIo, BadInputNamesFileAndProblem) {
   TempDir dir;
   const auto missing = (dir / "nope.png").string();
-  std::string e = error_of([&] { read_depth16(missing); });
+  std::string e = test::message_of([&] { read_depth16(missing); });
   EXPECT_NE(e.find(missing), std::string::npos) << e;
   EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
 
   ColorImage c(4, 4);
   write_png(dir / "colour.png", c);
-  e = error_of([&] { read_depth16(dir / "colour.png"); });
+  e = test::message_of([&] { read_depth16(dir / "colour.png"); });
   EXPECT_NE(e.find("colour.png"), std::string::npos) << e;
   EXPECT_NE(e.find("8-bit RGB"), std::string::npos) << e;
 
   Image<uint8_t> g8(4, 4);
   write_png(dir / "grey8.png", g8);
-  e = error_of([&] { read_depth16(dir / "grey8.png"); });
+  e = test::message_of([&] { read_depth16(dir / "grey8.png"); });
   EXPECT_NE(e.find("8-bit grey"), std::string::npos) << e;
 
   // A truncated PNG: valid signature, then garbage.
@@ -122,14 +114,14 @@ TEST(ImageIo, BadInputNamesFileAndProblem) {
     std::string bytes((std::istreambuf_iterator<char>(in)), {});
     std::ofstream(dir / "cut.png", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
-  e = error_of([&] { read_depth16(dir / "cut.png"); });
+  e = test::message_of([&] { read_depth16(dir / "cut.png"); });
   EXPECT_NE(e.find("cut.png"), std::string::npos) << e;
 
   test::write_text(dir / "text.png", "this is not an image");
-  e = error_of([&] { read_color(dir / "text.png"); });
+  e = test::message_of([&] { read_color(dir / "text.png"); });
   EXPECT_NE(e.find("not a PNG"), std::string::npos) << e;
 
-  e = error_of([&] { read_color(dir.path()); });
+  e = test::message_of([&] { read_color(dir.path()); });
   EXPECT_NE(e.find("directory"), std::string::npos) << e;
 }
 
@@ -140,7 +132,7 @@ TEST(ImageIo, RealJpegAndDepth) {
   EXPECT_EQ(c.height(), 480);
   const Image<uint16_t> d = read_depth16(dir / "depth" / "1305031229.528784.png");
   EXPECT_EQ(d.width(), 640);
-  std::string e = error_of([&] { read_depth16(dir / "rgb" / "1305031229.528748.jpg"); });
+  std::string e = test::message_of([&] { read_depth16(dir / "rgb" / "1305031229.528748.jpg"); });
   EXPECT_NE(e.find("JPEG"), std::string::npos) << e;
 
   // Cut in half, the JPEG would decode with a grey lower half; it is an error instead.
@@ -148,7 +140,7 @@ TEST(ImageIo, RealJpegAndDepth) {
   const std::filesystem::path cut = tmp / "cut.jpg";
   std::filesystem::copy_file(dir / "rgb" / "1305031229.528748.jpg", cut);
   std::filesystem::resize_file(cut, std::filesystem::file_size(cut) / 2);
-  e = error_of([&] { read_color(cut); });
+  e = test::message_of([&] { read_color(cut); });
   EXPECT_NE(e.find("cut.jpg"), std::string::npos) << e;
   EXPECT_NE(e.find("Premature end"), std::string::npos) << e;
 }

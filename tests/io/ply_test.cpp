@@ -14,16 +14,6 @@ namespace {
 
 using test::TempDir;
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TriangleMesh small_mesh() {
   TriangleMesh m;
   m.positions_w = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1.5f}};
@@ -88,12 +78,15 @@ TEST(Ply, InconsistentMeshIsNotWritten) {
   TempDir dir;
   TriangleMesh m = small_mesh();
   m.colors.pop_back();
-  EXPECT_NE(error_of([&] { write_ply(dir / "m.ply", m); }).find("colors"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { write_ply(dir / "m.ply", m); }).find("colors"),
+            std::string::npos);
   m = small_mesh();
   m.triangles.push_back({0, 1, 4});
-  EXPECT_NE(error_of([&] { write_ply(dir / "m.ply", m); }).find("outside"), std::string::npos);
-  EXPECT_NE(error_of([&] { write_ply(dir / "no/such/dir/m.ply", small_mesh()); }).find("m.ply"),
+  EXPECT_NE(test::message_of([&] { write_ply(dir / "m.ply", m); }).find("outside"),
             std::string::npos);
+  EXPECT_NE(
+      test::message_of([&] { write_ply(dir / "no/such/dir/m.ply", small_mesh()); }).find("m.ply"),
+      std::string::npos);
 }
 
 TEST(Ply, AsciiWithExtraPropertiesAndPolygons) {
@@ -193,18 +186,19 @@ TEST(Ply, MalformedFilesAreOneLineErrorsNamingTheFile) {
   };
   for (const auto& c : cases) {
     write_bytes(dir / c.name, c.text);
-    const std::string e = error_of([&] { read_ply(dir / c.name); });
+    const std::string e = test::message_of([&] { read_ply(dir / c.name); });
     EXPECT_NE(e.find(c.name), std::string::npos) << c.name << ": " << e;
     EXPECT_NE(e.find(c.expect), std::string::npos) << c.name << ": " << e;
     EXPECT_EQ(e.find('\n'), std::string::npos) << e;
   }
-  const std::string missing = error_of([&] { read_ply(dir / "absent.ply"); });
+  const std::string missing = test::message_of([&] { read_ply(dir / "absent.ply"); });
   EXPECT_NE(missing.find("absent.ply"), std::string::npos);
   // Truncated binary body.
   write_ply(dir / "cut.ply", small_mesh());
   const auto size = std::filesystem::file_size(dir / "cut.ply");
   std::filesystem::resize_file(dir / "cut.ply", size - 5);
-  EXPECT_NE(error_of([&] { read_ply(dir / "cut.ply"); }).find("truncated"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { read_ply(dir / "cut.ply"); }).find("truncated"),
+            std::string::npos);
 }
 
 TEST(Off, ReadsHeaderVariantsCommentsAndPolygons) {
@@ -222,17 +216,20 @@ TEST(Off, ReadsHeaderVariantsCommentsAndPolygons) {
   EXPECT_EQ(c.colors[0], (Rgb8{255, 128, 0}));
   EXPECT_EQ(c.colors[1], (Rgb8{128, 255, 0}));
   write_bytes(dir / "bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n");
-  const std::string e = error_of([&] { read_off(dir / "bad.off"); });
+  const std::string e = test::message_of([&] { read_off(dir / "bad.off"); });
   EXPECT_NE(e.find("bad.off:6"), std::string::npos) << e;
   write_bytes(dir / "few.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n");
-  EXPECT_NE(error_of([&] { read_off(dir / "few.off"); }).find("few.off"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { read_off(dir / "few.off"); }).find("few.off"),
+            std::string::npos);
   // A corner count beyond the line is an error before anything is allocated for it (a fuzzer
   // found 555555555 taking seconds and gigabytes).
   write_bytes(dir / "corners.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n555555555 0 1 2\n");
-  EXPECT_NE(error_of([&] { read_off(dir / "corners.off"); }).find("declares 555555555 corners"),
-            std::string::npos);
+  EXPECT_NE(
+      test::message_of([&] { read_off(dir / "corners.off"); }).find("declares 555555555 corners"),
+      std::string::npos);
   write_bytes(dir / "ply.off", "ply\n");
-  EXPECT_NE(error_of([&] { read_off(dir / "ply.off"); }).find("OFF header"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { read_off(dir / "ply.off"); }).find("OFF header"),
+            std::string::npos);
 }
 
 TEST(Ply, ReadsTheReplicaGroundTruthMesh) {

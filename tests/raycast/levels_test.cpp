@@ -18,7 +18,7 @@ namespace {
 
 constexpr float kVoxel = 0.004f;  // finest; coarsest is 16 mm
 constexpr float kMu = 0.048f;     // 3 coarse voxels
-constexpr DepthRange kRange{0.2f, 2.0f};
+constexpr DepthRange kLevelsRange{0.2f, 2.0f};
 
 PinholeCamera camera() {
   return {160.0f, 160.0f, 79.5f, 59.5f, 160, 120};
@@ -41,7 +41,7 @@ MixedScene make_mixed() {
   mp.truncation_m = kMu;
   s.map = std::make_unique<VoxelBlockMap>(mp);
   FusionParams fp;
-  fp.depth_range = kRange;
+  fp.depth_range = kLevelsRange;
   TsdfIntegrator integrator(fp);
   const auto poses = test::orbit(s.shape.centre, 0.9, 0.5, 24);
   auto fuse_all = [&] {
@@ -175,7 +175,7 @@ TEST(Levels, SamplesOneVoxelAheadEqualThreeSingleSamples) {
 TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
   Raycaster raycaster(raycast_params());
   const Pose T_wc = side_view();
-  const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc, kRange);
+  const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc, kLevelsRange);
   const DepthImage truth = scene().shape.render(camera(), T_wc);
   int checked = 0, normals = 0, missed = 0, fine = 0, coarse = 0;
   std::vector<double> errors;  // distance to the true surface, in voxels of the local level
@@ -228,9 +228,9 @@ TEST(Levels, RayPacketsGiveTheRayByRayResultAcrossLevels) {
   const RaycastParams rp = raycast_params();
   const Pose T_wc = side_view();
   const DepthImage truth = scene().shape.render(camera(), T_wc);
-  test::expect_packets_match(*scene().map, rp, camera(), T_wc, truth, 12000, nullptr, kRange);
+  test::expect_packets_match(*scene().map, rp, camera(), T_wc, truth, 12000, nullptr, kLevelsRange);
   test::expect_packets_match(*scene().map, rp, camera(), T_wc, test::mixed_hints(truth, kMu), 12000,
-                             nullptr, kRange);
+                             nullptr, kLevelsRange);
 }
 
 // Where levels meet, a cell's corners lie up to a coarse voxel apart: the surface boxes, grown by
@@ -240,9 +240,9 @@ TEST(Levels, SurfaceTilesChangeNoPixelAcrossLevels) {
   const Pose T_wc = side_view();
   const DepthImage hint = test::mixed_hints(scene().shape.render(camera(), T_wc), kMu);
   test::expect_surface_tiles_change_nothing(*scene().map, rp, camera(), T_wc, 12000, nullptr,
-                                            nullptr, kRange);
+                                            nullptr, kLevelsRange);
   test::expect_surface_tiles_change_nothing(*scene().map, rp, camera(), T_wc, 12000, &hint, nullptr,
-                                            kRange);
+                                            kLevelsRange);
 }
 
 TEST(Levels, NoSeamInTheRenderedSurface) {
@@ -250,7 +250,7 @@ TEST(Levels, NoSeamInTheRenderedSurface) {
   // Looking down at the floor: a plane whose depth changes linearly across the image; the
   // level boundary x = 0 crosses it. A seam shows as a kink in depth along image rows.
   const Pose T_wc = look_at({0.0, -0.6, 0.6}, {0.0, 0.15, 0.0}, Eigen::Vector3d::UnitZ());
-  const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc, kRange);
+  const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc, kLevelsRange);
   double worst_at_boundary = 0.0, worst_elsewhere = 0.0;
   for (int y = 70; y < 120; ++y)
     for (int x = 1; x < 159; ++x) {
