@@ -36,6 +36,33 @@ void download_async(T* host, const T* device, std::size_t n, const char* what) {
     check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost), what);
 }
 
+/// A mark in the device's queue. The time between two marks is the device's own, and reading it
+/// costs no wait once a later synchronisation has passed both: stages timed without waiting
+/// just to time them.
+class QueueMark {
+ public:
+  QueueMark() = default;
+  ~QueueMark() {
+    if (event_ != nullptr) cudaEventDestroy(event_);
+  }
+  QueueMark(const QueueMark&) = delete;
+  QueueMark& operator=(const QueueMark&) = delete;
+  /// Marks the queue here (the first mark makes the event, on the current device).
+  void record(const char* what) {
+    if (event_ == nullptr) check_status(cudaEventCreate(&event_), what);
+    check_status(cudaEventRecord(event_), what);
+  }
+  /// Milliseconds on the device from `earlier` to this mark (both recorded, both passed).
+  double ms_since(const QueueMark& earlier, const char* what) const {
+    float ms = 0;
+    check_status(cudaEventElapsedTime(&ms, earlier.event_, event_), what);
+    return ms;
+  }
+
+ private:
+  cudaEvent_t event_ = nullptr;
+};
+
 /// Device memory freed with its owner; its bytes are added to `*total` (when not null).
 template <typename T>
 class Buffer {

@@ -102,6 +102,7 @@ struct GpuReconstruction::Impl {
   Buffer<AllocCounters> alloc_counters;
   PinnedBuffer<AllocCounters> host_counters;
   PinnedBuffer<int32_t> host_high_water;
+  QueueMark fuse_start, allocated, integrated;  ///< the allocation's and integration's times
   // The super-blocks holding blocks (grown by insertions; on the host as of the last frame's
   // allocation) and the raycast's coarse occupancy grid over them.
   Buffer<kernels::SuperBlockBounds> occupancy_bounds;
@@ -513,7 +514,7 @@ struct GpuReconstruction::Impl {
   }
 
   void fuse(const IntegrationFrame& f, const Pose& T_wc, FrameStats& s) {
-    Stopwatch stage;
+    fuse_start.record("timing the allocation");
     if (++frame == INT32_MAX) {
       check_status(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)),
                    "clearing stamps");
@@ -541,19 +542,20 @@ struct GpuReconstruction::Impl {
     commit_pool(static_cast<int64_t>(high_water) + to_insert);
     insert_blocks(view, missing, to_insert, visible.get(), stamps.get(), frame,
                   alloc_counters.get(), occupancy_bounds.get());
-    synchronize("allocation");
-    s.allocate_ms = stage.lap_ms();
+    allocated.record("timing the allocation");
     cuda::integrate(view, visible.get(), found + to_insert, alloc_counters.get(), f.depth, f.color,
                     f.constants);
-    // The counters, the high-water mark and the super-blocks' bounds in one round trip, which
-    // also ends the integration's time.
+    integrated.record("timing the integration");
+    // The counters, the high-water mark and the super-blocks' bounds in one round trip (the
+    // stages' times are the device's, between the marks).
     int32_t* hw = host_high_water.reserve(1);
     kernels::SuperBlockBounds* hb = host_bounds.reserve(1);
     download_async(c, alloc_counters.get(), 1, "reading the counters");
     download_async(hw, view.block_high_water, 1, "reading the high-water mark");
     download_async(hb, occupancy_bounds.get(), 1, "reading the super-blocks' bounds");
     synchronize("integration");
-    s.integrate_ms = stage.lap_ms();
+    s.allocate_ms = allocated.ms_since(fuse_start, "timing the allocation");
+    s.integrate_ms = integrated.ms_since(allocated, "timing the integration");
     high_water = *hw;
     bounds = *hb;
     s.valid_pixels = c->valid_pixels;

@@ -45,7 +45,8 @@ class GpuReconstruction {
   GpuReconstruction& operator=(const GpuReconstruction&) = delete;
 
   /// Fuses `frame` at the given pose (no tracking), then raycasts the model at it. Stage times
-  /// are wall-clock on the host around each stage, the device synchronised at its end.
+  /// are wall-clock on the host around each stage, the device synchronised at its end, except
+  /// the allocation's and the integration's: the device's own (CUDA events), which need no wait.
   const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc);
   /// Tracks `frame` against the last model (the first frame of a new map takes `T_wc_first`),
   /// fuses it unless tracking is lost, and raycasts the model at the new pose.
