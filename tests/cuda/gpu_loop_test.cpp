@@ -229,6 +229,10 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
     if (levels > 1) after.refine(map, a.visible_blocks, *f.T_wc_gt);
     const FrameStats& s = gpu.integrate(f, *f.T_wc_gt);
     EXPECT_EQ(s.dropped_blocks, 0);
+    // The stages timed by marks in the device's queue took time, in order, within the frame.
+    EXPECT_GE(s.allocate_ms, 0.0);
+    EXPECT_GT(s.integrate_ms, 0.0);
+    EXPECT_LE(s.allocate_ms + s.integrate_ms, s.total_ms);
     last_pose = *f.T_wc_gt;
   }
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
