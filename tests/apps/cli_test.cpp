@@ -25,10 +25,10 @@ TEST(Cli, InfoHelpIsUsefulToANewcomer) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   for (const char* part : {"DATASET", "--preset", "--depth-scale", "--intrinsics", "TUM",
                            "7-Scenes", "InfiniTAM", "tum_fr1", "icl_nuim", "Examples"})
-    EXPECT_NE(r.output.find(part), std::string::npos) << part << " missing in:\n" << r.output;
+    EXPECT_TRUE(test::contains(r.output, part)) << part << " missing in:\n" << r.output;
   const CliRun top = run_hivox("--help");
   EXPECT_EQ(top.exit_code, 0);
-  EXPECT_NE(top.output.find("info"), std::string::npos) << top.output;
+  EXPECT_TRUE(test::contains(top.output, "info")) << top.output;
 }
 
 TEST(Cli, InfoDescribesADataset) {
@@ -36,13 +36,12 @@ TEST(Cli, InfoDescribesADataset) {
   test::write_small_tum(dir.path());
   const CliRun r = run_hivox("info " + dir.path().string());
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("frames:         3"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("ground truth:   yes, 2 of 3"), std::string::npos) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "frames:         3")) << r.output;
+  EXPECT_TRUE(test::contains(r.output, "ground truth:   yes, 2 of 3")) << r.output;
 
   const CliRun scaled = run_hivox("info " + dir.path().string() + " --depth-scale 1000");
   EXPECT_EQ(scaled.exit_code, 0) << scaled.output;
-  EXPECT_NE(scaled.output.find("depth scale:    1000 raw units per metre  [given]"),
-            std::string::npos)
+  EXPECT_TRUE(test::contains(scaled.output, "depth scale:    1000 raw units per metre  [given]"))
       << scaled.output;
 
   // Lens distortion from the folder's intrinsics.json: removed unless --keep-distortion.
@@ -50,11 +49,11 @@ TEST(Cli, InfoDescribesADataset) {
                    R"({"fx": 10, "fy": 10, "cx": 3.5, "cy": 2.5, "width": 8, "height": 6,
                        "distortion_k1k2p1p2k3": [0.1, 0, 0, 0, 0]})");
   const CliRun removed = run_hivox("info " + dir.path().string());
-  EXPECT_NE(removed.output.find("distortion:     k1=0.1 k2=0 p1=0 p2=0 k3=0  (removed"),
-            std::string::npos)
+  EXPECT_TRUE(
+      test::contains(removed.output, "distortion:     k1=0.1 k2=0 p1=0 p2=0 k3=0  (removed"))
       << removed.output;
   const CliRun kept = run_hivox("info " + dir.path().string() + " --keep-distortion");
-  EXPECT_NE(kept.output.find("(kept)"), std::string::npos) << kept.output;
+  EXPECT_TRUE(test::contains(kept.output, "(kept)")) << kept.output;
 }
 
 TEST(Cli, BadInputIsOneLineAndExitCodeOne) {
@@ -69,12 +68,11 @@ TEST(Cli, BadInputIsOneLineAndExitCodeOne) {
     const CliRun r = run_hivox(args);
     EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.output;
     EXPECT_EQ(line_count(r.output), 1u) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find("[error]"), std::string::npos) << r.output;
+    EXPECT_TRUE(test::contains(r.output, "[error]")) << r.output;
   }
-  EXPECT_NE(run_hivox("info " + missing).output.find("does not exist"), std::string::npos);
-  EXPECT_NE(
-      run_hivox("info " + dir.path().string() + " --depth-scale 0").output.find("--depth-scale"),
-      std::string::npos);
+  EXPECT_TRUE(test::contains(run_hivox("info " + missing).output, "does not exist"));
+  EXPECT_TRUE(test::contains(run_hivox("info " + dir.path().string() + " --depth-scale 0").output,
+                             "--depth-scale"));
 }
 
 TEST(Cli, ViewAndLiveViewServeAndTheirErrorsAreOneLine) {
@@ -86,12 +84,12 @@ TEST(Cli, ViewAndLiveViewServeAndTheirErrorsAreOneLine) {
       "--quiet --out " +
       out);
   EXPECT_EQ(demo.exit_code, 0) << demo.output;
-  EXPECT_NE(demo.output.find("live view: http://127.0.0.1:"), std::string::npos) << demo.output;
+  EXPECT_TRUE(test::contains(demo.output, "live view: http://127.0.0.1:")) << demo.output;
   // The viewer on that run, for a second.
   const CliRun view = run_hivox("view " + out + " --seconds 0.5");
   EXPECT_EQ(view.exit_code, 0) << view.output;
-  EXPECT_NE(view.output.find("viewer: http://127.0.0.1:"), std::string::npos) << view.output;
-  EXPECT_NE(view.output.find("served 0 requests"), std::string::npos) << view.output;
+  EXPECT_TRUE(test::contains(view.output, "viewer: http://127.0.0.1:")) << view.output;
+  EXPECT_TRUE(test::contains(view.output, "served 0 requests")) << view.output;
   const std::string missing = (dir / "missing").string();
   for (const auto& [args, words] : std::vector<std::pair<std::string, std::string>>{
            {"view " + missing, missing},
@@ -105,7 +103,7 @@ TEST(Cli, ViewAndLiveViewServeAndTheirErrorsAreOneLine) {
     const CliRun r = run_hivox(args);
     EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.output;
     EXPECT_EQ(line_count(r.output), 1u) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find(words), std::string::npos) << args << "\n" << r.output;
+    EXPECT_TRUE(test::contains(r.output, words)) << args << "\n" << r.output;
   }
 }
 

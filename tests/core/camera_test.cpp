@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "hivox/core/error.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -82,8 +83,8 @@ TEST(Camera, ValidateNamesTheBadField) {
       FAIL() << "expected an error for " << field;
     } catch (const Error& e) {
       EXPECT_EQ(e.code(), ErrorCode::InvalidArgument);
-      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
-      EXPECT_NE(std::string(e.what()).find("intrinsics.json"), std::string::npos) << e.what();
+      EXPECT_TRUE(test::contains(e.what(), field)) << e.what();
+      EXPECT_TRUE(test::contains(e.what(), "intrinsics.json")) << e.what();
     }
   };
   PinholeCamera c = tum_like();

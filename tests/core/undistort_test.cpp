@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 
 #include "hivox/core/error.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -37,8 +38,8 @@ TEST(LensDistortion, MatchesTheBrownConradyFormula) {
     bad.validate("calib.json");
     FAIL() << "a NaN coefficient was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("calib.json"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("k2"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "calib.json")) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "k2")) << e.what();
   }
 }
 
@@ -134,7 +135,7 @@ TEST(Undistorter, NoDistortionIsTheIdentityAndSizesAreChecked) {
     identity.depth(DepthImage(80, 60));
     FAIL() << "a wrong image size was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("80x60"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "80x60")) << e.what();
   }
 }
 

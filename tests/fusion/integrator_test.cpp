@@ -9,6 +9,7 @@
 #include "hivox/core/error.h"
 #include "hivox/core/threads.h"
 #include "map/map_invariants.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -156,7 +157,7 @@ TEST(FusionParams, DepthSamplingNamesRoundTripAndBadOnesAreNamed) {
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::InvalidArgument);
-    EXPECT_NE(std::string(e.what()).find("'linear'"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "'linear'")) << e.what();
   }
 }
 
@@ -353,7 +354,7 @@ TEST(Integrator, BadInputIsAClearError) {
     integrator.fuse(map, in);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("100x80"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "100x80")) << e.what();
   }
   // Blocks to integrate that the map does not hold at those pool indices.
   const DepthImage good = test::SphereOnPlane{}.render(

@@ -43,8 +43,9 @@ TEST(TumDataset, AssociationsDepthColourAndGroundTruth) {
   EXPECT_TRUE(info.has_ground_truth);
   EXPECT_EQ(info.ground_truth_count, 2u);
   EXPECT_EQ(info.rig.depth_scale, 5000.0);
-  EXPECT_NE(info.depth_scale_source.find("intrinsics.json"), std::string::npos);
-  EXPECT_NE(info.intrinsics_source.find("intrinsics.json"), std::string::npos);
+  EXPECT_TRUE(test::contains(info.depth_scale_source, "intrinsics.json"))
+      << info.depth_scale_source;
+  EXPECT_TRUE(test::contains(info.intrinsics_source, "intrinsics.json")) << info.intrinsics_source;
   EXPECT_TRUE(info.warnings.empty()) << info.warnings.front();
 
   const RgbdFrame f0 = reader->read(0);
@@ -196,8 +197,8 @@ TEST(DatasetCalibration, GuessedFromFolderName) {
   const DatasetInfo& info = reader->info();
   EXPECT_EQ(info.rig.depth_camera.fx, 520.9f);
   EXPECT_EQ(info.rig.depth_camera.cy, 249.7f);
-  EXPECT_NE(info.intrinsics_source.find("tum_fr2"), std::string::npos) << info.intrinsics_source;
-  EXPECT_NE(info.intrinsics_source.find("guessed"), std::string::npos) << info.intrinsics_source;
+  EXPECT_TRUE(test::contains(info.intrinsics_source, "tum_fr2")) << info.intrinsics_source;
+  EXPECT_TRUE(test::contains(info.intrinsics_source, "guessed")) << info.intrinsics_source;
   EXPECT_EQ(info.rig.depth_scale, 5000.0);
   // At the principal point the fr2 lens distortion (removed on reading) moves nothing.
   EXPECT_NEAR(reader->read(0).depth_m(325, 250), (9000.0f + 3250 + 250) / 5000.0f, kTol);
@@ -221,7 +222,7 @@ TEST(DatasetCalibration, LensDistortionIsRemovedAsFramesAreRead) {
   EXPECT_TRUE(info.undistorted);
   EXPECT_EQ(info.distortion.k1, 0.2f);
   EXPECT_EQ(info.distortion.p2, -0.002f);
-  EXPECT_NE(describe_dataset(*reader).find("removed from every frame"), std::string::npos);
+  EXPECT_TRUE(test::contains(describe_dataset(*reader), "removed from every frame"));
   DatasetParams keep;
   keep.undistort = false;
   auto raw_reader = open_dataset(dir.string(), keep);
@@ -273,7 +274,7 @@ TEST(DatasetCalibration, ExplicitChoicesBeatTheFolder) {
   auto icl = open_dataset(dir.string(), params);
   EXPECT_EQ(icl->info().rig.depth_camera.fy, -480.0f);
   EXPECT_EQ(icl->info().rig.depth_scale, 5000.0);
-  EXPECT_NE(icl->info().depth_scale_source.find("icl_nuim"), std::string::npos);
+  EXPECT_TRUE(test::contains(icl->info().depth_scale_source, "icl_nuim"));
   EXPECT_NEAR(icl->read(0).depth_m(0, 0), 9000.0f / 5000.0f, kTol);
 
   // An intrinsics file without a depth scale: camera from it, scale still from the folder.
@@ -283,9 +284,9 @@ TEST(DatasetCalibration, ExplicitChoicesBeatTheFolder) {
   params.intrinsics_path = root / "other.json";
   auto given = open_dataset(dir.string(), params);
   EXPECT_EQ(given->info().rig.depth_camera.fy, 601.0f);
-  EXPECT_NE(given->info().intrinsics_source.find("other.json"), std::string::npos);
+  EXPECT_TRUE(test::contains(given->info().intrinsics_source, "other.json"));
   EXPECT_EQ(given->info().rig.depth_scale, 1000.0);
-  EXPECT_NE(given->info().depth_scale_source.find("set"), std::string::npos);
+  EXPECT_TRUE(test::contains(given->info().depth_scale_source, "set"));
 
   // A depth scale override beats everything.
   params = {};
@@ -302,7 +303,7 @@ TEST(DatasetCalibration, TumDefaultDepthScaleWhenFileHasNone) {
   write_intrinsics(dir / "intrinsics.json", tiny_camera(), 0.0);
   auto reader = open_dataset(dir.path().string());
   EXPECT_EQ(reader->info().rig.depth_scale, 5000.0);
-  EXPECT_NE(reader->info().depth_scale_source.find("TUM default"), std::string::npos);
+  EXPECT_TRUE(test::contains(reader->info().depth_scale_source, "TUM default"));
 }
 
 TEST(DatasetCalibration, PresetTable) {
@@ -329,8 +330,8 @@ TEST(DatasetCalibration, ImplausibleDepthScaleIsAWarning) {
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->info().warnings.size(), 1u);
   const std::string& w = reader->info().warnings[0];
-  EXPECT_NE(w.find("depth scale 5000"), std::string::npos) << w;
-  EXPECT_NE(w.find("--depth-scale 1000"), std::string::npos) << w;
+  EXPECT_TRUE(test::contains(w, "depth scale 5000")) << w;
+  EXPECT_TRUE(test::contains(w, "--depth-scale 1000")) << w;
   // Frames still read, in the scale asked for.
   EXPECT_NEAR(reader->read(0).depth_m(0, 0), 400.0f / 5000.0f, kTol);
 }
@@ -344,13 +345,13 @@ TEST(DatasetCalibration, DescribeSaysWhatWasFound) {
        {"layout:         TUM", "frames:         3", "resolution:     8x6", "fx=10.000",
         "depth scale:    5000", "1.000 / ", "/ 1.415 m", "colour:         yes",
         "ground truth:   yes, 2 of 3 frames", "first time:     1.000000 s", "warnings:       none"})
-    EXPECT_NE(text.find(part), std::string::npos) << "'" << part << "' missing in:\n" << text;
+    EXPECT_TRUE(test::contains(text, part)) << "'" << part << "' missing in:\n" << text;
 }
 
 TEST(DatasetParams, ValidateAndPrint) {
   DatasetParams p;
   EXPECT_NO_THROW(p.validate());
-  EXPECT_NE(p.to_string().find("depth_scale=auto"), std::string::npos);
+  EXPECT_TRUE(test::contains(p.to_string(), "depth_scale=auto")) << p.to_string();
   p.depth_scale = -1;
   expect_error([&] { p.validate(); }, ErrorCode::InvalidArgument, {"depth_scale", "-1"});
   p.depth_scale = std::nan("");
@@ -415,13 +416,13 @@ TEST(SevenScenesDataset, SequencesFramesAndPoses) {
   EXPECT_EQ(info.layout, DatasetLayout::SevenScenes);
   ASSERT_EQ(reader->size(), 5u);
   EXPECT_EQ(info.rig.depth_scale, 1000.0);
-  EXPECT_NE(info.depth_scale_source.find("seven_scenes"), std::string::npos);
-  EXPECT_NE(info.intrinsics_source.find("intrinsics.json"), std::string::npos);
+  EXPECT_TRUE(test::contains(info.depth_scale_source, "seven_scenes")) << info.depth_scale_source;
+  EXPECT_TRUE(test::contains(info.intrinsics_source, "intrinsics.json")) << info.intrinsics_source;
   EXPECT_EQ(info.ground_truth_count, 4u);
   EXPECT_TRUE(info.has_color);
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 0.0);
   ASSERT_EQ(info.warnings.size(), 1u);
-  EXPECT_NE(info.warnings[0].find("registered"), std::string::npos);
+  EXPECT_TRUE(test::contains(info.warnings[0], "registered")) << info.warnings[0];
 
   const RgbdFrame f3 = reader->read(3);  // seq-02, frame 0: timestamps keep increasing
   EXPECT_DOUBLE_EQ(f3.timestamp_s, 3.0 / 30.0);
@@ -468,7 +469,7 @@ TEST(SevenScenesDataset, MillimetreScaleOnTumDepthWarns) {
     write_depth(dir / (std::string(f) + ".depth.png"), raw_depth(12000));  // 2.4 m at 5000
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->info().warnings.size(), 2u);
-  EXPECT_NE(reader->info().warnings[1].find("--depth-scale 5000"), std::string::npos)
+  EXPECT_TRUE(test::contains(reader->info().warnings[1], "--depth-scale 5000"))
       << reader->info().warnings[1];
 }
 
@@ -497,7 +498,7 @@ TEST(InfiniTamDataset, CalibAndPgmPpmFrames) {
   EXPECT_EQ(info.rig.color_camera.fx, 12.0f);
   EXPECT_EQ(info.rig.color_camera.cx, 4.0f);
   EXPECT_DOUBLE_EQ(info.rig.depth_scale, 5000.0);
-  EXPECT_NE(info.depth_scale_source.find("affine"), std::string::npos);
+  EXPECT_TRUE(test::contains(info.depth_scale_source, "affine")) << info.depth_scale_source;
   EXPECT_FALSE(info.has_ground_truth);
   EXPECT_TRUE(info.warnings.empty());
   // calib.txt maps colour-camera points into the depth camera: the colour camera's centre sits
@@ -510,7 +511,7 @@ TEST(InfiniTamDataset, CalibAndPgmPpmFrames) {
   EXPECT_NEAR(f.depth_m(6, 4), (7000 + 60 + 4) * 0.0002f, kTol);
   EXPECT_EQ(f.color(6, 4), (Rgb8{2, 60, 40}));
   const std::string text = describe_dataset(*reader);
-  EXPECT_NE(text.find("T_color_depth"), std::string::npos) << text;
+  EXPECT_TRUE(test::contains(text, "T_color_depth")) << text;
 }
 
 TEST(InfiniTamDataset, PngFramesWithPrefixesPaddingAndOffset) {
@@ -652,7 +653,7 @@ TEST(DatasetBadInput, BrokenFirstFrameStillOpensWithAWarning) {
   std::filesystem::remove(dir / "depth/d0.png");
   auto reader = open_dataset(dir.path().string());
   ASSERT_EQ(reader->info().warnings.size(), 1u);
-  EXPECT_NE(reader->info().warnings[0].find("d0.png"), std::string::npos);
+  EXPECT_TRUE(test::contains(reader->info().warnings[0], "d0.png"));
 }
 
 TEST(DatasetBadInput, AssociationLists) {
@@ -703,7 +704,7 @@ TEST(DatasetBadInput, MalformedGroundTruth) {
   auto reader = open_dataset(dir.path().string());
   EXPECT_FALSE(reader->info().has_ground_truth);
   ASSERT_EQ(reader->info().warnings.size(), 1u);
-  EXPECT_NE(reader->info().warnings[0].find("groundtruth.txt"), std::string::npos);
+  EXPECT_TRUE(test::contains(reader->info().warnings[0], "groundtruth.txt"));
 }
 
 TEST(DatasetBadInput, BadIntrinsics) {

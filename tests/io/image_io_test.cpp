@@ -82,29 +82,27 @@ TEST(ImageIo, DepthConversion) {
   const Image<uint16_t> back = depth_to_raw(tum, 5000.0);
   EXPECT_EQ(back(1, 0), 5000);
   EXPECT_EQ(back(0, 0), 0);
-  EXPECT_NE(test::message_of([&] { depth_to_metres(raw, 0.0); }).find("depth_scale"),
-            std::string::npos);
-  EXPECT_NE(test::message_of([&] { depth_to_metres(raw, -5.0); }).find("depth_scale"),
-            std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { depth_to_metres(raw, 0.0); }), "depth_scale"));
+  EXPECT_TRUE(test::contains(test::message_of([&] { depth_to_metres(raw, -5.0); }), "depth_scale"));
 }
 
 TEST(ImageIo, BadInputNamesFileAndProblem) {
   TempDir dir;
   const auto missing = (dir / "nope.png").string();
   std::string e = test::message_of([&] { read_depth16(missing); });
-  EXPECT_NE(e.find(missing), std::string::npos) << e;
-  EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, missing)) << e;
+  EXPECT_TRUE(test::contains(e, "does not exist")) << e;
 
   ColorImage c(4, 4);
   write_png(dir / "colour.png", c);
   e = test::message_of([&] { read_depth16(dir / "colour.png"); });
-  EXPECT_NE(e.find("colour.png"), std::string::npos) << e;
-  EXPECT_NE(e.find("8-bit RGB"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "colour.png")) << e;
+  EXPECT_TRUE(test::contains(e, "8-bit RGB")) << e;
 
   Image<uint8_t> g8(4, 4);
   write_png(dir / "grey8.png", g8);
   e = test::message_of([&] { read_depth16(dir / "grey8.png"); });
-  EXPECT_NE(e.find("8-bit grey"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "8-bit grey")) << e;
 
   // A truncated PNG: valid signature, then garbage.
   Image<uint16_t> d(64, 64, 1234);
@@ -115,14 +113,14 @@ TEST(ImageIo, BadInputNamesFileAndProblem) {
     std::ofstream(dir / "cut.png", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
   e = test::message_of([&] { read_depth16(dir / "cut.png"); });
-  EXPECT_NE(e.find("cut.png"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "cut.png")) << e;
 
   test::write_text(dir / "text.png", "this is not an image");
   e = test::message_of([&] { read_color(dir / "text.png"); });
-  EXPECT_NE(e.find("not a PNG"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "not a PNG")) << e;
 
   e = test::message_of([&] { read_color(dir.path()); });
-  EXPECT_NE(e.find("directory"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "directory")) << e;
 }
 
 TEST(ImageIo, RealJpegAndDepth) {
@@ -133,7 +131,7 @@ TEST(ImageIo, RealJpegAndDepth) {
   const Image<uint16_t> d = read_depth16(dir / "depth" / "1305031229.528784.png");
   EXPECT_EQ(d.width(), 640);
   std::string e = test::message_of([&] { read_depth16(dir / "rgb" / "1305031229.528748.jpg"); });
-  EXPECT_NE(e.find("JPEG"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "JPEG")) << e;
 
   // Cut in half, the JPEG would decode with a grey lower half; it is an error instead.
   test::TempDir tmp;
@@ -141,8 +139,8 @@ TEST(ImageIo, RealJpegAndDepth) {
   std::filesystem::copy_file(dir / "rgb" / "1305031229.528748.jpg", cut);
   std::filesystem::resize_file(cut, std::filesystem::file_size(cut) / 2);
   e = test::message_of([&] { read_color(cut); });
-  EXPECT_NE(e.find("cut.jpg"), std::string::npos) << e;
-  EXPECT_NE(e.find("Premature end"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "cut.jpg")) << e;
+  EXPECT_TRUE(test::contains(e, "Premature end")) << e;
 }
 
 }  // namespace

@@ -48,10 +48,10 @@ TEST(Ply, BinaryRoundTripKeepsEverything) {
   std::ifstream in(dir / "m.ply", std::ios::binary);
   std::string header((std::istreambuf_iterator<char>(in)), {});
   header.resize(header.find("end_header"));
-  EXPECT_NE(header.find("format binary_little_endian 1.0"), std::string::npos);
-  EXPECT_NE(header.find("property uchar red"), std::string::npos);
-  EXPECT_NE(header.find("property uchar level"), std::string::npos);
-  EXPECT_NE(header.find("property list uchar int vertex_indices"), std::string::npos);
+  EXPECT_TRUE(test::contains(header, "format binary_little_endian 1.0")) << header;
+  EXPECT_TRUE(test::contains(header, "property uchar red")) << header;
+  EXPECT_TRUE(test::contains(header, "property uchar level")) << header;
+  EXPECT_TRUE(test::contains(header, "property list uchar int vertex_indices")) << header;
 }
 
 TEST(Ply, AbsentAttributesAreOmitted) {
@@ -78,15 +78,12 @@ TEST(Ply, InconsistentMeshIsNotWritten) {
   TempDir dir;
   TriangleMesh m = small_mesh();
   m.colors.pop_back();
-  EXPECT_NE(test::message_of([&] { write_ply(dir / "m.ply", m); }).find("colors"),
-            std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { write_ply(dir / "m.ply", m); }), "colors"));
   m = small_mesh();
   m.triangles.push_back({0, 1, 4});
-  EXPECT_NE(test::message_of([&] { write_ply(dir / "m.ply", m); }).find("outside"),
-            std::string::npos);
-  EXPECT_NE(
-      test::message_of([&] { write_ply(dir / "no/such/dir/m.ply", small_mesh()); }).find("m.ply"),
-      std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { write_ply(dir / "m.ply", m); }), "outside"));
+  EXPECT_TRUE(test::contains(
+      test::message_of([&] { write_ply(dir / "no/such/dir/m.ply", small_mesh()); }), "m.ply"));
 }
 
 TEST(Ply, AsciiWithExtraPropertiesAndPolygons) {
@@ -187,18 +184,17 @@ TEST(Ply, MalformedFilesAreOneLineErrorsNamingTheFile) {
   for (const auto& c : cases) {
     write_bytes(dir / c.name, c.text);
     const std::string e = test::message_of([&] { read_ply(dir / c.name); });
-    EXPECT_NE(e.find(c.name), std::string::npos) << c.name << ": " << e;
-    EXPECT_NE(e.find(c.expect), std::string::npos) << c.name << ": " << e;
-    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+    EXPECT_TRUE(test::contains(e, c.name)) << c.name << ": " << e;
+    EXPECT_TRUE(test::contains(e, c.expect)) << c.name << ": " << e;
+    EXPECT_FALSE(test::contains(e, "\n")) << e;
   }
   const std::string missing = test::message_of([&] { read_ply(dir / "absent.ply"); });
-  EXPECT_NE(missing.find("absent.ply"), std::string::npos);
+  EXPECT_TRUE(test::contains(missing, "absent.ply")) << missing;
   // Truncated binary body.
   write_ply(dir / "cut.ply", small_mesh());
   const auto size = std::filesystem::file_size(dir / "cut.ply");
   std::filesystem::resize_file(dir / "cut.ply", size - 5);
-  EXPECT_NE(test::message_of([&] { read_ply(dir / "cut.ply"); }).find("truncated"),
-            std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { read_ply(dir / "cut.ply"); }), "truncated"));
 }
 
 TEST(Off, ReadsHeaderVariantsCommentsAndPolygons) {
@@ -217,19 +213,16 @@ TEST(Off, ReadsHeaderVariantsCommentsAndPolygons) {
   EXPECT_EQ(c.colors[1], (Rgb8{128, 255, 0}));
   write_bytes(dir / "bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n");
   const std::string e = test::message_of([&] { read_off(dir / "bad.off"); });
-  EXPECT_NE(e.find("bad.off:6"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "bad.off:6")) << e;
   write_bytes(dir / "few.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n");
-  EXPECT_NE(test::message_of([&] { read_off(dir / "few.off"); }).find("few.off"),
-            std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { read_off(dir / "few.off"); }), "few.off"));
   // A corner count beyond the line is an error before anything is allocated for it (a fuzzer
   // found 555555555 taking seconds and gigabytes).
   write_bytes(dir / "corners.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n555555555 0 1 2\n");
-  EXPECT_NE(
-      test::message_of([&] { read_off(dir / "corners.off"); }).find("declares 555555555 corners"),
-      std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { read_off(dir / "corners.off"); }),
+                             "declares 555555555 corners"));
   write_bytes(dir / "ply.off", "ply\n");
-  EXPECT_NE(test::message_of([&] { read_off(dir / "ply.off"); }).find("OFF header"),
-            std::string::npos);
+  EXPECT_TRUE(test::contains(test::message_of([&] { read_off(dir / "ply.off"); }), "OFF header"));
 }
 
 TEST(Ply, ReadsTheReplicaGroundTruthMesh) {

@@ -37,23 +37,23 @@ TEST(TumTrajectory, MalformedLinesNameFileAndLine) {
   write_text(dir / "short.txt", "# header\n1 0 0 0 0 0 0 1\n\n2 0 0 0 0 0 1\n");
   Error e = error_of([&] { read_tum_trajectory(dir / "short.txt"); });
   EXPECT_EQ(e.code(), ErrorCode::InvalidData);
-  EXPECT_NE(std::string(e.what()).find("short.txt:4"), std::string::npos) << e.what();
-  EXPECT_NE(std::string(e.what()).find("found 7"), std::string::npos) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "short.txt:4")) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "found 7")) << e.what();
 
   write_text(dir / "nan.txt", "1 0 0 0 0 0 0 1\n2 0 0 0 zero 0 0 1\n");
   e = error_of([&] { read_tum_trajectory(dir / "nan.txt"); });
   EXPECT_EQ(e.code(), ErrorCode::InvalidData);
-  EXPECT_NE(std::string(e.what()).find("nan.txt:2"), std::string::npos) << e.what();
-  EXPECT_NE(std::string(e.what()).find("qx"), std::string::npos) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "nan.txt:2")) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "qx")) << e.what();
 
   write_text(dir / "zero_q.txt", "1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 1\n3 0 0 0 0 0 0 0\n");
   e = error_of([&] { read_tum_trajectory(dir / "zero_q.txt"); });
   EXPECT_EQ(e.code(), ErrorCode::InvalidData);
-  EXPECT_NE(std::string(e.what()).find("zero_q.txt:3"), std::string::npos) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "zero_q.txt:3")) << e.what();
 
   e = error_of([&] { read_tum_trajectory(dir / "missing.txt"); });
   EXPECT_EQ(e.code(), ErrorCode::Io);
-  EXPECT_NE(std::string(e.what()).find("missing.txt"), std::string::npos) << e.what();
+  EXPECT_TRUE(test::contains(e.what(), "missing.txt")) << e.what();
 }
 
 TEST(TumTrajectory, FindNearestPose) {

@@ -8,6 +8,7 @@
 #include "hivox/core/threads.h"
 #include "hivox/map/voxel_block_map.h"
 #include "map/map_invariants.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -202,7 +203,7 @@ TEST(Hash, ParamsAreValidated) {
     p.validate();
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("voxel_size_m"), std::string::npos);
+    EXPECT_TRUE(test::contains(e.what(), "voxel_size_m")) << e.what();
   }
   p = MapParams{};
   p.truncation_m = 0;
@@ -214,7 +215,7 @@ TEST(Hash, ParamsAreValidated) {
     FAIL() << "this build keeps maps on the CPU only";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::Unsupported);
-    EXPECT_NE(std::string(e.what()).find("cuda:0"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "cuda:0")) << e.what();
   }
 }
 

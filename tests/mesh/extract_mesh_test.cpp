@@ -354,11 +354,11 @@ TEST(ExtractMesh, BadParamsAreRejectedNamingTheField) {
   EXPECT_EQ(error_of(p), "");
   for (const float bad : {0.0f, 0.5f, -1.0f, NAN, INFINITY, 70000.0f}) {
     p.min_weight = bad;
-    EXPECT_NE(error_of(p).find("min_weight"), std::string::npos) << bad;
+    EXPECT_TRUE(test::contains(error_of(p), "min_weight")) << bad;
     VoxelBlockMap map(test::mesh_map_params(0.01f));
     EXPECT_THROW(extract_mesh(map, p), Error);
   }
-  EXPECT_NE(MeshParams{}.to_string().find("min weight 1"), std::string::npos);
+  EXPECT_TRUE(test::contains(MeshParams{}.to_string(), "min weight 1"));
 }
 
 // ---- maps fused from rendered depth ---------------------------------------------------------

@@ -105,7 +105,7 @@ TEST(TumExport, TheDepthNoiseModelTravelsWithTheSequence) {
     read_intrinsics_json(dir / "bad.json");
     FAIL() << "accepted depth_noise \"loud\"";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("depth_noise"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "depth_noise")) << e.what();
   }
 }
 
@@ -144,7 +144,7 @@ TEST(TumExport, UnwritableDirectoryIsAnIoError) {
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::Io);
-    EXPECT_NE(std::string(e.what()).find("file"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "file")) << e.what();
   }
 }
 

@@ -121,7 +121,7 @@ TEST(Experiment, ComparesTheConfigurationsOnTheSameFramesAndPoses) {
   EXPECT_EQ(v[5], adaptive.blocks);
   const std::string md = read_whole_file(out / "report.md");
   for (const char* s : {"Blocks and memory", "sdf-error", "| adaptive 10 mm-20 mm |", "Speed"})
-    EXPECT_NE(md.find(s), std::string::npos) << s;
+    EXPECT_TRUE(test::contains(md, s)) << s;
 }
 
 TEST(Experiment, AReferenceMeshGivesAccuracyAndTrackedRunsGiveAte) {
@@ -148,8 +148,8 @@ TEST(Experiment, AReferenceMeshGivesAccuracyAndTrackedRunsGiveAte) {
   EXPECT_LT(r.configs[0].mesh_eval->accuracy.max_m, 1e-5);
   EXPECT_GT(r.configs[1].mesh_eval->accuracy.mean_m, 10 * r.configs[0].mesh_eval->accuracy.mean_m);
   const std::string md = read_whole_file(tmp / "b" / "report.md");
-  EXPECT_NE(md.find("Mesh against the reference mesh"), std::string::npos);
-  EXPECT_NE(md.find("Tracked runs"), std::string::npos);
+  EXPECT_TRUE(test::contains(md, "Mesh against the reference mesh")) << md;
+  EXPECT_TRUE(test::contains(md, "Tracked runs")) << md;
   EXPECT_TRUE(fs::exists(tmp / "b" / "runs" / "adaptive-tracked" / "trajectory.txt"));
 }
 

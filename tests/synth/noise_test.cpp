@@ -7,6 +7,7 @@
 
 #include "hivox/core/error.h"
 #include "hivox/core/threads.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -214,7 +215,7 @@ TEST(Noise, PresetsAndValidation) {
     noise_preset("kinect2");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("kinect, none"), std::string::npos) << e.what();
+    EXPECT_TRUE(test::contains(e.what(), "kinect, none")) << e.what();
   }
   auto message = [](NoiseParams p) -> std::string {
     try {
@@ -226,16 +227,16 @@ TEST(Noise, PresetsAndValidation) {
   };
   NoiseParams p;
   p.lateral_sigma_px = -1;
-  EXPECT_NE(message(p).find("lateral_sigma_px"), std::string::npos);
+  EXPECT_TRUE(test::contains(message(p), "lateral_sigma_px"));
   p = {};
   p.dropout_probability = 1.5;
-  EXPECT_NE(message(p).find("dropout_probability"), std::string::npos);
+  EXPECT_TRUE(test::contains(message(p), "dropout_probability"));
   p = {};
   p.max_incidence_rad = 2.0;
-  EXPECT_NE(message(p).find("max_incidence_rad"), std::string::npos);
+  EXPECT_TRUE(test::contains(message(p), "max_incidence_rad"));
   p = {};
   p.disparity_focal_px = 0;
-  EXPECT_NE(message(p).find("disparity_focal_px"), std::string::npos);
+  EXPECT_TRUE(test::contains(message(p), "disparity_focal_px"));
   // Image and camera must agree.
   const PinholeCamera cam{131.25f, 131.25f, 79.5f, 59.5f, 160, 120};
   const RenderedFrame clean = fronto_parallel_plane(1.0, cam);

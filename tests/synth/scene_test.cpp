@@ -7,6 +7,7 @@
 #include <set>
 
 #include "hivox/core/error.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -210,14 +211,14 @@ TEST(SceneValidate, NamesTheBadField) {
     }
     return "";
   };
-  EXPECT_NE(message(Sphere{Vec3::Zero(), -1}).find("radius_m"), std::string::npos);
-  EXPECT_NE(message(Plane{Vec3::Zero(), Vec3(0, 0, 2)}).find("normal_w"), std::string::npos);
-  EXPECT_NE(message(Box{Vec3::Zero(), Vec3(0.1, 0.1, 0.1), Eigen::Matrix3d::Identity(), 0.2})
-                .find("corner_radius_m"),
-            std::string::npos);
-  EXPECT_NE(message(Cylinder{Vec3::Zero(), Vec3::UnitZ(), 0.1, 0}).find("half_height_m"),
-            std::string::npos);
-  EXPECT_NE(message(Room{Vec3(1, 0, 0), Vec3(0, 1, 1)}).find("min_w"), std::string::npos);
+  EXPECT_TRUE(test::contains(message(Sphere{Vec3::Zero(), -1}), "radius_m"));
+  EXPECT_TRUE(test::contains(message(Plane{Vec3::Zero(), Vec3(0, 0, 2)}), "normal_w"));
+  EXPECT_TRUE(test::contains(
+      message(Box{Vec3::Zero(), Vec3(0.1, 0.1, 0.1), Eigen::Matrix3d::Identity(), 0.2}),
+      "corner_radius_m"));
+  EXPECT_TRUE(
+      test::contains(message(Cylinder{Vec3::Zero(), Vec3::UnitZ(), 0.1, 0}), "half_height_m"));
+  EXPECT_TRUE(test::contains(message(Room{Vec3(1, 0, 0), Vec3(0, 1, 1)}), "min_w"));
   SyntheticScene scene;
   EXPECT_THROW(scene.add(Sphere{Vec3::Zero(), 0}), Error);
   EXPECT_TRUE(scene.primitives().empty());
@@ -301,8 +302,8 @@ TEST(MakeScene, UnknownNameListsValidNames) {
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::InvalidArgument);
     const std::string m = e.what();
-    EXPECT_NE(m.find("kitchen"), std::string::npos) << m;
-    for (const std::string& name : scene_names()) EXPECT_NE(m.find(name), std::string::npos) << m;
+    EXPECT_TRUE(test::contains(m, "kitchen")) << m;
+    for (const std::string& name : scene_names()) EXPECT_TRUE(test::contains(m, name)) << m;
   }
   for (const char* name : {"room", "box", "spheres", "keyboard", "blob", "desk"})
     EXPECT_EQ(make_scene(name).name(), name);

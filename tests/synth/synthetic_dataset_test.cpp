@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "hivox/core/error.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -48,24 +49,24 @@ TEST(SyntheticSpec, Parses) {
 
 TEST(SyntheticSpec, BadSpecsNameTheProblem) {
   std::string e = error_of("synthetic:kitchen");
-  EXPECT_NE(e.find("kitchen"), std::string::npos) << e;
-  EXPECT_NE(e.find("desk"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "kitchen")) << e;
+  EXPECT_TRUE(test::contains(e, "desk")) << e;
   e = error_of("synthetic:desk?frames=ten");
-  EXPECT_NE(e.find("frames"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "frames")) << e;
   e = error_of("synthetic:desk?frames=0");
-  EXPECT_NE(e.find("frames"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "frames")) << e;
   e = error_of("synthetic:desk?colour=1");
-  EXPECT_NE(e.find("unknown key 'colour'"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "unknown key 'colour'")) << e;
   e = error_of("synthetic:desk?noise=heavy");
-  EXPECT_NE(e.find("heavy"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "heavy")) << e;
   e = error_of("synthetic:desk?width");
-  EXPECT_NE(e.find("KEY=VALUE"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "KEY=VALUE")) << e;
   e = error_of("synthetic:desk?width=-5");
-  EXPECT_NE(e.find("width"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "width")) << e;
   e = error_of("synthetic:");
-  EXPECT_NE(e.find("scene name"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "scene name")) << e;
   e = error_of("desk");
-  EXPECT_NE(e.find("synthetic:"), std::string::npos) << e;
+  EXPECT_TRUE(test::contains(e, "synthetic:")) << e;
 }
 
 TEST(SyntheticParams, ValidateNamesTheField) {
@@ -80,9 +81,9 @@ TEST(SyntheticParams, ValidateNamesTheField) {
     p.validate();
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("max_depth_m"), std::string::npos);
+    EXPECT_TRUE(test::contains(e.what(), "max_depth_m")) << e.what();
   }
-  EXPECT_NE(SyntheticParams{}.to_string().find("desk"), std::string::npos);
+  EXPECT_TRUE(test::contains(SyntheticParams{}.to_string(), "desk"));
 }
 
 TEST(SyntheticDataset, ReadsFramesWithGroundTruth) {

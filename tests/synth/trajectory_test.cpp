@@ -6,6 +6,7 @@
 
 #include "hivox/core/error.h"
 #include "hivox/synth/scene.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -112,7 +113,7 @@ TEST(Trajectory, ValidationNamesTheField) {
     path.validate();
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("distance_m"), std::string::npos);
+    EXPECT_TRUE(test::contains(e.what(), "distance_m")) << e.what();
   }
   path = {};
   path.elevation_rad = 1.2;
