@@ -14,12 +14,15 @@ namespace hivox::cuda {
 /// Throws `Error(Cuda)` naming `what` when `status` is not success.
 void check_status(cudaError_t status, const char* what);
 
-/// Blocking copies of `bytes` (none when 0) to and from device memory.
-inline void copy_to_device(void* device, const void* host, std::size_t bytes) {
-  if (bytes > 0) check_status(cudaMemcpy(device, host, bytes, cudaMemcpyHostToDevice), "upload");
+/// Blocking copies of `bytes` (none when 0) to and from device memory; `what` names the copy in
+/// errors. A copy to the host waits for the device's queue up to it.
+inline void copy_to_device(void* device, const void* host, std::size_t bytes,
+                           const char* what = "upload") {
+  if (bytes > 0) check_status(cudaMemcpy(device, host, bytes, cudaMemcpyHostToDevice), what);
 }
-inline void copy_to_host(void* host, const void* device, std::size_t bytes) {
-  if (bytes > 0) check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), "download");
+inline void copy_to_host(void* host, const void* device, std::size_t bytes,
+                         const char* what = "download") {
+  if (bytes > 0) check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), what);
 }
 
 /// Queued copies of `n` elements between page-locked host memory and the device: the host does

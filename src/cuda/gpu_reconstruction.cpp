@@ -533,7 +533,7 @@ struct GpuReconstruction::Impl {
     find_blocks(view.read, f.depth, T, map_params.truncation_m, stamps.get(), frame, missing,
                 visible.get(), alloc_counters.get());
     AllocCounters* c = host_counters.reserve(1);
-    check_status(cudaMemcpy(c, alloc_counters.get(), sizeof(AllocCounters), cudaMemcpyDeviceToHost),
+    copy_to_host(c, alloc_counters.get(), sizeof(AllocCounters),
                  "allocation (reading the counters)");
     const int32_t found = c->visible;
     const int32_t to_insert = std::min(c->missing, missing.capacity);
@@ -614,11 +614,9 @@ struct GpuReconstruction::Impl {
     }
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
                   tiles, k, hint, out, alloc_counters.get(), split_marches_at_most);
-    int32_t hits = 0;
-    check_status(cudaMemcpy(&hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t),
-                            cudaMemcpyDeviceToHost),
-                 "raycast");
-    s.raycast_hits = hits;
+    int32_t* hits = &host_counters.reserve(1)->raycast_hits;  // page-locked: a direct copy
+    copy_to_host(hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t), "raycast");
+    s.raycast_hits = *hits;
     model_T_wc = T_wc;
     has_model = true;
     s.raycast_ms = stage.lap_ms();
@@ -696,9 +694,7 @@ struct GpuReconstruction::Impl {
                            M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(),
                            icp_state.get(), level, tp.convergence_step);
     }
-    check_status(
-        cudaMemcpy(state, icp_state.get(), sizeof(kernels::IcpState), cudaMemcpyDeviceToHost),
-        "tracking (Gauss-Newton)");
+    copy_to_host(state, icp_state.get(), sizeof(kernels::IcpState), "tracking (Gauss-Newton)");
     icp::judge_alignment(tp, icp::alignment_of(*state), reduce, *valid_pixels, T_init, &result);
     result.icp_ms = watch.lap_ms();
     return result;

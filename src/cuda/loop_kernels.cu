@@ -695,8 +695,7 @@ void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f
   launch(icp_kernel, blocks, kThreads, pass, points_c, normals_c, pixels, model_points,
          model_normals, partials, done, sums);
   check_last("ICP reduction");
-  if (cudaMemcpy(host_sums, sums, kSums * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
-    check_last("ICP reduction (copying the sums)");
+  copy_to_host(host_sums, sums, kSums * sizeof(double), "ICP reduction (copying the sums)");
 }
 
 void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
