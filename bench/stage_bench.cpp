@@ -26,6 +26,7 @@
 #include "hivox/refine/refiner.h"
 #include "hivox/synth_mesh/mesh_render.h"
 #include "hivox/track/tracker.h"
+#include "run/read_ahead.h"
 #include "synth_mesh/mesh_render_modes.h"
 
 namespace hivox {
@@ -210,6 +211,27 @@ void BM_MeshRender(benchmark::State& state) {
   state.SetLabel(mode == MeshRayMode::Packets ? "4x4 packets" : "ray by ray");
 }
 
+/// Reading frames as a run does (PNG decoding, lens distortion), 32 a repetition. Argument: the
+/// reading threads (0: each frame in turn on this thread; n: ReadAhead on n threads, 2n frames
+/// ahead). The same dataset as the workload, without its fused map.
+void BM_ReadFrames(benchmark::State& state) {
+  const std::filesystem::path tum = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "tum_fr1_rpy";
+  const std::string name =
+      std::filesystem::is_directory(tum) ? tum.string() : "synthetic:desk?frames=200";
+  const std::unique_ptr<DatasetReader> reader = open_dataset(name);
+  const auto threads = static_cast<int>(state.range(0));
+  constexpr std::size_t kFrames = 32;
+  std::size_t first = 0;
+  for (auto _ : state) {
+    ReadAhead frames(*reader, first, first + kFrames, 2 * threads, threads);
+    for (std::size_t i = 0; i < kFrames; ++i)
+      benchmark::DoNotOptimize(frames.next().depth_m.data());
+    first = (first + kFrames) % (reader->size() - kFrames);
+  }
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations() * kFrames));
+  state.SetLabel(name);
+}
+
 BENCHMARK(BM_Allocate)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Integrate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Raycast)->Unit(benchmark::kMillisecond);
@@ -219,6 +241,7 @@ BENCHMARK(BM_WarpRaycast)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Track)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ExtractMesh)->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(BM_MeshRender)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ReadFrames)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace hivox

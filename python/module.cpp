@@ -270,6 +270,8 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("mesh", &RunParams::mesh)
       .def_readwrite("out_dir", &RunParams::out_dir)
       .def_readwrite("overwrite", &RunParams::overwrite)
+      .def_readwrite("read_ahead_frames", &RunParams::read_ahead_frames)
+      .def_readwrite("read_threads", &RunParams::read_threads)
       .def_readwrite("map_in", &RunParams::map_in)
       .def_readwrite("map_out", &RunParams::map_out)
       .def("validate", &RunParams::validate)

@@ -89,6 +89,8 @@ RunParams run_params(ReconstructOptions options) {
   run.out_dir = options.out.empty() ? default_out_dir(options.data.dataset) : options.out;
   run.overwrite = options.overwrite;
   run.on_bad_frame = parse_bad_frame_policy(options.on_bad_frame);
+  run.read_ahead_frames = options.read_ahead;
+  run.read_threads = options.read_threads;
   run.validate();
   return run;
 }
@@ -218,10 +220,15 @@ void run_reconstruct(const ReconstructOptions& options) {
     if (live) live->start(info.source, rec, frames);
     if (options.quiet) return;
     fmt::print("hivox reconstruct {}\n", info.source);
-    fmt::print("frames: {} of {}{} ({}x{}), poses: {}, threads: {}\n", frames, reader->size(),
+    const ReadPlan reading = read_plan(run, *reader);
+    fmt::print("frames: {} of {}{} ({}x{}), poses: {}, threads: {}{}\n", frames, reader->size(),
                run.first_frame > 0 ? fmt::format(" from frame {}", run.first_frame) : "",
                info.rig.depth_camera.width, info.rig.depth_camera.height, run.poses.to_string(),
-               thread_count());
+               thread_count(),
+               reading.frames > 0
+                   ? fmt::format(", reading {} frames ahead on {} thread{}", reading.frames,
+                                 reading.threads, reading.threads > 1 ? "s" : "")
+                   : "");
     fmt::print("camera: {} [{}]\n", info.rig.depth_camera.to_string(), info.intrinsics_source);
     if (!info.distortion.none())
       fmt::print("lens distortion: {} ({})\n", info.distortion.to_string(),
@@ -383,6 +390,16 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                   "(the frames before it are written, exit status 4) or 'skip' it with a "
                   "warning (counted in stats.json)")
       ->check(CLI::IsMember({"stop", "skip"}))
+      ->capture_default_str();
+  cmd->add_option("--read-ahead", o.read_ahead,
+                  "frames read ahead while one is processed (0 = each when its turn comes; -1 = "
+                  "two per reading thread)")
+      ->check(CLI::Range(-1, 64))
+      ->capture_default_str();
+  cmd->add_option("--read-threads", o.read_threads,
+                  "threads that read ahead (0 = the cores the loop leaves free, at most 8: none "
+                  "for a CPU run on all cores, all but one with --device cuda)")
+      ->check(CLI::Range(0, 64))
       ->capture_default_str();
   cmd->add_option("--render-every", o.render_every,
                   "also write the renders of every N-th frame (0 = only at the end)")

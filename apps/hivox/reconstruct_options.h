@@ -45,6 +45,8 @@ struct ReconstructOptions {
   double view_linger_s = 0;
   int threads = 0;
   int render_every = 0;
+  int read_ahead = RunParams{}.read_ahead_frames;
+  int read_threads = RunParams{}.read_threads;
   bool no_color = false;
   bool quiet = false;
 };

@@ -59,8 +59,9 @@ def test_frames_fused_from_python_equal_the_library_run(tmp_path):
     assert mesh["triangles"].max() < len(mesh["vertices"])
     assert mesh["colors"].shape == mesh["vertices"].shape
 
+    # Read ahead on two threads: the same frames, the same mesh.
     run_params = hivox.RunParams(poses="gt", reconstruction=small_params(),
-                                 out_dir=str(tmp_path / "run"))
+                                 out_dir=str(tmp_path / "run"), read_threads=2)
     same, summary = hivox.run(data, run_params)
     assert summary["frames_fused"] == 6 and summary["end"] == "completed"
     other = same.extract_mesh()

@@ -24,6 +24,9 @@ int thread_index() {
 int team_size() {
   return omp_get_num_threads();
 }
+void use_thread_count(int n) {
+  omp_set_num_threads(n > 0 ? n : 1);
+}
 }  // namespace detail
 
 void ThreadTeam::barrier() const {

@@ -35,6 +35,9 @@ struct CpuSchedule {
 namespace detail {
 int thread_index();  // inside a parallel region: this thread's index in its team
 int team_size();     // inside a parallel region: the team's size
+/// The calling thread's parallel loops use `n` threads (OpenMP keeps the count per thread: a
+/// thread of hivox's own starts with the default, not its creator's set_thread_count).
+void use_thread_count(int n);
 
 template <typename Body>
 void cpu_for(int64_t n, Body&& body, CpuSchedule schedule) {

@@ -45,6 +45,7 @@ class FileDataset final : public DatasetReader {
 
   const DatasetInfo& info() const override { return info_; }
   RgbdFrame read(std::size_t index) override;
+  bool reads_concurrently() const override { return true; }
 
   /// Depth of frame `index` in metres (no colour, no pose): what the scale check needs.
   DepthImage read_depth(std::size_t index) const;

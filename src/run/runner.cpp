@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <system_error>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -20,6 +21,7 @@
 #include "hivox/output/output_folder.h"
 #include "hivox/output/renders.h"
 #include "hivox/output/stats_json.h"
+#include "run/read_ahead.h"
 
 namespace hivox {
 
@@ -94,6 +96,12 @@ void RunParams::validate() const {
   mesh.validate();
   if (render_every < 0)
     fail(ErrorCode::InvalidArgument, "render_every must be >= 0, got {}", render_every);
+  if (read_ahead_frames < -1 || read_ahead_frames > 64)
+    fail(ErrorCode::InvalidArgument, "read_ahead_frames must be -1 (auto) or in [0, 64], got {}",
+         read_ahead_frames);
+  if (read_threads < 0 || read_threads > 64)
+    fail(ErrorCode::InvalidArgument, "read_threads must be in [0, 64] (0: auto), got {}",
+         read_threads);
   if (poses.source == PoseSource::Icp && !reconstruction.raycast_every_frame)
     fail(ErrorCode::InvalidArgument,
          "tracking (poses icp) needs the per-frame raycast of the model (raycast_every_frame)");
@@ -103,6 +111,21 @@ void RunParams::validate() const {
          map_in.string());
   if (poses.source == PoseSource::File && poses.file.empty())
     fail(ErrorCode::InvalidArgument, "poses from a file, but no file is named");
+}
+
+ReadPlan read_plan(const RunParams& params, const DatasetReader& reader) {
+  int threads = params.read_threads;
+  if (threads == 0) {
+    // The cores the loop leaves free: all but the thread driving a GPU, those beyond the CPU
+    // loop's threads.
+    const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const int busy = params.reconstruction.device.is_cpu() ? thread_count() : 1;
+    threads = std::clamp(cores - busy, 0, 8);
+  }
+  if (!reader.reads_concurrently()) threads = std::min(threads, 1);
+  const int frames = params.read_ahead_frames < 0 ? 2 * threads : params.read_ahead_frames;
+  if (frames == 0) return {};
+  return {frames, std::max(threads, 1)};
 }
 
 namespace {
@@ -198,8 +221,10 @@ class Run {
   void frame_loop() {
     Stopwatch wall;
     double processing_ms = 0.0;
-    for (std::size_t i = params_.first_frame; i < params_.first_frame + summary_.frames_total;
-         ++i) {
+    const std::size_t end = params_.first_frame + summary_.frames_total;
+    const ReadPlan plan = read_plan(params_, reader_);
+    ReadAhead frames(reader_, params_.first_frame, end, plan.frames, plan.threads);
+    for (std::size_t i = params_.first_frame; i < end; ++i) {
       if (callbacks_.stop_requested && callbacks_.stop_requested()) {
         summary_.end = RunEnd::StopRequested;
         break;
@@ -207,7 +232,7 @@ class Run {
       Stopwatch read_watch;
       RgbdFrame frame;
       try {
-        frame = reader_.read(i);
+        frame = frames.next();
       } catch (const Error& e) {
         if (params_.on_bad_frame == BadFramePolicy::Stop) {
           summary_.end = RunEnd::BadFrame;

@@ -67,6 +67,10 @@ class DatasetReader {
   std::size_t size() const { return info().frame_count; }
   /// Reads frame `index` (< size()). Throws `Error` naming the file when it cannot.
   virtual RgbdFrame read(std::size_t index) = 0;
+  /// Whether read() may run on several threads at once, each for another frame (a frame is a
+  /// function of its index alone). A run then reads ahead on several threads
+  /// (RunParams::read_threads); otherwise on one at most.
+  virtual bool reads_concurrently() const { return false; }
 };
 
 }  // namespace hivox

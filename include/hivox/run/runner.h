@@ -82,6 +82,14 @@ struct RunParams {
   /// as a whole by the new run's folder when the run ends.
   bool overwrite = false;
   BadFramePolicy on_bad_frame = BadFramePolicy::Stop;
+  /// Frames read ahead on threads of their own while the run processes the current one
+  /// (decoding overlaps processing; each costs a frame's memory), at most 64. 0: every frame is
+  /// read when its turn comes; -1: two per reading thread (see read_plan).
+  int read_ahead_frames = -1;
+  /// Threads that read ahead, at most 64; several only where the dataset reads concurrently
+  /// (DatasetReader::reads_concurrently). 0: the cores the loop leaves free, at most 8 (all but
+  /// the driving thread with a GPU; beyond thread_count() on the CPU, so none by default).
+  int read_threads = 0;
   /// The run's settings as the caller keeps them (e.g. the CLI's config.json): written as
   /// `config.json` into the output folder and embedded in stats.json; empty = neither.
   std::string config_json;
@@ -89,6 +97,14 @@ struct RunParams {
   /// Throws `Error(InvalidArgument)` naming the bad setting.
   void validate() const;
 };
+
+/// How a run reads its frames: `frames` ahead on `threads` threads (0 frames: each in turn).
+struct ReadPlan {
+  int frames = 0;
+  int threads = 0;
+};
+/// What `params.read_ahead_frames` and `read_threads` come to for `reader` on this machine.
+ReadPlan read_plan(const RunParams& params, const DatasetReader& reader);
 
 /// How a run ended.
 enum class RunEnd {

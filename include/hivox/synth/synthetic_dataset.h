@@ -65,6 +65,7 @@ class SyntheticDataset : public DatasetReader {
   /// Renders frame `index`: depth (noisy per `params().noise`, metres), colour, timestamp and
   /// ground-truth pose. Throws `Error(InvalidArgument)` when `index >= size()`.
   RgbdFrame read(std::size_t index) override;
+  bool reads_concurrently() const override { return true; }
 
   /// The noise-free render of frame `index` (depth, colour, world normals, pose).
   RenderedFrame render_clean(std::size_t index) const;

@@ -1,0 +1,85 @@
+#include "run/read_ahead.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "core/parallel.h"
+#include "hivox/core/error.h"
+
+namespace hivox {
+
+ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, int ahead,
+                     int threads)
+    : reader_(reader),
+      first_(first),
+      end_(end),
+      next_(first),
+      slots_(ahead > 0 ? static_cast<std::size_t>(ahead) : 0),
+      claimed_(first),
+      taken_(first) {
+  if (slots_.empty() || first >= end) return;
+  int n = reader.reads_concurrently() ? std::max(threads, 1) : 1;
+  n = static_cast<int>(
+      std::min<std::size_t>({static_cast<std::size_t>(n), slots_.size(), end - first}));
+  const int loop_threads = n == 1 ? thread_count() : 1;
+  threads_.reserve(static_cast<std::size_t>(n));
+  for (int t = 0; t < n; ++t)
+    threads_.emplace_back([this, loop_threads] { read_frames(loop_threads); });
+}
+
+ReadAhead::~ReadAhead() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  for (std::thread& t : threads_) t.join();
+}
+
+void ReadAhead::read_frames(int loop_threads) {
+  detail::use_thread_count(loop_threads);
+  for (;;) {
+    std::size_t i = 0;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      // Frame i may be read once the frame `ahead` before it (its slot's last) was taken.
+      changed_.wait(lock,
+                    [&] { return stop_ || claimed_ >= end_ || claimed_ < taken_ + slots_.size(); });
+      if (stop_ || claimed_ >= end_) return;
+      i = claimed_++;
+    }
+    Slot s;
+    try {
+      s.frame = reader_.read(i);
+    } catch (...) {
+      s.error = std::current_exception();
+    }
+    s.ready = true;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      slots_[(i - first_) % slots_.size()] = std::move(s);
+    }
+    changed_.notify_all();
+  }
+}
+
+RgbdFrame ReadAhead::next() {
+  if (next_ >= end_)
+    fail(ErrorCode::InvalidArgument, "reading ahead: frame {} is past the end ({})", next_, end_);
+  const std::size_t i = next_++;
+  if (threads_.empty()) return reader_.read(i);
+  Slot s;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    Slot& slot = slots_[(i - first_) % slots_.size()];
+    changed_.wait(lock, [&] { return slot.ready; });
+    s = std::move(slot);
+    slot = Slot{};
+    taken_ = i + 1;
+  }
+  changed_.notify_all();
+  if (s.error) std::rethrow_exception(s.error);
+  return std::move(s.frame);
+}
+
+}  // namespace hivox

@@ -1,0 +1,55 @@
+#pragma once
+// A dataset's frames read ahead on threads of their own, so that decoding the next frames (PNG,
+// lens distortion, a synthetic scene's rendering) overlaps the processing of this one.
+
+#include <condition_variable>
+#include <cstddef>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "hivox/core/dataset.h"
+
+namespace hivox {
+
+/// Reads frames [first, end) of `reader` ahead of the caller, at most `ahead` frames beyond the
+/// last one taken, on `threads` threads (one where the reader does not read concurrently, see
+/// DatasetReader::reads_concurrently); `ahead` 0: each frame is read when taken, on the
+/// caller's thread. The reader is used only by this object while it lives. A frame that cannot
+/// be read is not skipped: `next()` throws its error at its turn, and the frames after it come
+/// as usual. One reading thread uses thread_count() threads for its parallel loops (as many as
+/// the constructing thread), several one each.
+class ReadAhead {
+ public:
+  ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, int ahead, int threads = 1);
+  /// Stops reading (reads under way end first); frames read and not taken are dropped.
+  ~ReadAhead();
+  ReadAhead(const ReadAhead&) = delete;
+  ReadAhead& operator=(const ReadAhead&) = delete;
+
+  /// The next frame in order (first, first + 1, ...): waits until it is read, and throws what
+  /// reading it threw (an `Error` naming the file). `Error(InvalidArgument)` past `end`.
+  RgbdFrame next();
+
+ private:
+  struct Slot {
+    bool ready = false;
+    RgbdFrame frame;
+    std::exception_ptr error;
+  };
+  void read_frames(int loop_threads);
+
+  DatasetReader& reader_;
+  const std::size_t first_, end_;
+  std::size_t next_;  ///< the frame next() returns (the caller's thread only)
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<Slot> slots_;  ///< frame i in slot (i - first) % ahead
+  std::size_t claimed_;      ///< frames [first, claimed_) are read or being read
+  std::size_t taken_;        ///< frames [first, taken_) were taken
+  bool stop_ = false;
+  std::vector<std::thread> threads_;  ///< last: they start once the rest is set
+};
+
+}  // namespace hivox
