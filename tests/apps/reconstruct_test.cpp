@@ -283,7 +283,7 @@ TEST(Reconstruct, AResultOfNoUseExitsNonZeroAndSaysWhy) {
 }
 
 // A frame that cannot be read stops the run there (the frames before it are kept, exit 4), or
-// is skipped and counted with --on-bad-frame skip.
+// is skipped and counted with --on-bad-frame skip; the same when frames are read ahead.
 TEST(Reconstruct, AnUnreadableFrameStopsTheRunOrIsSkipped) {
   test::TempDir dir;
   ASSERT_EQ(run_hivox("synth --scene box --frames 6 --width 80 --height 60 --noise none --out " +
@@ -296,19 +296,23 @@ TEST(Reconstruct, AnUnreadableFrameStopsTheRunOrIsSkipped) {
   std::sort(depths.begin(), depths.end());
   ASSERT_EQ(depths.size(), 6u);
   fs::resize_file(depths[3], fs::file_size(depths[3]) / 2);
-  const std::string base = "reconstruct " + (dir / "seq").string() +
-                           " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet";
-  auto r = run_hivox(base + " --out " + (dir / "stop").string());
-  EXPECT_EQ(r.exit_code, 4) << r.output;
-  EXPECT_TRUE(test::contains(r.output, depths[3].filename().string())) << r.output;
-  EXPECT_EQ(read_tum_trajectory(dir / "stop" / "trajectory.txt").size(), 3u);
-  EXPECT_EQ(read_json(dir / "stop" / "stats.json")["end"], "bad frame");
-  r = run_hivox(base + " --on-bad-frame skip --out " + (dir / "skip").string());
-  EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_EQ(read_tum_trajectory(dir / "skip" / "trajectory.txt").size(), 5u);
-  const auto stats = read_json(dir / "skip" / "stats.json");
-  EXPECT_EQ(stats["bad_frames"], 1);
-  EXPECT_EQ(stats["frames_fused"], 5);
+  for (const std::string reading : {"--read-ahead 0", "--read-threads 3"}) {
+    SCOPED_TRACE(reading);
+    const std::string base = "reconstruct " + (dir / "seq").string() + " " + reading +
+                             " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --quiet "
+                             "--overwrite";
+    auto r = run_hivox(base + " --out " + (dir / "stop").string());
+    EXPECT_EQ(r.exit_code, 4) << r.output;
+    EXPECT_TRUE(test::contains(r.output, depths[3].filename().string())) << r.output;
+    EXPECT_EQ(read_tum_trajectory(dir / "stop" / "trajectory.txt").size(), 3u);
+    EXPECT_EQ(read_json(dir / "stop" / "stats.json")["end"], "bad frame");
+    r = run_hivox(base + " --on-bad-frame skip --out " + (dir / "skip").string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_EQ(read_tum_trajectory(dir / "skip" / "trajectory.txt").size(), 5u);
+    const auto stats = read_json(dir / "skip" / "stats.json");
+    EXPECT_EQ(stats["bad_frames"], 1);
+    EXPECT_EQ(stats["frames_fused"], 5);
+  }
 }
 
 TEST(Synth, ExportReadsBackWithIdenticalPoses) {
