@@ -3,7 +3,8 @@
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
 # alternated (split marches, Gauss-Newton on the device, the coarse grid off, all together; 3
-# levels and the fixed grid), meshing on the device against the host, and last compute-sanitizer's
+# levels and the fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads),
+# meshing on the device against the host, and last compute-sanitizer's
 # memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time.
@@ -72,6 +73,9 @@ for data in fr1 desk; do
   bench "${data}_l3_split1_b" "$src" 3 --split-marches 1
   bench "${data}_l3_gn_device_b" "$src" 3 --gn-on-device
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
+  # The loop with its frames decoded as it goes, in turn and ahead (wall_fps in the json).
+  bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
+  bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --gn-on-device
   bench "${data}_l1_default" "$src" 1
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --gn-on-device

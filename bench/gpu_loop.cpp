@@ -4,11 +4,14 @@
 //   hivox_gpu_loop synthetic:desk?frames=300 --levels 1            # fixed 2 mm, tracked
 //   hivox_gpu_loop data/tum_fr1_rpy --handover 50 --cpu           # 3 levels from a CPU-refined map
 //   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --mesh    # then mesh it, both ways
+//   hivox_gpu_loop data/tum_fr1_rpy --read-threads 8              # frames decoded as it runs
 //
 // `--handover K` runs frames [0, K) through the CPU reconstruction, copies its map to the device
 // and times frames [K, N) there (the device refines the hierarchy from then on). Times are the
 // host's wall clock around each stage, the device synchronised at its end; the first `--warmup`
-// timed frames are left out of the means.
+// timed frames are left out of the means. With `--read-threads N` the device's frames are read
+// from the dataset as the loop goes (0: each in turn; N: ahead on N threads, as a run reads), and
+// the loop's wall-clock rate includes decoding them.
 
 #include <CLI/CLI.hpp>
 
@@ -29,6 +32,7 @@
 #include "hivox/io/dataset.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
+#include "run/read_ahead.h"
 
 namespace {
 
@@ -74,7 +78,7 @@ std::string mm(const std::optional<double>& m) {
 int main(int argc, char** argv) {
   CLI::App app{"hivox's online loop on a CUDA device"};
   std::string spec;
-  int frames = 0, handover = 0, levels = 3, warmup = 5;
+  int frames = 0, handover = 0, levels = 3, warmup = 5, read_threads = -1;
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, gn_on_device = false, no_coarse_grid = false;
@@ -102,6 +106,9 @@ int main(int argc, char** argv) {
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
+  app.add_option("--read-threads", read_threads,
+                 "read the device's frames from the dataset as the loop goes: 0 each in turn, N "
+                 "ahead on N threads (default: from memory)");
   app.add_option("--json", json, "write the results here");
   CLI11_PARSE(app, argc, argv);
 
@@ -165,13 +172,25 @@ int main(int argc, char** argv) {
                 cuda::device_name(0).c_str(), gn_on_device ? "device" : "host",
                 no_coarse_grid ? "off" : "on", split_marches);
     std::vector<StampedPose> gt;
+    std::optional<ReadAhead> from_disk;
+    if (read_threads >= 0) from_disk.emplace(*reader, k, n, 2 * read_threads, read_threads);
+    RgbdFrame decoded;
+    Stopwatch loop_watch;
     for (std::size_t i = k; i < n; ++i) {
-      if (has_gt) gt.push_back({data[i].timestamp_s, *data[i].T_wc_gt});
+      if (from_disk) decoded = from_disk->next();
+      const RgbdFrame& f = from_disk ? decoded : data[i];
+      if (has_gt) gt.push_back({f.timestamp_s, *f.T_wc_gt});
       if (track)
-        gpu->track_and_integrate(data[i], first);
+        gpu->track_and_integrate(f, first);
       else
-        gpu->integrate(data[i], *data[i].T_wc_gt);
+        gpu->integrate(f, *f.T_wc_gt);
     }
+    const double wall_fps = static_cast<double>(n - k) / (loop_watch.elapsed_ms() / 1e3);
+    std::printf("the loop's wall clock: %.0f fps, frames %s\n", wall_fps,
+                read_threads < 0 ? "from memory"
+                : read_threads == 0
+                    ? "read in turn"
+                    : ("read ahead on " + std::to_string(read_threads) + " threads").c_str());
     const Means g = means_of(gpu->frames(), warmup);
     int64_t lost = 0, splits = 0, merges = 0;
     for (const FrameStats& f : gpu->frames()) {
@@ -246,8 +265,8 @@ int main(int argc, char** argv) {
           << poses << "\", \"gauss_newton_on_device\": " << (gn_on_device ? "true" : "false")
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches << ", \"handover\": " << k
-          << ", \"frames_timed\": " << g.frames
-          << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
+          << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads
+          << ", \"wall_fps\": " << wall_fps << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms
           << ", \"integrate\": " << g.mean.integrate_ms << ", \"refine\": " << g.mean.refine_ms
           << ", \"raycast\": " << g.mean.raycast_ms << ", \"total\": " << g.mean.total_ms
