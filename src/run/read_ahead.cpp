@@ -1,10 +1,12 @@
 #include "run/read_ahead.h"
 
 #include <algorithm>
+#include <system_error>
 #include <utility>
 
 #include "core/parallel.h"
 #include "hivox/core/error.h"
+#include "hivox/core/log.h"
 
 namespace hivox {
 
@@ -23,17 +25,35 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
       std::min<std::size_t>({static_cast<std::size_t>(n), slots_.size(), end - first}));
   const int loop_threads = n == 1 ? thread_count() : 1;
   threads_.reserve(static_cast<std::size_t>(n));
-  for (int t = 0; t < n; ++t)
-    threads_.emplace_back([this, loop_threads] { read_frames(loop_threads); });
+  try {
+    for (int t = 0; t < n; ++t)
+      threads_.emplace_back([this, loop_threads] { read_frames(loop_threads); });
+  } catch (const std::system_error& e) {
+    // No thread to be had: the frames are read in turn, as without reading ahead.
+    log::warn_once("read_ahead.threads",
+                   "reading ahead: cannot start a thread ({}); frames are "
+                   "read in turn",
+                   e.what());
+    stop();
+    std::lock_guard<std::mutex> lock(mutex_);
+    claimed_ = taken_ = first_;
+    slots_.assign(slots_.size(), Slot{});
+    stop_ = false;
+  }
 }
 
 ReadAhead::~ReadAhead() {
+  stop();
+}
+
+void ReadAhead::stop() {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
   }
   changed_.notify_all();
   for (std::thread& t : threads_) t.join();
+  threads_.clear();
 }
 
 void ReadAhead::read_frames(int loop_threads) {

@@ -39,6 +39,8 @@ class ReadAhead {
     std::exception_ptr error;
   };
   void read_frames(int loop_threads);
+  /// Ends the reading threads (reads under way first).
+  void stop();
 
   DatasetReader& reader_;
   const std::size_t first_, end_;
