@@ -31,9 +31,7 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
   } catch (const std::system_error& e) {
     // No thread to be had: the frames are read in turn, as without reading ahead.
     log::warn_once("read_ahead.threads",
-                   "reading ahead: cannot start a thread ({}); frames are "
-                   "read in turn",
-                   e.what());
+                   "reading ahead: cannot start a thread ({}); frames are read in turn", e.what());
     stop();
     std::lock_guard<std::mutex> lock(mutex_);
     claimed_ = taken_ = first_;
