@@ -437,6 +437,8 @@ std::vector<Case> cases() {
   c.push_back(flag("--preset on a synthetic scene", "--preset tum_fr1", 1, {"--preset"}));
   c.push_back(flag("--depth-scale -5", "--depth-scale -5", 1, {"--depth-scale"}));
   c.push_back(flag("--on-bad-frame maybe", "--on-bad-frame maybe", kUsage, {"--on-bad-frame"}));
+  c.push_back(flag("--read-ahead 65", "--read-ahead 65", kUsage, {"--read-ahead"}));
+  c.push_back(flag("--read-threads -1", "--read-threads -1", kUsage, {"--read-threads"}));
   c.push_back(flag("--no-raycast with tracking", "--no-raycast", 1, {"raycast"}));
   c.push_back({"--out holds an earlier run",
                [](const fs::path& d) {
