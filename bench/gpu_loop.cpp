@@ -30,9 +30,9 @@
 #include "hivox/cuda/gpu_reconstruction.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/io/dataset.h"
+#include "hivox/io/read_ahead.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
-#include "run/read_ahead.h"
 
 namespace {
 

@@ -18,6 +18,7 @@
 #include "hivox/io/dataset.h"
 #include "hivox/io/intrinsics_io.h"
 #include "hivox/io/mesh_file.h"
+#include "hivox/io/read_ahead.h"
 #include "hivox/io/trajectory_io.h"
 #include "hivox/map/voxel_block_map.h"
 #include "hivox/mesh/extract_mesh.h"
@@ -26,7 +27,6 @@
 #include "hivox/refine/refiner.h"
 #include "hivox/synth_mesh/mesh_render.h"
 #include "hivox/track/tracker.h"
-#include "run/read_ahead.h"
 #include "synth_mesh/mesh_render_modes.h"
 
 namespace hivox {

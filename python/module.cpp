@@ -19,6 +19,7 @@
 #include "hivox/io/map_file.h"
 #include "hivox/io/obj.h"
 #include "hivox/io/ply.h"
+#include "hivox/io/read_ahead.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/run/runner.h"
@@ -96,6 +97,35 @@ Pose pose_from(const Eigen::Matrix4d& m) {
   T.matrix() = m;
   return T;
 }
+
+/// A frame as Python sees it (Dataset.read).
+py::dict frame_dict(const RgbdFrame& f) {
+  py::dict d;
+  d["index"] = f.index;
+  d["timestamp_s"] = f.timestamp_s;
+  d["depth"] = array_2d(f.depth_m.data(), f.depth_m.height(), f.depth_m.width());
+  if (!f.color.empty()) {
+    py::array_t<uint8_t> c(
+        {py::ssize_t{f.color.height()}, py::ssize_t{f.color.width()}, py::ssize_t{3}});
+    std::memcpy(c.mutable_data(), f.color.data(), 3 * f.color.size());
+    d["color"] = c;
+  } else {
+    d["color"] = py::none();
+  }
+  d["T_wc_gt"] = f.T_wc_gt ? py::cast(Eigen::Matrix4d(f.T_wc_gt->matrix())) : py::none();
+  return d;
+}
+
+/// Dataset.frames: the frames read ahead, the dataset kept alive while they are.
+struct FrameIterator {
+  FrameIterator(std::shared_ptr<DatasetReader> r, std::size_t first, std::size_t end, int threads)
+      : reader(std::move(r)),
+        left(end - first),
+        frames(*reader, first, end, 2 * threads, threads) {}
+  std::shared_ptr<DatasetReader> reader;
+  std::size_t left;
+  ReadAhead frames;
+};
 
 py::dict frame_stats_dict(const FrameStats& s) {
   py::dict d;
@@ -300,24 +330,40 @@ PYBIND11_MODULE(hivox, m) {
               py::gil_scoped_release release;
               f = r.read(i);
             }
-            py::dict d;
-            d["index"] = f.index;
-            d["timestamp_s"] = f.timestamp_s;
-            d["depth"] = array_2d(f.depth_m.data(), f.depth_m.height(), f.depth_m.width());
-            if (!f.color.empty()) {
-              py::array_t<uint8_t> c(
-                  {py::ssize_t{f.color.height()}, py::ssize_t{f.color.width()}, py::ssize_t{3}});
-              std::memcpy(c.mutable_data(), f.color.data(), 3 * f.color.size());
-              d["color"] = c;
-            } else {
-              d["color"] = py::none();
-            }
-            d["T_wc_gt"] = f.T_wc_gt ? py::cast(Eigen::Matrix4d(f.T_wc_gt->matrix())) : py::none();
-            return d;
+            return frame_dict(f);
           },
           py::arg("index"),
           "Frame `index`: depth (float32 metres), color (uint8 or None), "
-          "timestamp_s, T_wc_gt (4x4 or None).");
+          "timestamp_s, T_wc_gt (4x4 or None).")
+      .def(
+          "frames",
+          [](const std::shared_ptr<DatasetReader>& r, std::size_t first, std::size_t count,
+             int threads) {
+            if (first > r->size())
+              throw py::index_error(fmt::format("first frame {} of {}", first, r->size()));
+            if (threads < 0 || threads > 64)
+              fail(ErrorCode::InvalidArgument, "frames: threads must be in [0, 64], got {}",
+                   threads);
+            const std::size_t end = count == 0 ? r->size() : std::min(r->size(), first + count);
+            return std::make_unique<FrameIterator>(r, first, end, threads);
+          },
+          py::arg("first") = 0, py::arg("count") = 0, py::arg("threads") = 2,
+          "Iterates over frames [first, first + count) (count 0: to the end) as `read` gives "
+          "them, decoded ahead on `threads` threads (0: each when asked for). While it lives, "
+          "the dataset is read by it.");
+
+  py::class_<FrameIterator>(m, "FrameIterator")
+      .def("__iter__", [](FrameIterator& it) -> FrameIterator& { return it; })
+      .def("__next__", [](FrameIterator& it) {
+        if (it.left == 0) throw py::stop_iteration();
+        --it.left;
+        RgbdFrame f;
+        {
+          py::gil_scoped_release release;
+          f = it.frames.next();
+        }
+        return frame_dict(f);
+      });
 
   m.def(
       "open_dataset",

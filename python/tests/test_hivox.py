@@ -79,6 +79,23 @@ def test_frames_fused_from_python_equal_the_library_run(tmp_path):
     assert np.allclose(np.linalg.norm(r["normals"][hit], axis=1), 1.0, atol=1e-3)
 
 
+def test_frames_read_ahead_are_the_frames_read_in_turn():
+    data = hivox.open_dataset("synthetic:desk?frames=12&width=80&height=60&noise=kinect")
+    for threads in (0, 1, 3):
+        frames = list(data.frames(first=2, count=7, threads=threads))
+        assert [f["index"] for f in frames] == list(range(2, 9))
+        for f in frames:
+            same = data.read(f["index"])
+            assert np.array_equal(f["depth"], same["depth"])
+            assert np.array_equal(f["color"], same["color"])
+            assert np.array_equal(f["T_wc_gt"], same["T_wc_gt"])
+    assert len(list(data.frames(first=10))) == 2
+    with pytest.raises(IndexError):
+        data.frames(first=13)
+    with pytest.raises(hivox.Error, match="threads"):
+        data.frames(threads=-1)
+
+
 def test_uint16_depth_with_its_scale_equals_metres():
     data = hivox.open_dataset(SCENE)
     a = hivox.Reconstruction(small_params(), data.camera, noise_free=True)

@@ -16,12 +16,12 @@
 #include "hivox/io/atomic_file.h"
 #include "hivox/io/map_file.h"
 #include "hivox/io/ply.h"
+#include "hivox/io/read_ahead.h"
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/output/output_folder.h"
 #include "hivox/output/renders.h"
 #include "hivox/output/stats_json.h"
-#include "run/read_ahead.h"
 
 namespace hivox {
 

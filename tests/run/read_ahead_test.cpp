@@ -4,7 +4,7 @@
 // that waits for nothing. A run reading ahead reconstructs exactly what a run reading each frame
 // in turn does.
 
-#include "run/read_ahead.h"
+#include "hivox/io/read_ahead.h"
 
 #include <gtest/gtest.h>
 

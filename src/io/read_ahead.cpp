@@ -1,4 +1,4 @@
-#include "run/read_ahead.h"
+#include "hivox/io/read_ahead.h"
 
 #include <algorithm>
 #include <system_error>

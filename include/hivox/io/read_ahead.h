@@ -1,6 +1,8 @@
 #pragma once
-// A dataset's frames read ahead on threads of their own, so that decoding the next frames (PNG,
-// lens distortion, a synthetic scene's rendering) overlaps the processing of this one.
+/// @file
+/// A dataset's frames read ahead on threads of their own, so that decoding the next frames (PNG,
+/// lens distortion, a synthetic scene's rendering) overlaps the processing of this one: what a
+/// run reads through (RunParams::read_threads), for loops of one's own too.
 
 #include <condition_variable>
 #include <cstddef>
