@@ -173,7 +173,8 @@ int main(int argc, char** argv) {
                 no_coarse_grid ? "off" : "on", split_marches);
     std::vector<StampedPose> gt;
     std::optional<ReadAhead> from_disk;
-    if (read_threads >= 0) from_disk.emplace(*reader, k, n, 2 * read_threads, read_threads);
+    if (read_threads >= 0)
+      from_disk.emplace(*reader, k, n, ReadAhead::frames_for(read_threads), read_threads);
     RgbdFrame decoded;
     Stopwatch loop_watch;
     for (std::size_t i = k; i < n; ++i) {

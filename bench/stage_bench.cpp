@@ -37,6 +37,12 @@ double env_or(const char* name, double fallback) {
   return v ? std::atof(v) : fallback;
 }
 
+/// The benchmarks' dataset: TUM fr1/rpy when ../shared/data holds it, else the synthetic desk.
+std::string bench_dataset() {
+  const std::filesystem::path tum = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "tum_fr1_rpy";
+  return std::filesystem::is_directory(tum) ? tum.string() : "synthetic:desk?frames=200";
+}
+
 struct Workload {
   std::unique_ptr<DatasetReader> reader;
   std::unique_ptr<VoxelBlockMap> map;
@@ -48,8 +54,7 @@ struct Workload {
   bool frame_fused = false;
 
   Workload() {
-    const std::filesystem::path tum = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "tum_fr1_rpy";
-    name = std::filesystem::is_directory(tum) ? tum.string() : "synthetic:desk?frames=200";
+    name = bench_dataset();
     reader = open_dataset(name);
     MapParams mp;
     mp.voxel_size_m = static_cast<float>(env_or("HIVOX_BENCH_VOXEL", 0.005));
@@ -215,15 +220,13 @@ void BM_MeshRender(benchmark::State& state) {
 /// reading threads (0: each frame in turn on this thread; n: ReadAhead on n threads, 2n frames
 /// ahead). The same dataset as the workload, without its fused map.
 void BM_ReadFrames(benchmark::State& state) {
-  const std::filesystem::path tum = std::filesystem::path(HIVOX_BENCH_DATA_DIR) / "tum_fr1_rpy";
-  const std::string name =
-      std::filesystem::is_directory(tum) ? tum.string() : "synthetic:desk?frames=200";
+  const std::string name = bench_dataset();
   const std::unique_ptr<DatasetReader> reader = open_dataset(name);
   const auto threads = static_cast<int>(state.range(0));
   constexpr std::size_t kFrames = 32;
   std::size_t first = 0;
   for (auto _ : state) {
-    ReadAhead frames(*reader, first, first + kFrames, 2 * threads, threads);
+    ReadAhead frames(*reader, first, first + kFrames, ReadAhead::frames_for(threads), threads);
     for (std::size_t i = 0; i < kFrames; ++i)
       benchmark::DoNotOptimize(frames.next().depth_m.data());
     first = (first + kFrames) % (reader->size() - kFrames);

@@ -120,10 +120,8 @@ py::dict frame_dict(const RgbdFrame& f) {
 struct FrameIterator {
   FrameIterator(std::shared_ptr<DatasetReader> r, std::size_t first, std::size_t end, int threads)
       : reader(std::move(r)),
-        left(end - first),
-        frames(*reader, first, end, 2 * threads, threads) {}
+        frames(*reader, first, end, ReadAhead::frames_for(threads), threads) {}
   std::shared_ptr<DatasetReader> reader;
-  std::size_t left;
   ReadAhead frames;
 };
 
@@ -341,9 +339,6 @@ PYBIND11_MODULE(hivox, m) {
              int threads) {
             if (first > r->size())
               throw py::index_error(fmt::format("first frame {} of {}", first, r->size()));
-            if (threads < 0 || threads > 64)
-              fail(ErrorCode::InvalidArgument, "frames: threads must be in [0, 64], got {}",
-                   threads);
             const std::size_t end = count == 0 ? r->size() : std::min(r->size(), first + count);
             return std::make_unique<FrameIterator>(r, first, end, threads);
           },
@@ -355,8 +350,7 @@ PYBIND11_MODULE(hivox, m) {
   py::class_<FrameIterator>(m, "FrameIterator")
       .def("__iter__", [](FrameIterator& it) -> FrameIterator& { return it; })
       .def("__next__", [](FrameIterator& it) {
-        if (it.left == 0) throw py::stop_iteration();
-        --it.left;
+        if (it.frames.left() == 0) throw py::stop_iteration();
         RgbdFrame f;
         {
           py::gil_scoped_release release;

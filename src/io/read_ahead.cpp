@@ -19,6 +19,9 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
       slots_(ahead > 0 ? static_cast<std::size_t>(ahead) : 0),
       claimed_(first),
       taken_(first) {
+  if (ahead < 0 || ahead > 64 || threads < 0 || threads > 64)
+    fail(ErrorCode::InvalidArgument,
+         "reading ahead: {} frames on {} threads; both must be in [0, 64]", ahead, threads);
   if (slots_.empty() || first >= end) return;
   int n = reader.reads_concurrently() ? std::max(threads, 1) : 1;
   n = static_cast<int>(
@@ -32,11 +35,7 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
     // No thread to be had: the frames are read in turn, as without reading ahead.
     log::warn_once("read_ahead.threads",
                    "reading ahead: cannot start a thread ({}); frames are read in turn", e.what());
-    stop();
-    std::lock_guard<std::mutex> lock(mutex_);
-    claimed_ = taken_ = first_;
-    slots_.assign(slots_.size(), Slot{});
-    stop_ = false;
+    stop();  // no thread left: next() reads in turn
   }
 }
 
@@ -82,7 +81,7 @@ void ReadAhead::read_frames(int loop_threads) {
 }
 
 RgbdFrame ReadAhead::next() {
-  if (next_ >= end_)
+  if (left() == 0)
     fail(ErrorCode::InvalidArgument, "reading ahead: frame {} is past the end ({})", next_, end_);
   const std::size_t i = next_++;
   if (threads_.empty()) return reader_.read(i);

@@ -123,7 +123,8 @@ ReadPlan read_plan(const RunParams& params, const DatasetReader& reader) {
     threads = std::clamp(cores - busy, 0, 8);
   }
   if (!reader.reads_concurrently()) threads = std::min(threads, 1);
-  const int frames = params.read_ahead_frames < 0 ? 2 * threads : params.read_ahead_frames;
+  const int frames =
+      params.read_ahead_frames < 0 ? ReadAhead::frames_for(threads) : params.read_ahead_frames;
   if (frames == 0) return {};
   return {frames, std::max(threads, 1)};
 }

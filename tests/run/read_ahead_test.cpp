@@ -69,11 +69,13 @@ TEST(ReadAhead, GivesTheFramesInOrderAsReadingThemInTurn) {
     {
       ReadAhead frames(reader, 5, 17, ahead, ahead);
       for (std::size_t i = 5; i < 17; ++i) {
+        EXPECT_EQ(frames.left(), 17 - i);
         const RgbdFrame f = frames.next();
         ++reader.taken;
         EXPECT_EQ(f.index, i) << "ahead " << ahead;
         EXPECT_EQ(f.depth_m(3, 2), static_cast<float>(i));
       }
+      EXPECT_EQ(frames.left(), 0u);
       EXPECT_TRUE(test::contains(test::message_of([&] { frames.next(); }), "past the end"));
     }
     EXPECT_EQ(reader.reads, 12) << "each frame read once, none beyond the end";
@@ -85,6 +87,15 @@ TEST(ReadAhead, GivesTheFramesInOrderAsReadingThemInTurn) {
     else
       EXPECT_EQ(reader.reads_elsewhere, 12);
   }
+}
+
+TEST(ReadAhead, FramesAndThreadsOutsideTheirRangeAreRefused) {
+  CountingReader reader(4);
+  for (const auto& [ahead, threads] : {std::pair{-1, 1}, {65, 1}, {2, -1}, {2, 65}})
+    EXPECT_TRUE(test::contains(test::message_of([&] { ReadAhead(reader, 0, 4, ahead, threads); }),
+                               "must be in [0, 64]"))
+        << ahead << " " << threads;
+  EXPECT_EQ(reader.reads, 0);
 }
 
 TEST(ReadAhead, SeveralThreadsReadAtOnceOnlyWhereTheDatasetAllowsIt) {

@@ -21,9 +21,13 @@ namespace hivox {
 /// caller's thread. The reader is used only by this object while it lives. A frame that cannot
 /// be read is not skipped: `next()` throws its error at its turn, and the frames after it come
 /// as usual. One reading thread uses thread_count() threads for its parallel loops (as many as
-/// the constructing thread), several one each.
+/// the constructing thread), several one each. `ahead` and `threads` must lie in [0, 64]
+/// (`Error(InvalidArgument)` names them).
 class ReadAhead {
  public:
+  /// The frames read ahead for `threads` threads unless said otherwise: two each.
+  static int frames_for(int threads) { return 2 * threads; }
+
   ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, int ahead, int threads = 1);
   /// Stops reading (reads under way end first); frames read and not taken are dropped.
   ~ReadAhead();
@@ -33,6 +37,8 @@ class ReadAhead {
   /// The next frame in order (first, first + 1, ...): waits until it is read, and throws what
   /// reading it threw (an `Error` naming the file). `Error(InvalidArgument)` past `end`.
   RgbdFrame next();
+  /// The frames next() has still to give.
+  std::size_t left() const { return end_ - next_; }
 
  private:
   struct Slot {
