@@ -91,10 +91,11 @@ TEST(ReadAhead, GivesTheFramesInOrderAsReadingThemInTurn) {
 
 TEST(ReadAhead, FramesAndThreadsOutsideTheirRangeAreRefused) {
   CountingReader reader(4);
-  for (const auto& [ahead, threads] : {std::pair{-1, 1}, {65, 1}, {2, -1}, {2, 65}})
-    EXPECT_TRUE(test::contains(test::message_of([&] { ReadAhead(reader, 0, 4, ahead, threads); }),
-                               "must be in [0, 64]"))
-        << ahead << " " << threads;
+  for (const std::pair<int, int>& bad : {std::pair{-1, 1}, {65, 1}, {2, -1}, {2, 65}})
+    EXPECT_TRUE(
+        test::contains(test::message_of([&] { ReadAhead(reader, 0, 4, bad.first, bad.second); }),
+                       "must be in [0, 64]"))
+        << bad.first << " " << bad.second;
   EXPECT_EQ(reader.reads, 0);
 }
 
