@@ -11,9 +11,33 @@
 
 namespace hivox::cuda {
 
+namespace {
+double mib(std::size_t bytes) {
+  return static_cast<double>(bytes) / (1024.0 * 1024.0);
+}
+}  // namespace
+
 void check_status(cudaError_t status, const char* what) {
+  if (status == cudaErrorMemoryAllocation)  // the device is full: a capacity, not a fault
+    fail(ErrorCode::OutOfCapacity, "CUDA {} failed: the device is out of memory", what);
   if (status != cudaSuccess)
     fail(ErrorCode::Cuda, "CUDA {} failed: {}", what, cudaGetErrorString(status));
+}
+
+void* allocate_device(std::size_t bytes) {
+  void* p = nullptr;
+  if (bytes == 0) return p;
+  const cudaError_t status = cudaMalloc(&p, bytes);
+  if (status == cudaErrorMemoryAllocation) {
+    cudaGetLastError();  // not sticky: later calls succeed
+    std::size_t free = 0, total = 0;
+    cudaMemGetInfo(&free, &total);
+    fail(ErrorCode::OutOfCapacity,
+         "CUDA allocation of {:.1f} MiB of device memory failed: {:.1f} of {:.1f} MiB free",
+         mib(bytes), mib(free), mib(total));
+  }
+  check_status(status, "allocation of device memory");
+  return p;
 }
 
 namespace {
@@ -78,6 +102,8 @@ CUmemAllocationProp allocation_prop(int device) {
 }
 
 void check_driver(CUresult r, const char* what) {
+  if (r == CUDA_ERROR_OUT_OF_MEMORY)
+    fail(ErrorCode::OutOfCapacity, "CUDA {} failed: the device is out of memory", what);
   if (r != CUDA_SUCCESS)
     fail(ErrorCode::Cuda, "CUDA {} failed (driver error {})", what, static_cast<int>(r));
 }
@@ -111,8 +137,7 @@ void GrowingBuffer::reserve(std::size_t bytes, int device) {
   const VirtualMemory& vm = VirtualMemory::get();
   virtual_ = vm.supported(device);
   if (!virtual_) {
-    check_status(cudaMalloc(&base_, std::max<std::size_t>(bytes, 1)),
-                 "allocation of device memory");
+    base_ = allocate_device(std::max<std::size_t>(bytes, 1));
     reserved_ = committed_ = bytes;
     return;
   }
@@ -128,24 +153,35 @@ void GrowingBuffer::reserve(std::size_t bytes, int device) {
   base_ = reinterpret_cast<void*>(base);
 }
 
-std::size_t GrowingBuffer::commit(std::size_t bytes) {
+std::size_t GrowingBuffer::commit(std::size_t bytes, std::size_t keep_free) {
   if (!virtual_ || bytes <= committed_) return committed_;
-  const VirtualMemory& vm = VirtualMemory::get();
-  const CUmemAllocationProp prop = allocation_prop(device_);
-  CUmemAccessDesc access{};
-  access.location = prop.location;
-  access.flags = CU_MEM_ACCESS_FLAGS_PROT_READWRITE;
   const std::size_t target = std::min(reserved_, (bytes + chunk_ - 1) / chunk_ * chunk_);
   if (target <= committed_) return committed_;
   // The whole shortfall as one allocation and one mapping: one call to each driver function
-  // whatever the growth.
-  const std::size_t size = target - committed_;
+  // whatever the growth. Where the device cannot hold it, what fits with `keep_free` left.
+  if (map_more(target - committed_)) return committed_;
+  std::size_t free = 0, total = 0;
+  check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+  if (free <= keep_free) return committed_;
+  const std::size_t fits = (free - keep_free) / chunk_ * chunk_;
+  if (fits > 0 && fits < target - committed_) map_more(fits);
+  return committed_;
+}
+
+bool GrowingBuffer::map_more(std::size_t size) {
+  const VirtualMemory& vm = VirtualMemory::get();
+  const CUmemAllocationProp prop = allocation_prop(device_);
   CUmemGenericAllocationHandle h = 0;
-  check_driver(vm.create(&h, size, &prop, 0), "committing device memory");
+  const CUresult created = vm.create(&h, size, &prop, 0);
+  if (created == CUDA_ERROR_OUT_OF_MEMORY) return false;
+  check_driver(created, "committing device memory");
   const CUdeviceptr at = reinterpret_cast<CUdeviceptr>(base_) + committed_;
   const CUresult mapped = vm.map(at, size, 0, h, 0);
   if (mapped != CUDA_SUCCESS) vm.release(h);
   check_driver(mapped, "mapping device memory");
+  CUmemAccessDesc access{};
+  access.location = prop.location;
+  access.flags = CU_MEM_ACCESS_FLAGS_PROT_READWRITE;
   const CUresult access_set = vm.set_access(at, size, &access, 1);
   if (access_set != CUDA_SUCCESS) {
     vm.unmap(at, size);
@@ -154,8 +190,8 @@ std::size_t GrowingBuffer::commit(std::size_t bytes) {
     mappings_.push_back({h, committed_, size});
   }
   check_driver(access_set, "enabling access to device memory");
-  committed_ = target;
-  return committed_;
+  committed_ += size;
+  return true;
 }
 
 }  // namespace hivox::cuda

@@ -11,8 +11,17 @@
 
 namespace hivox::cuda {
 
-/// Throws `Error(Cuda)` naming `what` when `status` is not success.
+/// Device memory the map's pool leaves free when the device fills: for the buffers grown on
+/// demand (the refinement's jobs, the raycast's coarse grid) and the mesher's scratch (~110 MB).
+inline constexpr std::size_t kPoolKeepsFreeBytes = std::size_t{192} << 20;
+
+/// Throws `Error(Cuda)` naming `what` when `status` is not success; `Error(OutOfCapacity)` where
+/// the device is out of memory.
 void check_status(cudaError_t status, const char* what);
+
+/// `bytes` of device memory (null for 0); `Error(OutOfCapacity)` naming the size and the memory
+/// free where the device has not that much.
+void* allocate_device(std::size_t bytes);
 
 /// Blocking copies of `bytes` (none when 0) to and from device memory; `what` names the copy in
 /// errors. A copy to the host waits for the device's queue up to it.
@@ -99,11 +108,7 @@ class Buffer {
   }
 
  private:
-  static void* allocate(std::size_t bytes) {
-    void* p = nullptr;
-    if (bytes > 0) check_status(cudaMalloc(&p, bytes), "allocation of device memory");
-    return p;
-  }
+  static void* allocate(std::size_t bytes) { return allocate_device(bytes); }
   void release() {
     cudaFree(ptr_);
     ptr_ = nullptr;
@@ -157,13 +162,18 @@ class GrowingBuffer {
   GrowingBuffer& operator=(const GrowingBuffer&) = delete;
   /// Reserves `bytes` of addresses (committing nothing yet).
   void reserve(std::size_t bytes, int device);
-  /// Makes at least the first `bytes` usable; returns the bytes committed now in all.
-  std::size_t commit(std::size_t bytes);
+  /// Makes at least the first `bytes` usable; returns the bytes committed now in all. Where the
+  /// device's memory cannot hold that many, commits what fits while `keep_free` bytes stay free
+  /// (perhaps nothing more) and returns less than `bytes`.
+  std::size_t commit(std::size_t bytes, std::size_t keep_free = 0);
   void* get() const { return base_; }
   std::size_t committed() const { return committed_; }
 
  private:
   void release();
+  /// Maps `size` more bytes (a multiple of the chunk) after what is committed; false where the
+  /// device is out of memory.
+  bool map_more(std::size_t size);
   void* base_ = nullptr;
   std::size_t reserved_ = 0, committed_ = 0, chunk_ = 0;
   int device_ = 0;
@@ -181,7 +191,10 @@ template <typename T>
 class GrowingArray {
  public:
   void reserve(std::size_t capacity, int device) { buffer_.reserve(capacity * sizeof(T), device); }
-  void commit(std::size_t n) { buffer_.commit(n * sizeof(T)); }
+  /// Commits the first `n` (see GrowingBuffer::commit); returns how many are committed.
+  std::size_t commit(std::size_t n, std::size_t keep_free = 0) {
+    return buffer_.commit(n * sizeof(T), keep_free) / sizeof(T);
+  }
   T* get() const { return static_cast<T*>(buffer_.get()); }
   std::size_t committed_bytes() const { return buffer_.committed(); }
   /// The first `n` elements (committed) from and to the host.

@@ -89,9 +89,12 @@ struct GpuReconstruction::Impl {
   GrowingArray<ColorVoxel> color;
   GrowingArray<BlockMeta> meta;
   MutableMapView view;
-  int32_t high_water = 0;  ///< the device's, as of the last frame's end
-  int64_t blocks = 0;
-  int64_t dropped = 0;  ///< blocks dropped so far (the continued map's included)
+  // The pool's counters as last read from the device (read_pool_counters).
+  int32_t high_water = 0;
+  int32_t free_count = 0;    ///< free pool blocks
+  int64_t blocks = 0;        ///< in use
+  bool memory_full = false;  ///< the pool stopped growing once: the device's memory is full
+  int64_t dropped = 0;       ///< blocks dropped so far (the continued map's included)
 
   // Allocation.
   Buffer<int32_t> stamps;
@@ -101,7 +104,7 @@ struct GpuReconstruction::Impl {
   Buffer<BlockRef> visible;
   Buffer<AllocCounters> alloc_counters;
   PinnedBuffer<AllocCounters> host_counters;
-  PinnedBuffer<int32_t> host_high_water;
+  PinnedBuffer<int32_t> host_pool_counters;
   QueueMark fuse_start, allocated, integrated;  ///< the allocation's and integration's times
   // The super-blocks holding blocks (grown by insertions; on the host as of the last frame's
   // allocation) and the raycast's coarse occupancy grid over them.
@@ -201,10 +204,22 @@ struct GpuReconstruction::Impl {
     }
     block_free.assign(h.blocks.items, capacity, &map_bytes);
     const int32_t used = host.block_high_water();
-    tsdf.reserve(capacity * kBlockVoxels, params.device.index);
-    if (h.color != nullptr) color.reserve(capacity * kBlockVoxels, params.device.index);
-    meta.reserve(capacity, params.device.index);
-    commit_pool(used);
+    check_free_list(h.blocks, used);
+    try {
+      tsdf.reserve(capacity * kBlockVoxels, params.device.index);
+      if (h.color != nullptr) color.reserve(capacity * kBlockVoxels, params.device.index);
+      meta.reserve(capacity, params.device.index);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::OutOfCapacity) throw;
+      fail(ErrorCode::OutOfCapacity,
+           "device {}: the map's pool of {} blocks (--max-blocks) does "
+           "not fit: {}",
+           params.device.to_string(), mp.max_blocks, e.what());
+    }
+    if (commit_pool(used) < used)
+      fail(ErrorCode::OutOfCapacity,
+           "device {}: out of memory for the {} blocks of the map handed over ({:.0f} MiB)",
+           params.device.to_string(), used, static_cast<double>(used) * pool_block_bytes() / kMiB);
     view.tsdf = tsdf.get();
     view.color = h.color != nullptr ? color.get() : nullptr;
     const auto voxels = static_cast<std::size_t>(used) * kBlockVoxels;
@@ -228,20 +243,92 @@ struct GpuReconstruction::Impl {
     view.read.tsdf = view.tsdf;
     view.read.color = view.color;
     view.read.meta = view.meta;
-    high_water = host.block_high_water();
+    set_pool_counters(c);
     bounds = kernels::super_block_bounds(h.meta, used, mp.levels);
     occupancy_bounds.assign(&bounds, 1, &total_bytes);
-    blocks = host.blocks_in_use();
     dropped = host.dropped_blocks();
     total_bytes += map_bytes;
   }
 
-  /// Commits the pool's memory (voxels and metadata) for pool blocks [0, blocks).
-  void commit_pool(int64_t blocks) {
-    const auto n = static_cast<std::size_t>(blocks);
-    tsdf.commit(n * kBlockVoxels);
-    if (color.get() != nullptr) color.commit(n * kBlockVoxels);
-    meta.commit(n);
+  /// Device memory a pool block takes (voxels, colour, metadata).
+  double pool_block_bytes() const {
+    const std::size_t color_bytes = color.get() != nullptr ? sizeof(ColorVoxel) : 0;
+    return static_cast<double>(kBlockVoxels * (sizeof(TsdfVoxel) + color_bytes) +
+                               sizeof(BlockMeta));
+  }
+  static constexpr double kMiB = 1024.0 * 1024.0;
+
+  /// Pool blocks [0, n) whose memory is committed.
+  int64_t committed_blocks() const {
+    std::size_t n = tsdf.committed_bytes() / (kBlockVoxels * sizeof(TsdfVoxel));
+    if (color.get() != nullptr)
+      n = std::min(n, color.committed_bytes() / (kBlockVoxels * sizeof(ColorVoxel)));
+    return static_cast<int64_t>(std::min(n, meta.committed_bytes() / sizeof(BlockMeta)));
+  }
+
+  /// Commits the pool's memory (voxels and metadata) for pool blocks [0, n) where the device has
+  /// the memory, keeping kPoolKeepsFreeBytes free; returns the pool blocks committed (fewer than n
+  /// where the device is full).
+  int64_t commit_pool(int64_t n) {
+    const int64_t have = committed_blocks();
+    if (n <= have) return have;
+    std::size_t free = 0, total = 0;
+    check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+    // Each array rounds up to the driver's granularity (2 MiB): room for that, so that the
+    // arrays stop at the same block.
+    constexpr std::size_t kRounding = 3 * (std::size_t{2} << 20);
+    const std::size_t spare =
+        free > kPoolKeepsFreeBytes + kRounding ? free - kPoolKeepsFreeBytes - kRounding : 0;
+    n = std::min<int64_t>(
+        n, have + static_cast<int64_t>(static_cast<double>(spare) / pool_block_bytes()));
+    const auto blocks_n = static_cast<std::size_t>(n);
+    tsdf.commit(blocks_n * kBlockVoxels, kPoolKeepsFreeBytes);
+    if (color.get() != nullptr) color.commit(blocks_n * kBlockVoxels, kPoolKeepsFreeBytes);
+    meta.commit(blocks_n, kPoolKeepsFreeBytes);
+    return committed_blocks();
+  }
+
+  /// How many of `pops` more pool blocks the free list can give with their memory committed,
+  /// committing it (as far as the device's memory allows). The list is a stack: the blocks freed
+  /// below the high-water mark come off first, then new ones counting up from the mark (the part
+  /// of the stack never popped; check_free_list), so `pops` need the pool committed up to the mark
+  /// plus the pops beyond the freed blocks.
+  int64_t room_for(int64_t pops) {
+    pops = std::clamp<int64_t>(pops, 0, free_count);
+    const int64_t holes = std::max<int64_t>(0, free_count - (map_params.max_blocks - high_water));
+    const int64_t committed =
+        commit_pool(static_cast<int64_t>(high_water) + std::max<int64_t>(0, pops - holes));
+    const int64_t fit = std::min(pops, holes + committed - high_water);
+    if (fit < pops) {
+      memory_full = true;
+      log::warn_once("cuda.memory_full",
+                     "device {}: its memory is full ({:.0f} MiB committed to the map's pool): "
+                     "blocks that do not fit are dropped (new ones) or wait (splits, merges), "
+                     "counted in the stats; a coarser map (--voxel-size, --levels) or a shorter "
+                     "--max-depth needs less",
+                     params.device.to_string(), static_cast<double>(pool_bytes()) / kMiB);
+    }
+    return fit;
+  }
+
+  /// The pool's counters from `c` (a copy of `counters`).
+  void set_pool_counters(const int32_t* c) {
+    high_water = c[kHighWater];
+    free_count = c[kBlockFreeCount];
+    blocks = map_params.max_blocks - free_count;
+  }
+
+  /// room_for's rule, checked once on the map handed over: the never-popped part of the free
+  /// list (its bottom) holds the blocks from the high-water mark up, the lowest on top.
+  void check_free_list(const FreeListView& list, int32_t high_water_mark) const {
+    const int64_t untouched = map_params.max_blocks - high_water_mark;
+    bool ok = untouched <= *list.count;
+    for (int64_t i = 0; ok && i < untouched; ++i)
+      ok = list.items[i] == map_params.max_blocks - 1 - i;
+    if (!ok)
+      fail(ErrorCode::InvalidArgument,
+           "the map handed over has a free list out of order (the blocks above its high-water "
+           "mark are not at the bottom, in order)");
   }
 
   int64_t pool_bytes() const {
@@ -265,7 +352,7 @@ struct GpuReconstruction::Impl {
     visible.reset(capacity, &total_bytes);
     alloc_counters.reset(1, &total_bytes);
     host_counters.reserve(1);
-    host_high_water.reserve(1);
+    host_pool_counters.reserve(kCounters);
     depth.reset(pixels, &total_bytes);
     if (map_params.store_color && params.fusion.integrate_color) {
       color_image.reset(static_cast<std::size_t>(rig.color_camera.width) * rig.color_camera.height,
@@ -349,10 +436,11 @@ struct GpuReconstruction::Impl {
     upload_async(device.get(), staged, jobs.size(), what);
   }
 
-  int32_t read_counter(int index) const {
-    int32_t v = 0;
-    counters.download(&v, 1, static_cast<std::size_t>(index));
-    return v;
+  /// The pool's counters from the device (a round trip).
+  void read_pool_counters() {
+    int32_t c[kCounters];
+    counters.download(c, kCounters);
+    set_pool_counters(c);
   }
 
   /// The CPU Refiner's refinement of the blocks this frame touched (the first `visible` of the
@@ -408,13 +496,14 @@ struct GpuReconstruction::Impl {
     if (!mj.empty()) {
       check_jobs(mj, merge_jobs, host_merge_jobs, c, "merging (looking up)",
                  [&](MergeJob* jobs, int32_t n) { merge_lookup(view.read, jobs, n); });
-      const int64_t room = c[kBlockFreeCount];
-      if (static_cast<int64_t>(mj.size()) > room) {  // a merge needs a block before it frees 8
+      // A merge needs a block before it frees 8 (room_for commits their memory).
+      set_pool_counters(c);
+      const int64_t room = room_for(static_cast<int64_t>(mj.size()));
+      if (static_cast<int64_t>(mj.size()) > room) {
         s.refine_waiting += static_cast<int64_t>(mj.size()) - room;
         mj.resize(static_cast<std::size_t>(room));
       }
       send_jobs(mj, merge_jobs, host_merge_jobs, "merging (the jobs)");
-      commit_pool(static_cast<int64_t>(high_water) + static_cast<int64_t>(mj.size()));
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
     }
@@ -440,7 +529,15 @@ struct GpuReconstruction::Impl {
         else
           ++s.refine_waiting;
       }
-      if (s.refine_waiting > 0)
+      // The children's memory (room_for commits it); splits beyond it wait too.
+      set_pool_counters(c);
+      const auto fit = static_cast<std::size_t>(
+          room_for(static_cast<int64_t>(go.size()) * kBlockChildren) / kBlockChildren);
+      if (fit < go.size()) {
+        s.refine_waiting += static_cast<int64_t>(go.size() - fit);
+        go.resize(fit);
+      }
+      if (s.refine_waiting > 0 && !memory_full)
         log::warn_once("cuda.split_waiting",
                        "device map: voxel block pool or hash overflow list too small for all "
                        "splits: splits wait and are counted in stats; raise --max-blocks");
@@ -451,9 +548,6 @@ struct GpuReconstruction::Impl {
       });
       if (!go.empty()) {
         send_jobs(go, split_jobs, host_split_jobs, "splitting (the jobs)");
-        // The high-water mark as just read: nothing since has taken a block.
-        commit_pool(static_cast<int64_t>(c[kHighWater]) +
-                    static_cast<int64_t>(go.size()) * kBlockChildren);
         std::size_t begin = 0;
         while (begin < go.size()) {
           std::size_t end = begin;
@@ -466,8 +560,7 @@ struct GpuReconstruction::Impl {
       }
       s.splits = static_cast<int64_t>(go.size());
     }
-    blocks += kBlockChildren * s.splits - s.splits + s.merges - kBlockChildren * s.merges;
-    high_water = read_counter(kHighWater);
+    read_pool_counters();
     s.refine_ms = stage.lap_ms();
   }
 
@@ -536,37 +629,36 @@ struct GpuReconstruction::Impl {
     copy_to_host(c, alloc_counters.get(), sizeof(AllocCounters),
                  "allocation (reading the counters)");
     const int32_t found = c->visible;
-    const int32_t to_insert = std::min(c->missing, missing.capacity);
+    // What the pool can take with its memory committed (room_for commits it).
+    const int32_t can_insert = std::min(c->missing, missing.capacity);
+    const auto to_insert = static_cast<int32_t>(room_for(can_insert));
     const int64_t beyond = c->missing - to_insert;
-    // Pops take the lowest free pool blocks: the high-water mark grows by at most the insertions.
-    commit_pool(static_cast<int64_t>(high_water) + to_insert);
     insert_blocks(view, missing, to_insert, visible.get(), stamps.get(), frame,
                   alloc_counters.get(), occupancy_bounds.get());
     allocated.record("timing the allocation");
     cuda::integrate(view, visible.get(), found + to_insert, alloc_counters.get(), f.depth, f.color,
                     f.constants);
     integrated.record("timing the integration");
-    // The counters, the high-water mark and the super-blocks' bounds in one round trip (the
+    // The counters, the pool's counters and the super-blocks' bounds in one round trip (the
     // stages' times are the device's, between the marks).
-    int32_t* hw = host_high_water.reserve(1);
+    int32_t* pc = host_pool_counters.reserve(kCounters);
     kernels::SuperBlockBounds* hb = host_bounds.reserve(1);
     download_async(c, alloc_counters.get(), 1, "reading the counters");
-    download_async(hw, view.block_high_water, 1, "reading the high-water mark");
+    download_async(pc, counters.get(), kCounters, "reading the pool's counters");
     download_async(hb, occupancy_bounds.get(), 1, "reading the super-blocks' bounds");
     synchronize("integration");
     s.allocate_ms = allocated.ms_since(fuse_start, "timing the allocation");
     s.integrate_ms = integrated.ms_since(allocated, "timing the integration");
-    high_water = *hw;
+    set_pool_counters(pc);
     bounds = *hb;
     s.valid_pixels = c->valid_pixels;
     s.visible_blocks = c->visible;
     s.new_blocks = c->inserted;
     s.dropped_blocks = c->hash_full + c->pool_full + beyond;
     dropped += s.dropped_blocks;
-    blocks += c->inserted;
     const int32_t visible_count = c->visible;
     refine(T_wc, visible_count, s);
-    if (s.dropped_blocks > 0)
+    if (s.dropped_blocks > can_insert - to_insert)  // more than the device's memory dropped
       log::warn_once("cuda.dropped",
                      "device map: {} blocks dropped this frame (pool or hash table full); raise "
                      "--max-blocks, --hash-buckets or --hash-excess",
@@ -847,6 +939,18 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
 TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
                                              RemovedPieces* removed) const {
   params.validate();
+  try {
+    return mesh_on_device(params, removed);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::OutOfCapacity) throw;
+    // The device is full (its map filled it): the same mesh from the map taken to the host.
+    log::warn("mesh: {}; meshing on the host instead", e.what());
+    return hivox::extract_mesh(*download_map(), params, removed);
+  }
+}
+
+TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
+                                               RemovedPieces* removed) const {
   const Impl& m = *impl_;
   const float join_m = m.map_params.voxel_size_m;
   // The blocks to mesh, planned on the host from their metadata (24 bytes a block).

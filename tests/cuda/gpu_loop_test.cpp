@@ -466,6 +466,104 @@ TEST(GpuLoop, HoldsNoMoreMemoryForAMapThanTheCpu) {
   }
 }
 
+/// Leaves `bytes` of the device's memory free while it lives: the emulation's device is made
+/// smaller, a GPU's filled by one allocation.
+class DeviceMemoryLeft {
+ public:
+  explicit DeviceMemoryLeft(std::size_t bytes) {
+    std::size_t free = 0;
+    cuda::check_status(cudaMemGetInfo(&free, &total_), "asking for the free memory");
+#if defined(HIVOX_CUDA_EMULATION)
+    hivoxEmulationSetDeviceMemory(total_ - free + bytes);
+#else
+    // What cudaMemGetInfo calls free may not all come in one allocation: a little less then.
+    constexpr std::size_t kStep = std::size_t{16} << 20;
+    for (std::size_t n = free > bytes ? free - bytes : 0; n > 0 && hog_ == nullptr;
+         n = n > kStep ? n - kStep : 0) {
+      if (cudaMalloc(&hog_, n) != cudaSuccess) {
+        hog_ = nullptr;
+        cudaGetLastError();
+      }
+    }
+#endif
+  }
+  ~DeviceMemoryLeft() {
+#if defined(HIVOX_CUDA_EMULATION)
+    hivoxEmulationSetDeviceMemory(total_);
+#else
+    cudaFree(hog_);
+#endif
+  }
+  DeviceMemoryLeft(const DeviceMemoryLeft&) = delete;
+  DeviceMemoryLeft& operator=(const DeviceMemoryLeft&) = delete;
+
+ private:
+  std::size_t total_ = 0;
+#if !defined(HIVOX_CUDA_EMULATION)
+  void* hog_ = nullptr;
+#endif
+};
+
+/// A device that fills while the map grows: the pool stops where the memory ends, new blocks
+/// beyond it are dropped and counted, splits wait, and the run goes on (tracked frames, the map
+/// and its mesh intact). With no memory left for the mesher, the mesh is made on the host.
+TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  constexpr std::size_t kFrames = 12;
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  int64_t full_blocks = 0;
+  double block_bytes = 0;
+  {
+    cuda::GpuReconstruction gpu(p, rig);
+    for (std::size_t i = 0; i < kFrames; ++i)
+      gpu.track_and_integrate(data.read(i), *data.read(0).T_wc_gt);
+    full_blocks = gpu.blocks_in_use();
+    block_bytes = static_cast<double>(gpu.map_memory_bytes()) / static_cast<double>(full_blocks);
+  }
+  cuda::GpuReconstruction gpu(p, rig);
+  // Room for about half the blocks the map grows to (the pool's metadata and the tables apart).
+  auto left = std::make_unique<DeviceMemoryLeft>(
+      cuda::kPoolKeepsFreeBytes + static_cast<std::size_t>(0.3 * block_bytes * full_blocks));
+  int64_t dropped = 0, waiting = 0;
+  for (std::size_t i = 0; i < kFrames; ++i) {
+    const FrameStats& s = gpu.track_and_integrate(data.read(i), *data.read(0).T_wc_gt);
+    dropped += s.dropped_blocks;
+    waiting += s.refine_waiting;
+  }
+  std::printf("[ full     ] %lld of %lld blocks, %lld dropped, %lld splits or merges waited\n",
+              static_cast<long long>(gpu.blocks_in_use()), static_cast<long long>(full_blocks),
+              static_cast<long long>(dropped), static_cast<long long>(waiting));
+  EXPECT_GT(dropped, 0);
+  EXPECT_EQ(gpu.dropped_blocks(), dropped);
+  EXPECT_LT(gpu.blocks_in_use(), full_blocks);
+  EXPECT_GT(gpu.blocks_in_use(), full_blocks / 10);
+  // Every frame tracked, near the true trajectory still (the map holds the first frames' view).
+  ASSERT_EQ(gpu.trajectory().size(), kFrames);
+  for (std::size_t i = 0; i < kFrames; ++i)
+    EXPECT_LT((gpu.trajectory()[i].T_wc.translation() - data.read(i).T_wc_gt->translation()).norm(),
+              0.01)
+        << "frame " << i;
+  // The map comes back whole: every block in use, in the committed pool.
+  const std::unique_ptr<VoxelBlockMap> map = gpu.download_map();
+  EXPECT_EQ(map->blocks_in_use(), gpu.blocks_in_use());
+  const TriangleMesh host = extract_mesh(*map);
+  EXPECT_GT(host.triangles.size(), 1000u);
+  {
+    const DeviceMemoryLeft none(0);
+    const TriangleMesh mesh = gpu.extract_mesh();  // on the host: the device has no room for it
+    EXPECT_EQ(mesh.positions_w, host.positions_w);
+    EXPECT_EQ(mesh.triangles, host.triangles);
+  }
+  // With the memory back, the map grows again.
+  left.reset();
+  const int64_t before = gpu.blocks_in_use();
+  const RgbdFrame later = data.read(29);
+  gpu.integrate(later, *later.T_wc_gt);
+  EXPECT_GT(gpu.blocks_in_use(), before);
+}
+
 /// GpuReconstruction::extract_mesh against extract_mesh on the downloaded map: the same vertices
 /// (up to the device's fused multiply-adds in their interpolation) and the same triangles, with
 /// each set of mesh parameters.

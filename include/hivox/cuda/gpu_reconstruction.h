@@ -81,7 +81,8 @@ class GpuReconstruction {
   /// cubes in passes on the device (count, write, resolve the corners; mesh/mesh_passes.h), the
   /// vertices that several blocks make on level boundaries merged on the host, then the same
   /// cropping and small-piece removal. Only the block list (24 bytes a block) and the mesh cross
-  /// the bus.
+  /// the bus. Where the device has no memory left for the passes, the map is meshed on the host
+  /// (the same mesh), with a warning.
   TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
   /// Allocated blocks per level (finest first), read from the device's counters.
   std::vector<int64_t> blocks_per_level() const;
@@ -93,12 +94,15 @@ class GpuReconstruction {
   /// Blocks dropped so far because a capacity ran out (the continued map's included).
   int64_t dropped_blocks() const;
   /// Device memory held by the map, and by the whole loop (map, frame and pyramid buffers). The
-  /// hash tables and free lists are held whole; the pool's voxels and metadata are committed up
-  /// to its high-water mark, in the driver's granularity (2 MiB).
+  /// hash tables and free lists are held whole; the pool's voxels and metadata are committed as
+  /// its blocks need them, in the driver's granularity (2 MiB). Where the device's memory runs
+  /// out, the pool stops growing (192 MiB left free): new blocks beyond it are dropped and counted,
+  /// splits and merges wait, with a warning.
   int64_t map_memory_bytes() const;
   int64_t device_memory_bytes() const;
 
  private:
+  TriangleMesh mesh_on_device(const MeshParams& params, RemovedPieces* removed) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -233,18 +233,42 @@ cudaError_t record(cudaError_t e) {
   return e;
 }
 
-/// Device memory: what cudaMalloc gave and what is reserved for virtual memory, by start.
+/// Device memory: what cudaMalloc gave and what is reserved for virtual memory, by start; and
+/// the memory in use (cudaMalloc's and the driver's allocations, not reservations) against the
+/// device's size, which the tests can lower (hivoxEmulationSetDeviceMemory).
 struct DeviceMemory {
   std::mutex mutex;
   std::map<uintptr_t, std::size_t> ranges;
+  std::size_t in_use = 0;
+  std::size_t size = std::size_t{80} << 30;  // an H100's
 
   void add(const void* p, std::size_t bytes) {
     std::lock_guard<std::mutex> lock(mutex);
     ranges[reinterpret_cast<uintptr_t>(p)] = bytes;
   }
-  bool remove(const void* p) {
+  /// Forgets the range at `p`; returns its size (0: there was none).
+  std::size_t remove(const void* p) {
     std::lock_guard<std::mutex> lock(mutex);
-    return ranges.erase(reinterpret_cast<uintptr_t>(p)) == 1;
+    const auto it = ranges.find(reinterpret_cast<uintptr_t>(p));
+    if (it == ranges.end()) return 0;
+    const std::size_t bytes = it->second;
+    ranges.erase(it);
+    return bytes;
+  }
+  /// Counts `bytes` more in use; false (nothing counted) where the device has not that much free.
+  bool take(std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (in_use + bytes > size) return false;
+    in_use += bytes;
+    return true;
+  }
+  void give_back(std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex);
+    in_use -= bytes;
+  }
+  std::size_t free_bytes() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return in_use < size ? size - in_use : 0;
   }
   /// Whether [p, p + bytes) lies in one range.
   bool holds(const void* p, std::size_t bytes) {
@@ -311,7 +335,7 @@ CUresult vm_reserve(CUdeviceptr* ptr, std::size_t size, std::size_t, CUdeviceptr
 
 CUresult vm_free(CUdeviceptr ptr, std::size_t size) {
   void* p = reinterpret_cast<void*>(ptr);
-  if (!device_memory().remove(p)) return CUDA_ERROR_INVALID_VALUE;
+  if (device_memory().remove(p) == 0) return CUDA_ERROR_INVALID_VALUE;
   munmap(p, size);
   return CUDA_SUCCESS;
 }
@@ -319,12 +343,15 @@ CUresult vm_free(CUdeviceptr ptr, std::size_t size) {
 CUresult vm_create(CUmemGenericAllocationHandle* handle, std::size_t size,
                    const CUmemAllocationProp*, unsigned long long) {
   if (size == 0 || size % kGranularity != 0) return CUDA_ERROR_INVALID_VALUE;
+  if (!device_memory().take(size)) return CUDA_ERROR_OUT_OF_MEMORY;
   *handle = reinterpret_cast<CUmemGenericAllocationHandle>(new Allocation{size});
   return CUDA_SUCCESS;
 }
 
 CUresult vm_release(CUmemGenericAllocationHandle handle) {
-  delete reinterpret_cast<Allocation*>(handle);
+  const Allocation* a = reinterpret_cast<const Allocation*>(handle);
+  device_memory().give_back(a->bytes);
+  delete a;
   return CUDA_SUCCESS;
 }
 
@@ -488,7 +515,7 @@ cudaError_t cudaGetDeviceProperties(cudaDeviceProp* prop, int device) {
   *prop = cudaDeviceProp{};
   std::snprintf(prop->name, sizeof prop->name, "CPU emulation of CUDA (%d threads)",
                 omp_get_max_threads());
-  prop->totalGlobalMem = std::size_t{80} << 30;
+  prop->totalGlobalMem = e::device_memory().size;
   prop->multiProcessorCount = e::kMultiprocessors;
   prop->major = 9;
   prop->minor = 0;
@@ -547,17 +574,36 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
   // Aligned as cudaMalloc's (256 bytes), of the exact size (an ASan build then sees a read past
   // its end); up to 64 MiB filled with a pattern, as a GPU's memory is not cleared either.
   const std::size_t size = std::max<std::size_t>(bytes, 1);
+  e::DeviceMemory& memory = e::device_memory();
+  if (!memory.take(size)) return e::record(cudaErrorMemoryAllocation);
   void* p = nullptr;
-  if (posix_memalign(&p, 256, size) != 0) return e::record(cudaErrorMemoryAllocation);
+  if (posix_memalign(&p, 256, size) != 0) {
+    memory.give_back(size);
+    return e::record(cudaErrorMemoryAllocation);
+  }
   if (size <= (std::size_t{64} << 20)) std::memset(p, 0xA5, size);
-  e::device_memory().add(p, size);
+  memory.add(p, size);
   *ptr = p;
   return cudaSuccess;
 }
 cudaError_t cudaFree(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
-  if (!e::device_memory().remove(ptr)) return e::record(cudaErrorInvalidValue);
+  const std::size_t bytes = e::device_memory().remove(ptr);
+  if (bytes == 0) return e::record(cudaErrorInvalidValue);
+  e::device_memory().give_back(bytes);
   std::free(ptr);
+  return cudaSuccess;
+}
+cudaError_t cudaMemGetInfo(std::size_t* free, std::size_t* total) {
+  e::DeviceMemory& memory = e::device_memory();
+  *free = memory.free_bytes();
+  *total = memory.size;
+  return cudaSuccess;
+}
+cudaError_t hivoxEmulationSetDeviceMemory(std::size_t bytes) {
+  e::DeviceMemory& memory = e::device_memory();
+  std::lock_guard<std::mutex> lock(memory.mutex);
+  memory.size = bytes;
   return cudaSuccess;
 }
 cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {

@@ -78,6 +78,10 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes);
 cudaError_t cudaFree(void* ptr);
 cudaError_t cudaMallocHost(void** ptr, std::size_t bytes);
 cudaError_t cudaFreeHost(void* ptr);
+cudaError_t cudaMemGetInfo(std::size_t* free, std::size_t* total);
+/// The emulation's own: the device's memory size (80 GiB unless set). Allocations (cudaMalloc, the
+/// driver's cuMemCreate) beyond it fail as out of memory; the tests lower it to fill the device.
+cudaError_t hivoxEmulationSetDeviceMemory(std::size_t bytes);
 template <typename T>
 cudaError_t cudaMalloc(T** ptr, std::size_t bytes) {
   return cudaMalloc(reinterpret_cast<void**>(ptr), bytes);
