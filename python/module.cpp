@@ -22,6 +22,7 @@
 #include "hivox/io/read_ahead.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
+#include "hivox/run/devices.h"
 #include "hivox/run/runner.h"
 
 namespace py = pybind11;
@@ -358,6 +359,28 @@ PYBIND11_MODULE(hivox, m) {
         }
         return frame_dict(f);
       });
+
+  m.def(
+      "devices",
+      [] {
+        py::list out;
+        for (const DeviceInfo& d : list_devices().devices) {
+          py::dict e;
+          e["device"] = d.device.to_string();
+          e["name"] = d.name;
+          if (!d.device.is_cpu()) {
+            e["memory_bytes"] = d.memory_bytes;
+            e["free_bytes"] = d.free_bytes;
+            e["compute_capability"] = py::make_tuple(d.compute_major, d.compute_minor);
+            e["multiprocessors"] = d.multiprocessors;
+          }
+          out.append(e);
+        }
+        return out;
+      },
+      "The devices ReconstructionParams.device can name: a dict each ('device', 'name'; for a "
+      "GPU also 'memory_bytes', 'free_bytes', 'compute_capability', 'multiprocessors'), the CPU "
+      "first. CUDA devices are listed in builds with the CUDA loop only.");
 
   m.def(
       "open_dataset",

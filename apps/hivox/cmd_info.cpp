@@ -1,5 +1,6 @@
 // `hivox info DATASET`: opens a dataset the way every other command will and prints what it
-// found, so that a wrong layout, camera or depth scale shows up before a long run.
+// found, so that a wrong layout, camera or depth scale shows up before a long run. `hivox
+// devices`: where runs can go (--device).
 
 #include <cstdio>
 #include <memory>
@@ -8,6 +9,7 @@
 #include "commands.h"
 #include "dataset_options.h"
 #include "hivox/io/dataset.h"
+#include "hivox/run/devices.h"
 
 namespace hivox::cli {
 
@@ -31,6 +33,34 @@ void add_info_command(CLI::App& app) {
     if (print_map_file_info(options->dataset)) return;
     const std::unique_ptr<DatasetReader> reader = open_dataset(*options);
     std::fputs(describe_dataset(*reader).c_str(), stdout);
+  });
+}
+
+void add_devices_command(CLI::App& app) {
+  CLI::App* cmd = app.add_subcommand(
+      "devices",
+      "List the devices runs can use (--device): the CPU with its threads, and in builds with "
+      "the CUDA loop each CUDA device with its memory (free now), compute capability and "
+      "multiprocessors.");
+  cmd->footer(
+      "Examples:\n"
+      "  hivox devices\n"
+      "  hivox reconstruct ../shared/data/tum_fr1_rpy --device cuda:1\n");
+  cmd->callback([] {
+    const DeviceList list = list_devices();
+    constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+    for (const DeviceInfo& d : list.devices) {
+      if (d.device.is_cpu()) {
+        std::printf("%-8s %s\n", d.device.to_string().c_str(), d.name.c_str());
+        continue;
+      }
+      std::printf(
+          "%-8s %s: %.1f GiB, %.1f GiB free, compute capability %d.%d, %d multiprocessors\n",
+          d.device.to_string().c_str(), d.name.c_str(), static_cast<double>(d.memory_bytes) / kGiB,
+          static_cast<double>(d.free_bytes) / kGiB, d.compute_major, d.compute_minor,
+          d.multiprocessors);
+    }
+    if (!list.cuda_note.empty()) std::printf("%-8s %s\n", "cuda", list.cuda_note.c_str());
   });
 }
 

@@ -21,6 +21,8 @@ struct ExitStatus {
 
 /// `hivox info DATASET`: what hivox finds in a dataset folder (cmd_info.cpp).
 void add_info_command(CLI::App& app);
+/// `hivox devices`: the devices runs can use, the CPU and CUDA's (cmd_info.cpp).
+void add_devices_command(CLI::App& app);
 
 /// `hivox reconstruct DATASET`: fuse a sequence, write mesh, trajectory, stats, renders
 /// (cmd_reconstruct.cpp).

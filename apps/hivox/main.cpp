@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string(hivox::library_version()));
   hivox::cli::add_info_command(app);
+  hivox::cli::add_devices_command(app);
   hivox::cli::add_reconstruct_command(app);
   hivox::cli::add_demo_command(app);
   hivox::cli::add_synth_command(app);

@@ -44,6 +44,19 @@ def test_the_device_is_chosen_by_name():
                                                     height=60))
 
 
+def test_devices_list_the_cpu_first_and_the_gpus_a_run_can_name():
+    devices = hivox.devices()
+    assert devices[0]["device"] == "cpu"
+    assert devices[0]["name"].endswith("(OpenMP)")
+    for i, d in enumerate(devices[1:]):
+        # Each GPU by its index, with its memory (what `hivox devices` prints).
+        assert d["device"] == f"cuda:{i}"
+        assert 0 <= d["free_bytes"] <= d["memory_bytes"]
+        assert d["multiprocessors"] > 0
+        p = small_params()
+        p.device = d["device"]
+
+
 def test_frames_fused_from_python_equal_the_library_run(tmp_path):
     data = hivox.open_dataset(SCENE)
     assert len(data) == 6 and data.layout == "synthetic" and data.has_ground_truth

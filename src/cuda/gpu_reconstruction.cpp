@@ -72,6 +72,33 @@ std::string device_name(int index) {
   return prop.name;
 }
 
+std::vector<DeviceInfo> cuda_devices() {
+  std::vector<DeviceInfo> out;
+  int count = 0, current = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess || cudaGetDevice(&current) != cudaSuccess) {
+    cudaGetLastError();
+    return out;
+  }
+  for (int i = 0; i < count; ++i) {
+    cudaDeviceProp prop;
+    if (cudaGetDeviceProperties(&prop, i) != cudaSuccess) continue;
+    DeviceInfo d;
+    d.device = Device::cuda(i);
+    d.name = prop.name;
+    d.memory_bytes = static_cast<int64_t>(prop.totalGlobalMem);
+    d.compute_major = prop.major;
+    d.compute_minor = prop.minor;
+    d.multiprocessors = prop.multiProcessorCount;
+    std::size_t free = 0, total = 0;
+    if (cudaSetDevice(i) == cudaSuccess && cudaMemGetInfo(&free, &total) == cudaSuccess)
+      d.free_bytes = static_cast<int64_t>(free);
+    out.push_back(d);
+  }
+  cudaGetLastError();
+  cudaSetDevice(current);
+  return out;
+}
+
 struct GpuReconstruction::Impl {
   ReconstructionParams params;
   CameraRig rig;

@@ -31,6 +31,28 @@ TEST(Cli, InfoHelpIsUsefulToANewcomer) {
   EXPECT_TRUE(test::contains(top.output, "info")) << top.output;
 }
 
+// `hivox devices`: the CPU's line, then a line per CUDA device, or one that says why there is none.
+TEST(Cli, DevicesListTheCpuAndSayWhyThereIsNoGpu) {
+  const CliRun r = run_hivox("devices");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(r.output.starts_with("cpu ")) << r.output;
+  EXPECT_TRUE(test::contains(r.output, " threads (OpenMP)\n") ||
+              test::contains(r.output, " thread (OpenMP)\n"))
+      << r.output;
+  if (test::contains(r.output, "cuda:0 ")) {
+    EXPECT_TRUE(test::contains(r.output, "GiB free, compute capability")) << r.output;
+  } else {
+    // No device: the last line says why and what runs then use.
+    EXPECT_TRUE(test::contains(r.output, "\ncuda ")) << r.output;
+    EXPECT_TRUE(test::contains(r.output, "runs use --device cpu\n")) << r.output;
+  }
+  std::size_t gpus = 0;
+  for (std::size_t at = r.output.find("\ncuda:"); at != std::string::npos;
+       at = r.output.find("\ncuda:", at + 1))
+    ++gpus;
+  EXPECT_EQ(line_count(r.output), 1 + std::max<std::size_t>(gpus, 1)) << r.output;
+}
+
 TEST(Cli, InfoDescribesADataset) {
   test::TempDir dir;
   test::write_small_tum(dir.path());

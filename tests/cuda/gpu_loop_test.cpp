@@ -29,6 +29,7 @@
 #include "hivox/raycast/raycaster.h"
 #include "hivox/raycast/warp.h"
 #include "hivox/refine/refiner.h"
+#include "hivox/run/devices.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
 #include "mesh/mesh_test_util.h"
@@ -670,6 +671,26 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   std::printf("[ run      ] 20 frames on the device: ATE %.2f mm, %lld mesh triangles\n",
               1e3 * r.summary.ate->rmse_m, static_cast<long long>(r.summary.mesh_triangles));
   EXPECT_GT(r.summary.mesh_triangles, 10000);
+}
+
+// What `hivox devices` and Python's hivox.devices() list: the CPU, then this device, described.
+TEST(GpuLoop, DevicesListTheGpu) {
+  HIVOX_REQUIRE_CUDA();
+  const DeviceList list = list_devices();
+  EXPECT_TRUE(list.cuda_built);
+  EXPECT_TRUE(list.cuda_note.empty()) << list.cuda_note;
+  ASSERT_GE(list.devices.size(), 2u);
+  EXPECT_TRUE(list.devices[0].device.is_cpu());
+  const DeviceInfo& gpu = list.devices[1];
+  EXPECT_EQ(gpu.device, Device::cuda(0));
+  EXPECT_EQ(gpu.name, device);
+  EXPECT_GT(gpu.free_bytes, 0);
+  EXPECT_LE(gpu.free_bytes, gpu.memory_bytes);
+  EXPECT_GE(gpu.compute_major, 3);
+  EXPECT_GT(gpu.multiprocessors, 0);
+  std::printf("[ devices  ] %s: %.1f of %.1f GiB free, compute %d.%d, %d multiprocessors\n",
+              gpu.name.c_str(), gpu.free_bytes / 1073741824.0, gpu.memory_bytes / 1073741824.0,
+              gpu.compute_major, gpu.compute_minor, gpu.multiprocessors);
 }
 
 TEST(GpuLoop, BadInputIsRefusedWithAClearError) {

@@ -4,6 +4,7 @@
 /// raycasting, the ICP reduction, meshing) dispatches on it in one place; this build runs them on
 /// the CPU, and a CUDA implementation plugs in behind the same operations.
 
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -27,6 +28,18 @@ struct Device {
   /// without it, or no such device), naming the device and what to do.
   void require_available() const;
   bool operator==(const Device&) const = default;
+};
+
+/// A device a reconstruction can run on (ReconstructionParams::device), as `hivox devices`
+/// lists it (hivox::list_devices).
+struct DeviceInfo {
+  Device device;
+  /// The GPU's name; for the CPU, the threads the loop runs on.
+  std::string name;
+  int64_t memory_bytes = 0;                  ///< a GPU's memory (0 for the CPU)
+  int64_t free_bytes = 0;                    ///< of it, free now
+  int compute_major = 0, compute_minor = 0;  ///< a GPU's compute capability
+  int multiprocessors = 0;                   ///< a GPU's
 };
 
 /// Throws `Error(Unsupported)`: `operation` has no implementation on `device` in this build.

@@ -29,6 +29,10 @@ namespace hivox::cuda {
 /// The name of CUDA device `index`, or empty when there is none (no driver, no such device).
 std::string device_name(int index = 0);
 
+/// The CUDA devices present, described (none without a driver or a GPU). Asking for each one's free
+/// memory starts the runtime on it.
+std::vector<DeviceInfo> cuda_devices();
+
 class GpuReconstruction {
  public:
   /// A new, empty map. `params.device` must be a CUDA device that is present (else
