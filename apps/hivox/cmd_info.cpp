@@ -48,18 +48,8 @@ void add_devices_command(CLI::App& app) {
       "  hivox reconstruct ../shared/data/tum_fr1_rpy --device cuda:1\n");
   cmd->callback([] {
     const DeviceList list = list_devices();
-    constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
-    for (const DeviceInfo& d : list.devices) {
-      if (d.device.is_cpu()) {
-        std::printf("%-8s %s\n", d.device.to_string().c_str(), d.name.c_str());
-        continue;
-      }
-      std::printf(
-          "%-8s %s: %.1f GiB, %.1f GiB free, compute capability %d.%d, %d multiprocessors\n",
-          d.device.to_string().c_str(), d.name.c_str(), static_cast<double>(d.memory_bytes) / kGiB,
-          static_cast<double>(d.free_bytes) / kGiB, d.compute_major, d.compute_minor,
-          d.multiprocessors);
-    }
+    for (const DeviceInfo& d : list.devices)
+      std::printf("%-8s %s\n", d.device.to_string().c_str(), d.to_string().c_str());
     if (!list.cuda_note.empty()) std::printf("%-8s %s\n", "cuda", list.cuda_note.c_str());
   });
 }

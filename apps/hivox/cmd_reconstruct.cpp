@@ -25,6 +25,7 @@
 #include "hivox/core/threads.h"
 #include "hivox/core/timer.h"
 #include "hivox/io/map_file.h"
+#include "hivox/run/devices.h"
 #include "hivox/run/runner.h"
 #include "hivox/view/live_view.h"
 #include "reconstruct_options.h"
@@ -233,7 +234,11 @@ void run_reconstruct(const ReconstructOptions& options) {
     if (!info.distortion.none())
       fmt::print("lens distortion: {} ({})\n", info.distortion.to_string(),
                  info.undistorted ? "removed from every frame" : "kept: --keep-distortion");
-    fmt::print("{}\noutput: {}\n", rec.describe(), run.out_dir.string());
+    fmt::print("{}\n", rec.describe());
+    if (!rec.params().device.is_cpu())
+      if (const std::optional<DeviceInfo> gpu = describe_device(rec.params().device))
+        fmt::print("gpu: {}\n", gpu->to_string());
+    fmt::print("output: {}\n", run.out_dir.string());
   };
   // The progress line.
   callbacks.on_frame = [&](std::size_t i, const FrameStats& s, const Reconstruction& rec,

@@ -23,6 +23,15 @@ std::string Device::to_string() const {
   return is_cpu() ? std::string("cpu") : fmt::format("cuda:{}", index);
 }
 
+std::string DeviceInfo::to_string() const {
+  if (device.is_cpu()) return name;
+  constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+  return fmt::format(
+      "{}: {:.1f} GiB, {:.1f} GiB free, compute capability {}.{}, {} multiprocessors", name,
+      static_cast<double>(memory_bytes) / kGiB, static_cast<double>(free_bytes) / kGiB,
+      compute_major, compute_minor, multiprocessors);
+}
+
 void Device::require_available() const {
   if (is_cpu()) return;
   fail(ErrorCode::Unsupported,

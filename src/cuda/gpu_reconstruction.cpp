@@ -6,6 +6,7 @@
 #include <array>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <utility>
 
 #include "core/parallel.h"
@@ -72,30 +73,36 @@ std::string device_name(int index) {
   return prop.name;
 }
 
-std::vector<DeviceInfo> cuda_devices() {
-  std::vector<DeviceInfo> out;
+std::optional<DeviceInfo> describe_cuda_device(int index) {
   int count = 0, current = 0;
-  if (cudaGetDeviceCount(&count) != cudaSuccess || cudaGetDevice(&current) != cudaSuccess) {
+  cudaDeviceProp prop;
+  if (cudaGetDeviceCount(&count) != cudaSuccess || index < 0 || index >= count ||
+      cudaGetDevice(&current) != cudaSuccess ||
+      cudaGetDeviceProperties(&prop, index) != cudaSuccess) {
     cudaGetLastError();
-    return out;
+    return std::nullopt;
   }
-  for (int i = 0; i < count; ++i) {
-    cudaDeviceProp prop;
-    if (cudaGetDeviceProperties(&prop, i) != cudaSuccess) continue;
-    DeviceInfo d;
-    d.device = Device::cuda(i);
-    d.name = prop.name;
-    d.memory_bytes = static_cast<int64_t>(prop.totalGlobalMem);
-    d.compute_major = prop.major;
-    d.compute_minor = prop.minor;
-    d.multiprocessors = prop.multiProcessorCount;
-    std::size_t free = 0, total = 0;
-    if (cudaSetDevice(i) == cudaSuccess && cudaMemGetInfo(&free, &total) == cudaSuccess)
-      d.free_bytes = static_cast<int64_t>(free);
-    out.push_back(d);
-  }
+  DeviceInfo d;
+  d.device = Device::cuda(index);
+  d.name = prop.name;
+  d.memory_bytes = static_cast<int64_t>(prop.totalGlobalMem);
+  d.compute_major = prop.major;
+  d.compute_minor = prop.minor;
+  d.multiprocessors = prop.multiProcessorCount;
+  std::size_t free = 0, total = 0;
+  if (cudaSetDevice(index) == cudaSuccess && cudaMemGetInfo(&free, &total) == cudaSuccess)
+    d.free_bytes = static_cast<int64_t>(free);
   cudaGetLastError();
   cudaSetDevice(current);
+  return d;
+}
+
+std::vector<DeviceInfo> cuda_devices() {
+  std::vector<DeviceInfo> out;
+  int count = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess) cudaGetLastError();
+  for (int i = 0; i < count; ++i)
+    if (const std::optional<DeviceInfo> d = describe_cuda_device(i)) out.push_back(*d);
   return out;
 }
 

@@ -2,6 +2,7 @@
 
 #include <fstream>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
@@ -56,6 +57,13 @@ void write_stats_json(const std::filesystem::path& path, const Reconstruction& r
   if (!run.config_json.empty()) j["config"] = json::parse(run.config_json);
   j["poses"] = run.pose_source;
   j["threads"] = run.threads;
+  if (run.gpu)
+    j["gpu"] = {{"device", run.gpu->device.to_string()},
+                {"name", run.gpu->name},
+                {"memory_bytes", run.gpu->memory_bytes},
+                {"compute_capability",
+                 fmt::format("{}.{}", run.gpu->compute_major, run.gpu->compute_minor)},
+                {"multiprocessors", run.gpu->multiprocessors}};
   j["parameters"] = run.parameters;
   j["frames"] = frames.size();
   j["frames_fused"] =

@@ -9,12 +9,22 @@
 
 namespace hivox {
 
+std::optional<DeviceInfo> describe_device(const Device& device) {
+  if (device.is_cpu()) {
+    DeviceInfo cpu;
+    cpu.name = fmt::format("{} thread{} (OpenMP)", thread_count(), thread_count() == 1 ? "" : "s");
+    return cpu;
+  }
+#if defined(HIVOX_WITH_CUDA)
+  return cuda::describe_cuda_device(device.index);
+#else
+  return std::nullopt;
+#endif
+}
+
 DeviceList list_devices() {
   DeviceList list;
-  DeviceInfo cpu;
-  cpu.device = Device::cpu();
-  cpu.name = fmt::format("{} thread{} (OpenMP)", thread_count(), thread_count() == 1 ? "" : "s");
-  list.devices.push_back(cpu);
+  list.devices.push_back(*describe_device(Device::cpu()));
 #if defined(HIVOX_WITH_CUDA)
   list.cuda_built = true;
   for (const DeviceInfo& d : cuda::cuda_devices()) list.devices.push_back(d);

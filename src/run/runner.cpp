@@ -22,6 +22,7 @@
 #include "hivox/output/output_folder.h"
 #include "hivox/output/renders.h"
 #include "hivox/output/stats_json.h"
+#include "hivox/run/devices.h"
 
 namespace hivox {
 
@@ -369,6 +370,7 @@ class Run {
       run.pose_source = params_.poses.to_string();
       run.wall_s = summary_.wall_s;
       run.threads = thread_count();
+      if (!rec_->params().device.is_cpu()) run.gpu = describe_device(rec_->params().device);
       run.parameters = rec_->describe();
       run.skipped_frames = static_cast<int64_t>(summary_.frames_skipped);
       run.bad_frames = static_cast<int64_t>(summary_.frames_bad);

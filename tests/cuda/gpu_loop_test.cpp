@@ -3,6 +3,7 @@
 // tracked poses within tolerance. Built with -DHIVOX_WITH_CUDA=ON; skipped without a CUDA device.
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
@@ -22,6 +23,7 @@
 #include "hivox/cuda/gpu_reconstruction.h"
 #include "hivox/eval/trajectory_eval.h"
 #include "hivox/fusion/integrator.h"
+#include "hivox/io/atomic_file.h"
 #include "hivox/io/dataset.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
@@ -667,7 +669,11 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   ASSERT_TRUE(r.summary.ate.has_value());
   EXPECT_LT(r.summary.ate->rmse_m, 0.01);
   EXPECT_TRUE(std::filesystem::exists(run.out_dir / "mesh.ply"));
-  EXPECT_TRUE(std::filesystem::exists(run.out_dir / "stats.json"));
+  // stats.json names the GPU the run ran on.
+  const nlohmann::json stats = nlohmann::json::parse(read_whole_file(run.out_dir / "stats.json"));
+  EXPECT_EQ(stats.at("gpu").at("device"), "cuda:0");
+  EXPECT_EQ(stats.at("gpu").at("name"), device);
+  EXPECT_GT(stats.at("gpu").at("memory_bytes").get<int64_t>(), 0);
   std::printf("[ run      ] 20 frames on the device: ATE %.2f mm, %lld mesh triangles\n",
               1e3 * r.summary.ate->rmse_m, static_cast<long long>(r.summary.mesh_triangles));
   EXPECT_GT(r.summary.mesh_triangles, 10000);

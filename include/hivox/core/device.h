@@ -40,6 +40,10 @@ struct DeviceInfo {
   int64_t free_bytes = 0;                    ///< of it, free now
   int compute_major = 0, compute_minor = 0;  ///< a GPU's compute capability
   int multiprocessors = 0;                   ///< a GPU's
+
+  /// The name; for a GPU followed by ": 139.8 GiB, 137.2 GiB free, compute capability 9.0, 132
+  /// multiprocessors".
+  std::string to_string() const;
 };
 
 /// Throws `Error(Unsupported)`: `operation` has no implementation on `device` in this build.

@@ -32,6 +32,8 @@ std::string device_name(int index = 0);
 /// The CUDA devices present, described (none without a driver or a GPU). Asking for each one's free
 /// memory starts the runtime on it.
 std::vector<DeviceInfo> cuda_devices();
+/// CUDA device `index` described (as cuda_devices() does); nullopt when there is no such device.
+std::optional<DeviceInfo> describe_cuda_device(int index);
 
 class GpuReconstruction {
  public:

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "hivox/core/device.h"
 #include "hivox/pipeline/reconstruction.h"
 
 namespace hivox {
@@ -17,6 +18,7 @@ struct RunInfo {
   std::string pose_source;  ///< "gt", a file name, "icp"
   double wall_s = 0;        ///< the whole loop, reading included
   int threads = 0;
+  std::optional<DeviceInfo> gpu;      ///< the GPU a run on a CUDA device ran on
   std::string parameters;             ///< effective parameters, as printed at start
   int64_t frames_fused = -1;          ///< frames integrated (-1: all processed frames)
   int64_t skipped_frames = 0;         ///< frames not integrated (e.g. without a pose)
@@ -36,7 +38,8 @@ struct RunInfo {
 /// refine, raycast, total),
 /// blocks_total, blocks_per_level (finest first), peak_blocks_total, dropped_blocks,
 /// bytes_per_voxel, memory_bytes, tracking (good/poor/lost counts), ate_rmse_m (when known),
-/// hivox_version, camera (the depth camera's intrinsics), depth_scale, config (when given), and
+/// hivox_version, camera (the depth camera's intrinsics), depth_scale, config (when given), gpu
+/// (a CUDA run's device: name, memory_bytes, compute_capability, multiprocessors), and
 /// per_frame (block counts per level, stage times, tracking quality and ICP numbers).
 void write_stats_json(const std::filesystem::path& path, const Reconstruction& reconstruction,
                       const RunInfo& run);

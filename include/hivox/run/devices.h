@@ -3,6 +3,7 @@
 /// What can run hivox here: the CPU, and in builds with the CUDA loop (-DHIVOX_WITH_CUDA=ON) the
 /// CUDA devices present. `hivox devices` prints it; Python's `hivox.devices()` returns it.
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,5 +21,9 @@ struct DeviceList {
 /// The devices of this build and machine. Starts the CUDA runtime on each GPU (to ask for its free
 /// memory): a fraction of a second each.
 DeviceList list_devices();
+
+/// `device` described as list_devices() lists it; nullopt for a CUDA device this build or machine
+/// does not have.
+std::optional<DeviceInfo> describe_device(const Device& device);
 
 }  // namespace hivox
