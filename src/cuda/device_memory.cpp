@@ -19,7 +19,7 @@ double mib(std::size_t bytes) {
 
 void check_status(cudaError_t status, const char* what) {
   if (status == cudaErrorMemoryAllocation) {  // the device is full: a capacity, not a fault
-    cudaGetLastError();  // not sticky: a later launch's check must not find it
+    cudaGetLastError();                       // not sticky: a later launch's check must not find it
     fail(ErrorCode::OutOfCapacity, "CUDA {} failed: the device is out of memory", what);
   }
   if (status != cudaSuccess)

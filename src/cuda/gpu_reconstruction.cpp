@@ -62,33 +62,39 @@ struct ImageLevel {
 
 }  // namespace
 
-std::string device_name(int index) {
+namespace {
+/// CUDA device `index`'s properties; nullopt when there is no such device (no driver, no GPU).
+std::optional<cudaDeviceProp> properties_of(int index) {
   int count = 0;
-  if (cudaGetDeviceCount(&count) != cudaSuccess || index < 0 || index >= count) {
-    cudaGetLastError();  // clear the error for later calls
-    return {};
-  }
   cudaDeviceProp prop;
-  if (cudaGetDeviceProperties(&prop, index) != cudaSuccess) return {};
-  return prop.name;
+  if (cudaGetDeviceCount(&count) != cudaSuccess || index < 0 || index >= count ||
+      cudaGetDeviceProperties(&prop, index) != cudaSuccess) {
+    cudaGetLastError();  // clear the error for later calls
+    return std::nullopt;
+  }
+  return prop;
+}
+}  // namespace
+
+std::string device_name(int index) {
+  const std::optional<cudaDeviceProp> prop = properties_of(index);
+  return prop ? std::string(prop->name) : std::string();
 }
 
 std::optional<DeviceInfo> describe_cuda_device(int index) {
-  int count = 0, current = 0;
-  cudaDeviceProp prop;
-  if (cudaGetDeviceCount(&count) != cudaSuccess || index < 0 || index >= count ||
-      cudaGetDevice(&current) != cudaSuccess ||
-      cudaGetDeviceProperties(&prop, index) != cudaSuccess) {
+  const std::optional<cudaDeviceProp> prop = properties_of(index);
+  int current = 0;
+  if (!prop || cudaGetDevice(&current) != cudaSuccess) {
     cudaGetLastError();
     return std::nullopt;
   }
   DeviceInfo d;
   d.device = Device::cuda(index);
-  d.name = prop.name;
-  d.memory_bytes = static_cast<int64_t>(prop.totalGlobalMem);
-  d.compute_major = prop.major;
-  d.compute_minor = prop.minor;
-  d.multiprocessors = prop.multiProcessorCount;
+  d.name = prop->name;
+  d.memory_bytes = static_cast<int64_t>(prop->totalGlobalMem);
+  d.compute_major = prop->major;
+  d.compute_minor = prop->minor;
+  d.multiprocessors = prop->multiProcessorCount;
   std::size_t free = 0, total = 0;
   if (cudaSetDevice(index) == cudaSuccess && cudaMemGetInfo(&free, &total) == cudaSuccess)
     d.free_bytes = static_cast<int64_t>(free);
