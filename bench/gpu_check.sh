@@ -2,12 +2,14 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
-# alternated (split marches, Gauss-Newton on the device, the coarse grid off, all together; 3
+# alternated (split marches, Gauss-Newton on the host, the coarse grid off, together; 3
 # levels and the fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads),
 # meshing on the device against the host, and last compute-sanitizer's
 # memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
-# OUT/summary.txt lists every step with its exit status and time.
+# OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
+# printed as well. A device machine that returns only a few files: give an OUT outside the
+# returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf $OUT/check.tgz -C /tmp check`.
 #
 #   bench/gpu_check.sh BUILD OUT [FR1_RPY_FOLDER]    # BUILD: a -DHIVOX_WITH_CUDA=ON build
 #
@@ -37,6 +39,10 @@ step() {
   timeout "$limit" "$@" > "$out/$name.log" 2>&1
   local status=$?
   printf '%-28s exit %3d  %4d s  %s\n' "$name" "$status" $((SECONDS - start)) "$*" | tee -a "$summary"
+  # A failed step's failures on the terminal too (a device session may bring back few files).
+  if [ "$status" -ne 0 ]; then
+    grep -A6 -E 'Failure|FAILED|ERROR SUMMARY|error' "$out/$name.log" | head -n 40
+  fi
 }
 
 for binary in tests/test_cuda_loop tests/test_cuda_kernels bench/hivox_gpu_loop; do
@@ -61,24 +67,24 @@ bench() {
 }
 # Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
-# the device, the coarse occupancy grid off; then all the opt-ins together, on the fixed grid too
+# the host, the coarse occupancy grid off; then split marches without the grid, on the fixed grid too
 # (the hierarchy's target is 1.2x the fixed grid's time).
 for data in fr1 desk; do
   src=$desk
   [ "$data" = fr1 ] && src=$fr1
   bench "${data}_l3_default_a" "$src" 3
   bench "${data}_l3_split1_a" "$src" 3 --split-marches 1
-  bench "${data}_l3_gn_device_a" "$src" 3 --gn-on-device
+  bench "${data}_l3_gn_host_a" "$src" 3 --gn-on-host
   bench "${data}_l3_default_b" "$src" 3
   bench "${data}_l3_split1_b" "$src" 3 --split-marches 1
-  bench "${data}_l3_gn_device_b" "$src" 3 --gn-on-device
+  bench "${data}_l3_gn_host_b" "$src" 3 --gn-on-host
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
   # The loop with its frames decoded as it goes, in turn and ahead (wall_fps in the json).
   bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
-  bench "${data}_l3_all" "$src" 3 --split-marches 1 --gn-on-device
+  bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
   bench "${data}_l1_default" "$src" 1
-  bench "${data}_l1_all" "$src" 1 --split-marches 1 --gn-on-device
+  bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
 bench desk_l3_mesh "$desk" 3 --poses gt --mesh
 if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then

@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5, read_threads = -1;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false, mesh = false, gn_on_device = false, no_coarse_grid = false;
+  bool cpu = false, mesh = false, gn_on_host = false, no_coarse_grid = false;
   int split_marches = 0;
   int64_t max_blocks = 1 << 20;
   std::string json;
@@ -96,9 +96,9 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "timed frames left out of the means");
   app.add_option("--max-blocks", max_blocks, "block pool capacity");
   app.add_flag("--cpu", cpu, "also run the CPU loop on the same frames (same handover)");
-  app.add_flag("--gn-on-device", gn_on_device,
-               "tracking's Gauss-Newton steps on the device (GpuReconstruction::"
-               "set_gauss_newton_on_device)");
+  app.add_flag("--gn-on-host", gn_on_host,
+               "tracking's Gauss-Newton steps on the host, each pass's sums read back "
+               "(GpuReconstruction::set_gauss_newton_on_device(false))");
   app.add_option("--split-marches", split_marches,
                  "split a warp's marches across its lanes where at most this many of its rays "
                  "march (GpuReconstruction::set_split_marches; 0: each ray its own)");
@@ -166,10 +166,10 @@ int main(int argc, char** argv) {
                     params, rig, cpu_loop.map(),
                     MapSession{static_cast<int64_t>(k), cpu_loop.trajectory().back().T_wc, {}})
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
-    gpu->set_gauss_newton_on_device(gn_on_device);
+    gpu->set_gauss_newton_on_device(!gn_on_host);
     gpu->set_split_marches(split_marches);
     std::printf("device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d\n",
-                cuda::device_name(0).c_str(), gn_on_device ? "device" : "host",
+                cuda::device_name(0).c_str(), gn_on_host ? "host" : "device",
                 no_coarse_grid ? "off" : "on", split_marches);
     std::vector<StampedPose> gt;
     std::optional<ReadAhead> from_disk;
@@ -263,7 +263,7 @@ int main(int argc, char** argv) {
       std::ofstream out(json);
       out << "{\"dataset\": \"" << spec << "\", \"device\": \"" << cuda::device_name(0)
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
-          << poses << "\", \"gauss_newton_on_device\": " << (gn_on_device ? "true" : "false")
+          << poses << "\", \"gauss_newton_on_device\": " << (gn_on_host ? "false" : "true")
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches << ", \"handover\": " << k
           << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads

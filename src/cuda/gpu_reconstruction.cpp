@@ -174,7 +174,7 @@ struct GpuReconstruction::Impl {
   Buffer<uint32_t> icp_done;
   PinnedBuffer<double> host_sums;
   PinnedBuffer<int32_t> host_valid_pixels;  ///< the frame's valid pixels, read with the sums
-  bool gauss_newton_on_device = false;
+  bool gauss_newton_on_device = true;
   int split_marches_at_most = 0;        ///< see set_split_marches
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
   PinnedBuffer<kernels::IcpState> host_icp_state;
