@@ -12,7 +12,8 @@
 namespace hivox::cuda {
 
 /// Device memory the map's pool leaves free when the device fills: for the buffers grown on
-/// demand (the refinement's jobs, the raycast's coarse grid) and the mesher's scratch (~110 MB).
+/// demand (the refinement's jobs, the raycast's coarse grid) and the mesher (its scratch takes at
+/// most a quarter of what is free).
 inline constexpr std::size_t kPoolKeepsFreeBytes = std::size_t{192} << 20;
 
 /// Throws `Error(Cuda)` naming `what` when `status` is not success; `Error(OutOfCapacity)` where

@@ -1018,9 +1018,16 @@ TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
   in.cells = d_cells.get();
   in.table = table.get();
 
-  // Pass one: each block's counts; the layout on the host.
-  constexpr int kMostThreads = 4096;  // ~110 MB of scratch (mesh_scratch_bytes() each)
-  const int threads = mesh_thread_count(n, kMostThreads);
+  // Pass one: each block's counts; the layout on the host. Each thread meshes its blocks one
+  // after another in its own scratch (mesh_scratch_bytes(), ~27 KB): the more threads, the more
+  // blocks at once (on an H200, the desk's 21 000 blocks in 84 ms on 32 768 threads, 294 ms on
+  // 4096), as many as a quarter of the free device memory holds.
+  constexpr int64_t kMostThreads = 32768;  // ~0.9 GB of scratch
+  std::size_t free = 0, total = 0;
+  check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+  const auto fit = static_cast<int64_t>(free / 4 / mesh_scratch_bytes());
+  const int threads =
+      mesh_thread_count(n, static_cast<int>(std::clamp<int64_t>(fit, 1, kMostThreads)));
   Buffer<unsigned char> scratch;
   scratch.reset(static_cast<std::size_t>(threads) * mesh_scratch_bytes(), nullptr);
   Buffer<kernels::BlockMeshCount> d_counts;
