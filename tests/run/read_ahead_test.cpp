@@ -39,6 +39,7 @@ class CountingReader : public DatasetReader {
     const int started = ++reads;
     most_ahead = std::max(most_ahead.load(), started - taken.load());
     if (std::this_thread::get_id() != caller) ++reads_elsewhere;
+    loop_threads = thread_count();
     const int now = ++in_flight;
     most_at_once = std::max(most_at_once.load(), now);
     std::this_thread::sleep_for(std::chrono::milliseconds(read_ms_));
@@ -56,6 +57,7 @@ class CountingReader : public DatasetReader {
   std::thread::id caller = std::this_thread::get_id();
   std::atomic<int> reads{0}, taken{0}, most_ahead{0}, reads_elsewhere{0};
   std::atomic<int> in_flight{0}, most_at_once{0};
+  std::atomic<int> loop_threads{0};  ///< thread_count() where the last frame was read
 
  private:
   DatasetInfo info_;
@@ -115,6 +117,32 @@ TEST(ReadAhead, SeveralThreadsReadAtOnceOnlyWhereTheDatasetAllowsIt) {
       EXPECT_EQ(reader.most_at_once, 1) << "the dataset reads one frame at a time";
     }
   }
+}
+
+/// The reading threads and the constructing thread's parallel loops share the cores instead of
+/// asking for them twice (OpenMP's spinning teams then wait on descheduled threads).
+TEST(ReadAhead, TheReadersAndTheCallerShareTheCores) {
+  const int before = thread_count();
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (const bool concurrent : {true, false}) {
+    SCOPED_TRACE(concurrent ? "several readers" : "one reader");
+    CountingReader reader(8, concurrent);
+    {
+      ReadAhead frames(reader, 0, 8, 4, 2);
+      // Several readers: one thread each; one: both threads for its loops (no more than ours).
+      const int readers_use = concurrent ? 2 : std::min(2, before);
+      EXPECT_EQ(thread_count(), std::max(1, std::min(before, cores - readers_use)))
+          << cores << " cores, " << before << " threads before";
+      for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(frames.next().index, i);
+      EXPECT_EQ(reader.reads_elsewhere, 8);
+      EXPECT_EQ(reader.loop_threads, concurrent ? 1 : std::min(2, before));
+    }
+    EXPECT_EQ(thread_count(), before) << "restored once reading stops";
+  }
+  // Reading in turn takes nothing from the caller.
+  CountingReader reader(2, true);
+  ReadAhead in_turn(reader, 0, 2, 0, 4);
+  EXPECT_EQ(thread_count(), before);
 }
 
 TEST(ReadAhead, AFrameThatCannotBeReadThrowsAtItsTurnAndTheRestFollow) {

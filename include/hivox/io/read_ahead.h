@@ -20,9 +20,12 @@ namespace hivox {
 /// DatasetReader::reads_concurrently); `ahead` 0: each frame is read when taken, on the
 /// caller's thread. The reader is used only by this object while it lives. A frame that cannot
 /// be read is not skipped: `next()` throws its error at its turn, and the frames after it come
-/// as usual. One reading thread uses thread_count() threads for its parallel loops (as many as
-/// the constructing thread), several one each. `ahead` and `threads` must lie in [0, 64]
-/// (`Error(InvalidArgument)` names them).
+/// as usual. The reading threads use `threads` of the machine's cores: several one each, one
+/// (`threads` > 1 where the dataset reads one frame at a time) that many for its parallel
+/// loops, at most as many as the constructing thread's. While they read, the constructing
+/// thread's parallel loops use the cores they leave (thread_count(), at least 1); its count is
+/// restored when reading stops on that thread (the destructor, normally). `ahead` and `threads`
+/// must lie in [0, 64] (`Error(InvalidArgument)` names them).
 class ReadAhead {
  public:
   /// The frames read ahead for `threads` threads unless said otherwise: two each.
@@ -59,6 +62,8 @@ class ReadAhead {
   std::size_t claimed_;      ///< frames [first, claimed_) are read or being read
   std::size_t taken_;        ///< frames [first, taken_) were taken
   bool stop_ = false;
+  std::thread::id owner_;  ///< the constructing thread, when its loops were given fewer threads
+  int owner_threads_ = 0;  ///< its thread count before (0: unchanged)
   std::vector<std::thread> threads_;  ///< last: they start once the rest is set
 };
 
