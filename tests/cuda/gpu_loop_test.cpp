@@ -606,7 +606,7 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
     ASSERT_EQ(a.colors.size(), b.colors.size());
     EXPECT_EQ(cpu_removed.pieces, gpu_removed.pieces);
     const test::MeshDifferences d = test::mesh_differences(a, b);
-    EXPECT_EQ(d.positions, 0);
+    EXPECT_EQ(d.positions, 0) << test::describe_mesh_difference(a, b);
     EXPECT_EQ(d.normals, 0);
     EXPECT_EQ(d.colors, 0);
     EXPECT_EQ(d.levels, 0);
@@ -654,9 +654,11 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   // The Reconstruction meshes on the device: the mesh of its map downloaded, vertex for vertex.
   const TriangleMesh on_device = gpu->extract_mesh();
   const TriangleMesh on_host = extract_mesh(gpu->map());
-  ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count());
+  ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count())
+      << test::describe_mesh_difference(on_device, on_host);
   EXPECT_EQ(on_device.triangle_count(), on_host.triangle_count());
-  EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f);
+  EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f)
+      << test::describe_mesh_difference(on_device, on_host);
 
   // A whole run, as `hivox reconstruct --device cuda` makes it (meshed on the device).
   TempDir dir;

@@ -5,9 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <memory>
+#include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -159,6 +162,64 @@ inline MeshDifferences mesh_differences(const TriangleMesh& a, const TriangleMes
   for (std::size_t t = 0; t < a.triangles.size() && t < b.triangles.size(); ++t)
     d.triangles += a.triangles[t] != b.triangles[t];
   return d;
+}
+
+/// Where two meshes of one map differ, for a failure's message: the counts, the first vertex
+/// index whose positions differ (both positions, their levels), and the vertices of each that
+/// the other lacks at exactly that position (how many, the first three with their levels):
+/// a vertex order that differs shows as the first without the second.
+inline std::string describe_mesh_difference(const TriangleMesh& a, const TriangleMesh& b) {
+  auto point = [](const Vec3f& p) {
+    char s[64];
+    std::snprintf(s, sizeof s, "(%.6f %.6f %.6f)", p.x, p.y, p.z);
+    return std::string(s);
+  };
+  auto level = [](const TriangleMesh& m, std::size_t v) {
+    return v < m.levels.size() ? std::to_string(m.levels[v]) : std::string("?");
+  };
+  std::string out = std::to_string(a.vertex_count()) + " / " + std::to_string(b.vertex_count()) +
+                    " vertices, " + std::to_string(a.triangle_count()) + " / " +
+                    std::to_string(b.triangle_count()) + " triangles";
+  const std::size_t n = std::min(a.positions_w.size(), b.positions_w.size());
+  for (std::size_t v = 0; v < n; ++v)
+    if (norm(a.positions_w[v] - b.positions_w[v]) > 1e-6f) {
+      out += "; first vertex apart: " + std::to_string(v) + " " + point(a.positions_w[v]) +
+             " level " + level(a, v) + " / " + point(b.positions_w[v]) + " level " + level(b, v);
+      break;
+    }
+  auto sorted = [](const TriangleMesh& m) {
+    std::vector<std::size_t> order(m.positions_w.size());
+    for (std::size_t v = 0; v < order.size(); ++v) order[v] = v;
+    std::sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
+      const Vec3f &p = m.positions_w[i], &q = m.positions_w[j];
+      return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+    });
+    return order;
+  };
+  const std::vector<std::size_t> sa = sorted(a), sb = sorted(b);
+  auto less = [](const Vec3f& p, const Vec3f& q) {
+    return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+  };
+  std::vector<std::size_t> only_a, only_b;
+  std::size_t i = 0, j = 0;
+  while (i < sa.size() || j < sb.size()) {
+    if (j == sb.size() || (i < sa.size() && less(a.positions_w[sa[i]], b.positions_w[sb[j]]))) {
+      only_a.push_back(sa[i++]);
+    } else if (i == sa.size() || less(b.positions_w[sb[j]], a.positions_w[sa[i]])) {
+      only_b.push_back(sb[j++]);
+    } else {
+      ++i;
+      ++j;
+    }
+  }
+  auto list = [&](const TriangleMesh& m, const std::vector<std::size_t>& only, const char* name) {
+    std::string s = "; " + std::to_string(only.size()) + " only in " + name;
+    for (std::size_t k = 0; k < only.size() && k < 3; ++k)
+      s += (k == 0 ? ": " : ", ") + std::string("#") + std::to_string(only[k]) + " " +
+           point(m.positions_w[only[k]]) + " level " + level(m, only[k]);
+    return s;
+  };
+  return out + list(a, only_a, "the first") + list(b, only_b, "the second");
 }
 
 inline Eigen::Vector3d to_eigen(const Vec3f& v) {
