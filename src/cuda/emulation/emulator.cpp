@@ -374,9 +374,10 @@ CUresult vm_set_access(CUdeviceptr ptr, std::size_t size, const CUmemAccessDesc*
                        std::size_t count) {
   if (count != 1 || desc->flags != CU_MEM_ACCESS_FLAGS_PROT_READWRITE)
     return CUDA_ERROR_INVALID_VALUE;
-  return mprotect(reinterpret_cast<void*>(ptr), size, PROT_READ | PROT_WRITE) == 0
-             ? CUDA_SUCCESS
-             : CUDA_ERROR_INVALID_VALUE;
+  if (mprotect(reinterpret_cast<void*>(ptr), size, PROT_READ | PROT_WRITE) != 0)
+    return CUDA_ERROR_INVALID_VALUE;
+  std::memset(reinterpret_cast<void*>(ptr), 0xA5, size);
+  return CUDA_SUCCESS;
 }
 
 CUresult vm_device(CUdevice* device, int ordinal) {
