@@ -33,12 +33,6 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
   const int caller_threads = thread_count();
   const int loop_threads = n == 1 ? std::clamp(threads, 1, caller_threads) : 1;
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const int left = std::max(1, std::min(caller_threads, cores - n * loop_threads));
-  if (left < caller_threads) {
-    owner_ = std::this_thread::get_id();
-    owner_threads_ = caller_threads;
-    detail::use_thread_count(left);
-  }
   threads_.reserve(static_cast<std::size_t>(n));
   try {
     for (int t = 0; t < n; ++t)
@@ -48,6 +42,13 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
     log::warn_once("read_ahead.threads",
                    "reading ahead: cannot start a thread ({}); frames are read in turn", e.what());
     stop();  // no thread left: next() reads in turn
+    return;
+  }
+  const int left = std::max(1, std::min(caller_threads, cores - n * loop_threads));
+  if (left < caller_threads) {
+    owner_ = std::this_thread::get_id();
+    owner_threads_ = caller_threads;
+    detail::use_thread_count(left);
   }
 }
 
