@@ -26,6 +26,12 @@ void check_status(cudaError_t status, const char* what) {
     fail(ErrorCode::Cuda, "CUDA {} failed: {}", what, cudaGetErrorString(status));
 }
 
+std::size_t free_device_memory() {
+  std::size_t free = 0, total = 0;
+  check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+  return free;
+}
+
 void* allocate_device(std::size_t bytes) {
   void* p = nullptr;
   if (bytes == 0) return p;
@@ -162,8 +168,7 @@ std::size_t GrowingBuffer::commit(std::size_t bytes, std::size_t keep_free) {
   // The whole shortfall as one allocation and one mapping: one call to each driver function
   // whatever the growth. Where the device cannot hold it, what fits with `keep_free` left.
   if (map_more(target - committed_)) return committed_;
-  std::size_t free = 0, total = 0;
-  check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+  const std::size_t free = free_device_memory();
   if (free <= keep_free) return committed_;
   const std::size_t fits = (free - keep_free) / chunk_ * chunk_;
   if (fits > 0 && fits < target - committed_) map_more(fits);

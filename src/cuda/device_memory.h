@@ -20,6 +20,9 @@ inline constexpr std::size_t kPoolKeepsFreeBytes = std::size_t{192} << 20;
 /// the device is out of memory.
 void check_status(cudaError_t status, const char* what);
 
+/// The current device's free memory in bytes (`Error(Cuda)` where the runtime cannot say).
+std::size_t free_device_memory();
+
 /// `bytes` of device memory (null for 0); `Error(OutOfCapacity)` naming the size and the memory
 /// free where the device has not that much.
 void* allocate_device(std::size_t bytes);

@@ -312,8 +312,7 @@ struct GpuReconstruction::Impl {
   int64_t commit_pool(int64_t n) {
     const int64_t have = committed_blocks();
     if (n <= have) return have;
-    std::size_t free = 0, total = 0;
-    check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
+    const std::size_t free = free_device_memory();
     // Each array rounds up to the driver's granularity (2 MiB): room for that, so that the
     // arrays stop at the same block.
     constexpr std::size_t kRounding = 3 * (std::size_t{2} << 20);
@@ -1023,9 +1022,7 @@ TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
   // blocks at once (on an H200, the desk's 21 000 blocks in 84 ms on 32 768 threads, 294 ms on
   // 4096), as many as a quarter of the free device memory holds.
   constexpr int64_t kMostThreads = 32768;  // ~0.9 GB of scratch
-  std::size_t free = 0, total = 0;
-  check_status(cudaMemGetInfo(&free, &total), "asking for the free device memory");
-  const auto fit = static_cast<int64_t>(free / 4 / mesh_scratch_bytes());
+  const auto fit = static_cast<int64_t>(free_device_memory() / 4 / mesh_scratch_bytes());
   const int threads =
       mesh_thread_count(n, static_cast<int>(std::clamp<int64_t>(fit, 1, kMostThreads)));
   Buffer<unsigned char> scratch;
