@@ -53,8 +53,11 @@ def test_devices_list_the_cpu_first_and_the_gpus_a_run_can_name():
         assert d["device"] == f"cuda:{i}"
         assert 0 <= d["free_bytes"] <= d["memory_bytes"]
         assert d["multiprocessors"] > 0
+        # A listed device runs: a reconstruction starts on it.
         p = small_params()
         p.device = d["device"]
+        hivox.Reconstruction(p, hivox.PinholeCamera(fx=80.0, fy=80.0, cx=39.5, cy=29.5, width=80,
+                                                    height=60))
 
 
 def test_frames_fused_from_python_equal_the_library_run(tmp_path):

@@ -187,19 +187,18 @@ inline std::string describe_mesh_difference(const TriangleMesh& a, const Triangl
              " level " + level(a, v) + " / " + point(b.positions_w[v]) + " level " + level(b, v);
       break;
     }
-  auto sorted = [](const TriangleMesh& m) {
+  auto less = [](const Vec3f& p, const Vec3f& q) {
+    return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+  };
+  auto sorted = [&](const TriangleMesh& m) {
     std::vector<std::size_t> order(m.positions_w.size());
     for (std::size_t v = 0; v < order.size(); ++v) order[v] = v;
     std::sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
-      const Vec3f &p = m.positions_w[i], &q = m.positions_w[j];
-      return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+      return less(m.positions_w[i], m.positions_w[j]);
     });
     return order;
   };
   const std::vector<std::size_t> sa = sorted(a), sb = sorted(b);
-  auto less = [](const Vec3f& p, const Vec3f& q) {
-    return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
-  };
   std::vector<std::size_t> only_a, only_b;
   std::size_t i = 0, j = 0;
   while (i < sa.size() || j < sb.size()) {
