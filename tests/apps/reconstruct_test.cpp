@@ -251,14 +251,12 @@ TEST(Reconstruct, OneRunsFilesNeverMixWithAnothers) {
 // process with nothing to write.
 TEST(Reconstruct, AnInterruptWritesTheFramesSoFarAndExitsNonZero) {
   test::TempDir dir;
-  const fs::path log = dir / "log.txt";
   const fs::path out = dir / "run";
-  const auto r = test::run_shell(fmt::format(
-      "{} reconstruct 'synthetic:desk?frames=2000&noise=none' --poses gt --levels 1 "
-      "--voxel-size 0.01 --truncation 0.04 --out {} > {} 2>&1 & pid=$!; "
-      "i=0; while [ $i -lt 1200 ] && ! grep -q 'frame 50/' {}; do sleep 0.1; i=$((i+1)); done; "
-      "kill -INT $pid; wait $pid; status=$?; cat {}; exit $status",
-      test::hivox_binary(), out.string(), log.string(), log.string(), log.string()));
+  const auto r = test::run_hivox_interrupted(
+      "reconstruct 'synthetic:desk?frames=2000&noise=none' --poses gt --levels 1 "
+      "--voxel-size 0.01 --truncation 0.04 --out " +
+          out.string(),
+      50, (dir / "log.txt").string());
   EXPECT_EQ(r.exit_code, 130) << r.output;
   EXPECT_TRUE(test::contains(r.output, "stopped by an interrupt")) << r.output;
   const auto poses = read_tum_trajectory(out / "trajectory.txt");
