@@ -34,6 +34,7 @@
 #include "hivox/run/devices.h"
 #include "hivox/run/runner.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "map/map_invariants.h"
 #include "mesh/mesh_test_util.h"
 #include "test_util.h"
 
@@ -429,6 +430,10 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
     EXPECT_NEAR(static_cast<double>(b[l]), static_cast<double>(a[l]), 10.0 + 0.02 * a[l])
         << "level " << l;
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
+  {
+    SCOPED_TRACE("the device's map after splits and merges");
+    test::expect_hierarchy_consistent(*downloaded);
+  }
   expect_same_mesh(cpu.map(), *downloaded);
   const RgbdFrame last = data.read(data.size() - 1);
   expect_same_model(cpu.map(), gpu.download_model(), previous, last, *last.T_wc_gt, p, rig);
@@ -551,6 +556,10 @@ TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
   // The map comes back whole: every block in use, in the committed pool.
   const std::unique_ptr<VoxelBlockMap> map = gpu.download_map();
   EXPECT_EQ(map->blocks_in_use(), gpu.blocks_in_use());
+  {
+    SCOPED_TRACE("the device's map after it filled");
+    test::expect_hierarchy_consistent(*map);
+  }
   const TriangleMesh host = extract_mesh(*map);
   EXPECT_GT(host.triangles.size(), 1000u);
   {
@@ -581,6 +590,10 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
   }
   const std::unique_ptr<VoxelBlockMap> map = gpu.download_map();
   for (const int64_t n : map->blocks_per_level()) ASSERT_GT(n, 100) << fmt_levels(*map);
+  {
+    SCOPED_TRACE("the device's map");
+    test::expect_hierarchy_consistent(*map);
+  }
   auto cases = test::mesh_param_cases();
   cases.emplace_back("bounds", MeshParams{});
   cases.back().second.bounds = Box3f{{0.4f, -0.5f, 0.5f}, {1.2f, 0.5f, 1.5f}};  // ~3 % of it
@@ -651,6 +664,10 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   int64_t hits = 0;
   for (std::size_t i = 0; i < render.depth_m.size(); ++i) hits += render.depth_m.data()[i] > 0;
   EXPECT_GT(hits, 200000);
+  {
+    SCOPED_TRACE("the device's tracked map");
+    test::expect_hierarchy_consistent(gpu->map());
+  }
   // The Reconstruction meshes on the device: the mesh of its map downloaded, vertex for vertex.
   const TriangleMesh on_device = gpu->extract_mesh();
   const TriangleMesh on_host = extract_mesh(gpu->map());

@@ -99,4 +99,43 @@ inline void expect_map_consistent(const VoxelBlockMap& map) {
     ASSERT_EQ(owner[b], 1) << "pool block " << b << " is owned " << owner[b] << " times";
 }
 
+/// expect_map_consistent, and the hierarchy's own invariants: every allocated block's ancestors
+/// are Split entries, no region is stored at two levels (an allocated block has no children),
+/// and every Split entry has all 8 children. `covered_finest_blocks` (optional) receives the
+/// volume the map covers, in blocks of the finest level.
+inline void expect_hierarchy_consistent(const VoxelBlockMap& map,
+                                        int64_t* covered_finest_blocks = nullptr) {
+  expect_map_consistent(map);
+  const MapView v = map.view();
+  auto child = [](const Vec3i& p, int c) {
+    return Vec3i{2 * p.x + (c & 1), 2 * p.y + ((c >> 1) & 1), 2 * p.z + (c >> 2)};
+  };
+  int64_t covered = 0;
+  for (const BlockRef& b : map.allocated_blocks()) {
+    covered += int64_t{1} << (3 * b.level);
+    Vec3i p = b.pos;
+    for (int l = b.level + 1; l < v.levels; ++l) {
+      p = {p.x >> 1, p.y >> 1, p.z >> 1};
+      ASSERT_EQ(find_block_ptr(v.level[l], p), kPtrSplit)
+          << "the level-" << l << " ancestor of level-" << b.level << " block (" << b.pos.x << ", "
+          << b.pos.y << ", " << b.pos.z << ") is not a Split entry";
+    }
+    if (b.level > 0)
+      for (int c = 0; c < 8; ++c)
+        ASSERT_EQ(find_block_ptr(v.level[b.level - 1], child(b.pos, c)), kPtrEmpty)
+            << "region stored at two levels: level-" << b.level << " block (" << b.pos.x << ", "
+            << b.pos.y << ", " << b.pos.z << ") has a child";
+  }
+  for (int l = 1; l < v.levels; ++l)
+    for (int32_t e = 0; e < v.level[l].entry_count; ++e) {
+      const HashEntry& h = v.level[l].entries[e];
+      if (h.ptr != kPtrSplit) continue;
+      for (int c = 0; c < 8; ++c)
+        ASSERT_NE(find_block_ptr(v.level[l - 1], child(h.pos, c)), kPtrEmpty)
+            << "the Split entry at level " << l << " (" << h.pos.x << ", " << h.pos.y << ", "
+            << h.pos.z << ") lacks child " << c << " (a hole)";
+    }
+  if (covered_finest_blocks != nullptr) *covered_finest_blocks = covered;
+}
+
 }  // namespace hivox::test

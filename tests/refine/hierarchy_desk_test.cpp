@@ -14,6 +14,7 @@
 #include "hivox/eval/surface_eval.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "map/map_invariants.h"
 #include "test_util.h"
 
 namespace hivox {
@@ -80,6 +81,10 @@ Outcome run(const std::string& noise) {
           near_object = near_object || sdf(other.shape, p) < coarse_block_m;
       flat_top[i] = !near_object;
     }
+  }
+  {
+    SCOPED_TRACE("the refined map");
+    test::expect_hierarchy_consistent(a.map());
   }
   Outcome o;
   const SurfaceEval ea = evaluate_at_points(a.map(), points);
