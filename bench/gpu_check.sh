@@ -2,9 +2,9 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
-# alternated (split marches, Gauss-Newton on the host, the coarse grid off, together; 3
-# levels and the fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads),
-# meshing on the device against the host, and last compute-sanitizer's
+# alternated (the ray kernel's register caps, split marches, Gauss-Newton on the host, the coarse
+# grid off, together; 3 levels and the fixed grid), frames decoded as the loop goes (in turn and
+# ahead on 8 threads), meshing on the device against the host, and last compute-sanitizer's
 # memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
@@ -66,30 +66,38 @@ bench() {
   step "$name" "$loop" "$data" --levels "$levels" "$@" --json "$out/$name.json"
 }
 # Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
+# the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
-# the host, the coarse occupancy grid off; then split marches without the grid, on the fixed grid too
-# (the hierarchy's target is 1.2x the fixed grid's time).
+# the host, the coarse occupancy grid off; then split marches without the grid, on the fixed
+# grid too (the hierarchy's target is 1.2x the fixed grid's time).
 for data in fr1 desk; do
   src=$desk
   [ "$data" = fr1 ] && src=$fr1
   bench "${data}_l3_default_a" "$src" 3
+  bench "${data}_l3_regs96_a" "$src" 3 --raycast-registers 96
+  bench "${data}_l3_regs64_a" "$src" 3 --raycast-registers 64
   bench "${data}_l3_split1_a" "$src" 3 --split-marches 1
   bench "${data}_l3_gn_host_a" "$src" 3 --gn-on-host
   bench "${data}_l3_default_b" "$src" 3
+  bench "${data}_l3_regs96_b" "$src" 3 --raycast-registers 96
+  bench "${data}_l3_regs64_b" "$src" 3 --raycast-registers 64
   bench "${data}_l3_split1_b" "$src" 3 --split-marches 1
   bench "${data}_l3_gn_host_b" "$src" 3 --gn-on-host
+  bench "${data}_l3_regs80" "$src" 3 --raycast-registers 80
+  bench "${data}_l3_regs128" "$src" 3 --raycast-registers 128
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
   # The loop with its frames decoded as it goes, in turn and ahead (wall_fps in the json).
   bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
   bench "${data}_l1_default" "$src" 1
+  bench "${data}_l1_regs96" "$src" 1 --raycast-registers 96
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
 bench desk_l3_mesh "$desk" 3 --poses gt --mesh
 if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
-    --gtest_filter='*MeshesOnTheDevice*:*GaussNewtonOnTheDevice*:*HoldsNoMoreMemory*:*SplitMarches*'
+    --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RegistersCapped*:*SplitMarches*'
 fi
 echo "logs and numbers in $out"

@@ -83,6 +83,7 @@ int main(int argc, char** argv) {
   std::string poses = "track";
   bool cpu = false, mesh = false, gn_on_host = false, no_coarse_grid = false;
   int split_marches = 0;
+  int raycast_registers = 0;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -102,6 +103,10 @@ int main(int argc, char** argv) {
   app.add_option("--split-marches", split_marches,
                  "split a warp's marches across its lanes where at most this many of its rays "
                  "march (GpuReconstruction::set_split_marches; 0: each ray its own)");
+  app.add_option("--raycast-registers", raycast_registers,
+                 "at most this many registers a thread of the raycast's kernel: 128, 96, 80 or "
+                 "64, more warps at once (GpuReconstruction::set_raycast_registers; 0: the "
+                 "compiler's choice)");
   app.add_flag("--no-coarse-grid", no_coarse_grid,
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
@@ -168,9 +173,14 @@ int main(int argc, char** argv) {
               : std::make_unique<cuda::GpuReconstruction>(params, rig);
     gpu->set_gauss_newton_on_device(!gn_on_host);
     gpu->set_split_marches(split_marches);
-    std::printf("device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d\n",
-                cuda::device_name(0).c_str(), gn_on_host ? "host" : "device",
-                no_coarse_grid ? "off" : "on", split_marches);
+    gpu->set_raycast_registers(raycast_registers);
+    std::printf(
+        "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; the "
+        "raycast's kernel takes %d registers a thread (at most %s)\n",
+        cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
+        split_marches, gpu->raycast_registers(),
+        raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
+                              : "the compiler's choice");
     std::vector<StampedPose> gt;
     std::optional<ReadAhead> from_disk;
     if (read_threads >= 0)
@@ -265,7 +275,9 @@ int main(int argc, char** argv) {
           << "\", \"levels\": " << levels << ", \"voxel_size_m\": " << voxel_m << ", \"poses\": \""
           << poses << "\", \"gauss_newton_on_device\": " << (gn_on_host ? "false" : "true")
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
-          << ", \"split_marches\": " << split_marches << ", \"handover\": " << k
+          << ", \"split_marches\": " << split_marches
+          << ", \"raycast_registers_at_most\": " << raycast_registers
+          << ", \"raycast_registers\": " << gpu->raycast_registers() << ", \"handover\": " << k
           << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads
           << ", \"wall_fps\": " << wall_fps << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms

@@ -175,7 +175,7 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<double> host_sums;
   PinnedBuffer<int32_t> host_valid_pixels;  ///< the frame's valid pixels, read with the sums
   bool gauss_newton_on_device = true;
-  int split_marches_at_most = 0;        ///< see set_split_marches
+  RaycastLaunch ray_launch;             ///< see set_split_marches, set_raycast_registers
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
   PinnedBuffer<kernels::IcpState> host_icp_state;
 
@@ -744,7 +744,7 @@ struct GpuReconstruction::Impl {
       hint.fallback_m = warped.get();
     }
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
-                  tiles, k, hint, out, alloc_counters.get(), split_marches_at_most);
+                  tiles, k, hint, out, alloc_counters.get(), ray_launch);
     int32_t* hits = &host_counters.reserve(1)->raycast_hits;  // page-locked: a direct copy
     copy_to_host(hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t), "raycast");
     s.raycast_hits = *hits;
@@ -917,7 +917,18 @@ void GpuReconstruction::set_split_marches(int at_most) {
   if (at_most < 0 || at_most > 32)
     fail(ErrorCode::InvalidArgument, "split marches: at most {} rays a warp is not in [0, 32]",
          at_most);
-  impl_->split_marches_at_most = at_most;
+  impl_->ray_launch.split_at_most = at_most;
+}
+void GpuReconstruction::set_raycast_registers(int at_most) {
+  if (at_most != 0 && std::find(std::begin(kRaycastRegisterCaps), std::end(kRaycastRegisterCaps),
+                                at_most) == std::end(kRaycastRegisterCaps))
+    fail(ErrorCode::InvalidArgument,
+         "raycast registers: at most {} a thread is not 0 (the compiler's choice) or one of {}",
+         at_most, fmt::join(kRaycastRegisterCaps, ", "));
+  impl_->ray_launch.registers_at_most = at_most;
+}
+int GpuReconstruction::raycast_registers() const {
+  return raycast_kernel_registers(impl_->ray_launch);
 }
 
 const MapParams& GpuReconstruction::map_params() const {

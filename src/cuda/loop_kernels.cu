@@ -4,7 +4,9 @@
 
 #include <cfloat>
 #include <climits>
+#include <iterator>
 #include <string>
+#include <utility>
 
 #include "core/parallel.h"
 #include "cuda/device_helpers.cuh"
@@ -278,16 +280,22 @@ __device__ bool split_marches(const MapView& map, const Rigid3f& T_wc,
   return true;
 }
 
+/// The ray kernel's threads a block: warps of 8x4 pixels, 4 of them.
+constexpr int kRaycastThreadsX = 8, kRaycastThreadsY = 16;
+constexpr int kRaycastThreads = kRaycastThreadsX * kRaycastThreadsY;
+
 /// One thread per pixel's ray: the search at its hints, then, where that fails, its march
-/// (kernels::cast_ray's two steps; with `kSplit`, split_marches may take the marches). Its map is
-/// a __grid_constant__: the functions it calls take the view by reference, which would otherwise
-/// copy it onto each thread's stack.
+/// (kernels::cast_ray's two steps; with `kSplit`, split_marches may take the marches). The map is
+/// the kernel's __grid_constant__: the functions it calls take the view by reference, which
+/// would otherwise copy it onto each thread's stack.
 template <bool kSplit>
-__global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
-                                 Rigid3f T_wc, kernels::RangeTiles tiles,
-                                 kernels::RayMarchConstants k, RayHintImages hint,
-                                 kernels::RaycastOutputView out, AllocCounters* counters,
-                                 int split_at_most) {
+__device__ HIVOX_FORCEINLINE void cast_ray_of_thread(const MapView& map, const PinholeCamera& cam,
+                                                     const Rigid3f& T_wc,
+                                                     const kernels::RangeTiles& tiles,
+                                                     const kernels::RayMarchConstants& k,
+                                                     const RayHintImages& hint,
+                                                     const kernels::RaycastOutputView& out,
+                                                     AllocCounters* counters, int split_at_most) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
   const bool in_image = x < cam.width && y < cam.height;
@@ -315,6 +323,26 @@ __global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCam
                                      &hit);
   if (in_image) kernels::write_ray(out, map, i, found, hit);
   count_warp(found, &counters->raycast_hits);
+}
+
+template <bool kSplit>
+__global__ void cast_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam,
+                                 Rigid3f T_wc, kernels::RangeTiles tiles,
+                                 kernels::RayMarchConstants k, RayHintImages hint,
+                                 kernels::RaycastOutputView out, AllocCounters* counters,
+                                 int split_at_most) {
+  cast_ray_of_thread<kSplit>(map, cam, T_wc, tiles, k, hint, out, counters, split_at_most);
+}
+
+/// cast_rays_kernel with at most `kRegisters` registers a thread: the launch bounds ask for as
+/// many blocks at once as 65 536 registers a multiprocessor (sm_70 on) hold; the rest spills.
+template <bool kSplit, int kRegisters>
+__global__ void __launch_bounds__(kRaycastThreads, 65536 / (kRaycastThreads * kRegisters))
+    capped_cast_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam, Rigid3f T_wc,
+                            kernels::RangeTiles tiles, kernels::RayMarchConstants k,
+                            RayHintImages hint, kernels::RaycastOutputView out,
+                            AllocCounters* counters, int split_at_most) {
+  cast_ray_of_thread<kSplit>(map, cam, T_wc, tiles, k, hint, out, counters, split_at_most);
 }
 
 __global__ void warp_clear_kernel(uint32_t* nearest, int64_t n) {
@@ -592,10 +620,50 @@ void pack_color(const Rgb8* rgb, uint32_t* packed, int64_t n) {
   check_last("packing colour");
 }
 
+namespace {
+
+/// The ray kernels' type (cast_rays_kernel and capped_cast_rays_kernel alike).
+using RayKernel = void (*)(MapView, PinholeCamera, Rigid3f, kernels::RangeTiles,
+                           kernels::RayMarchConstants, RayHintImages, kernels::RaycastOutputView,
+                           AllocCounters*, int);
+
+/// The ray kernel with the cap of kRaycastRegisterCaps that `registers` names, else (0;
+/// GpuReconstruction lets no other count through) the one without.
+template <bool kSplit, std::size_t... kCap>
+RayKernel ray_kernel(int registers, std::index_sequence<kCap...>) {
+  RayKernel kernel = cast_rays_kernel<kSplit>;
+  ((registers == kRaycastRegisterCaps[kCap]
+        ? kernel = capped_cast_rays_kernel<kSplit, kRaycastRegisterCaps[kCap]>
+        : kernel),
+   ...);
+  return kernel;
+}
+
+RayKernel ray_kernel(const RaycastLaunch& how) {
+  const auto caps = std::make_index_sequence<std::size(kRaycastRegisterCaps)>();
+  return how.split_at_most > 0 ? ray_kernel<true>(how.registers_at_most, caps)
+                               : ray_kernel<false>(how.registers_at_most, caps);
+}
+
+}  // namespace
+
+int raycast_kernel_registers(const RaycastLaunch& how) {
+#if defined(HIVOX_CUDA_EMULATION)
+  static_cast<void>(how);
+  return 0;
+#else
+  cudaFuncAttributes attributes{};
+  check_status(cudaFuncGetAttributes(&attributes, ray_kernel(how)),
+               "asking for the raycast kernel's registers");
+  return attributes.numRegs;
+#endif
+}
+
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
-             const kernels::RaycastOutputView& out, AllocCounters* counters, int split_at_most) {
+             const kernels::RaycastOutputView& out, AllocCounters* counters,
+             const RaycastLaunch& how) {
   launch(fill_tiles, grid_for(tiles.count()), kThreads, tiles);
   if (k.occupancy.cells != nullptr)
     check_status(
@@ -607,14 +675,10 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
            camera, min_depth_m, max_depth_m, tiles, k.occupancy);
   // Warps of 8x4 pixels: their rays stay closer together than those of 16x2, so they
   // diverge less (1 % faster than 16x2 on the H200).
-  const dim3 threads(8, 16);
+  const dim3 threads(kRaycastThreadsX, kRaycastThreadsY);
   const dim3 grid = image_grid(camera.width, camera.height, threads);
-  if (split_at_most > 0)
-    launch(cast_rays_kernel<true>, grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
-           split_at_most);
-  else
-    launch(cast_rays_kernel<false>, grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
-           0);
+  launch(ray_kernel(how), grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
+         how.split_at_most);
   check_last("raycast");
 }
 

@@ -82,14 +82,31 @@ struct RayHintImages {
 /// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
 /// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
 /// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
-/// `split_at_most` > 0: a warp where at most that many rays march splits each march across its
-/// lanes (kernels::split_march_from_hint).
+/// How the rays are launched (GpuReconstruction's set_split_marches, set_raycast_registers).
+struct RaycastLaunch {
+  /// > 0: a warp where at most that many rays march splits each march across its lanes
+  /// (kernels::split_march_from_hint).
+  int split_at_most = 0;
+  /// 0: as many registers a thread as the compiler takes (160 for sm_90, CUDA 13: 12 warps a
+  /// multiprocessor); else one of kRaycastRegisterCaps, more warps at once for some spilling.
+  int registers_at_most = 0;
+};
+/// The register caps the ray kernel is built with (besides none).
+inline constexpr int kRaycastRegisterCaps[] = {128, 96, 80, 64};
+/// The registers a thread of the ray kernel for `how` takes, as the device's driver reports
+/// them (0 in the CPU emulation of CUDA).
+int raycast_kernel_registers(const RaycastLaunch& how);
+
+/// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
+/// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
+/// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
 /// (Queuing the rays whose hints fail for a second, marching pass was slower: a warp of marching
 /// rays diverges on every step, where a warp of mostly hinted rays waits on a few.)
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
-             const kernels::RaycastOutputView& out, AllocCounters* counters, int split_at_most = 0);
+             const kernels::RaycastOutputView& out, AllocCounters* counters,
+             const RaycastLaunch& how = {});
 
 /// warp_raycast_depth on the device: the raycast (`depth`, `points`, `normals`, `from_pixels`
 /// each) seen from `view`, into `out` (one depth per pixel of the view); `nearest` is scratch of

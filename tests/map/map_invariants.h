@@ -120,11 +120,12 @@ inline void expect_hierarchy_consistent(const VoxelBlockMap& map,
           << "the level-" << l << " ancestor of level-" << b.level << " block (" << b.pos.x << ", "
           << b.pos.y << ", " << b.pos.z << ") is not a Split entry";
     }
-    if (b.level > 0)
+    if (b.level > 0) {
       for (int c = 0; c < 8; ++c)
         ASSERT_EQ(find_block_ptr(v.level[b.level - 1], child(b.pos, c)), kPtrEmpty)
             << "region stored at two levels: level-" << b.level << " block (" << b.pos.x << ", "
             << b.pos.y << ", " << b.pos.z << ") has a child";
+    }
   }
   for (int l = 1; l < v.levels; ++l)
     for (int32_t e = 0; e < v.level[l].entry_count; ++e) {

@@ -73,6 +73,18 @@ class GpuReconstruction {
   /// CPU model cannot judge that gain (bench/ray_cost); not yet run on a GPU, so not the default.
   void set_split_marches(int at_most);
 
+  /// At most how many registers a thread of the model raycast's kernel takes: 0 (the default),
+  /// as many as the compiler likes (160 for sm_90 with CUDA 13, so 12 warps of it fit a
+  /// multiprocessor: the 2400 warps of a 320x240 model take two waves); 128, 96, 80 or 64: more
+  /// warps at once (16, 20, 24, 32), the rest of a thread's values spilled to its local memory
+  /// (a few dozen bytes loaded a ray). The same rays, the same arithmetic: the same model. 128
+  /// was 4 % slower on an H200 (2026-11-26); the others, which fit every warp at once, are not
+  /// yet timed, so not the default. `Error(InvalidArgument)` for other counts.
+  void set_raycast_registers(int at_most);
+  /// The registers a thread of the model raycast's kernel takes now, as the device's driver
+  /// reports them (0 in the CPU emulation of CUDA).
+  int raycast_registers() const;
+
   const std::vector<StampedPose>& trajectory() const;
   const std::vector<FrameStats>& frames() const;
   /// The last frame's tracking (Good, with no ICP numbers, for a frame fused at a given pose).
