@@ -635,7 +635,8 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
     ASSERT_EQ(a.colors.size(), b.colors.size());
     EXPECT_EQ(cpu_removed.pieces, gpu_removed.pieces);
     const test::MeshDifferences d = test::mesh_differences(a, b);
-    EXPECT_EQ(d.positions, 0) << test::describe_mesh_difference(a, b);
+    EXPECT_EQ(d.positions, 0) << test::describe_mesh_difference(a, b)
+                              << test::describe_first_difference_in_map(a, b, *map);
     EXPECT_EQ(d.normals, 0);
     EXPECT_EQ(d.colors, 0);
     EXPECT_EQ(d.levels, 0);
@@ -691,7 +692,8 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
       << test::describe_mesh_difference(on_device, on_host);
   EXPECT_EQ(on_device.triangle_count(), on_host.triangle_count());
   EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f)
-      << test::describe_mesh_difference(on_device, on_host);
+      << test::describe_mesh_difference(on_device, on_host)
+      << test::describe_first_difference_in_map(on_device, on_host, gpu->map());
 
   // A whole run, as `hivox reconstruct --device cuda` makes it (meshed on the device).
   TempDir dir;

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <regex>
+#include <string>
 #include <vector>
 
 #include "hivox/mesh/extract_mesh.h"
@@ -130,6 +132,44 @@ TEST(MeshPasses, GiveExtractMeshsMeshAcrossLevels) {
     }
     expect_identical(reference, passes.mesh);
   }
+}
+
+// The tests' description of a vertex in its map (describe_vertex_in_map, used where two meshers
+// disagree): the values it gives at the ends of the vertex's edge (the level's own, or a coarser
+// lattice's at a level boundary) put a linear zero crossing where the vertex is.
+TEST(MeshTestUtil, DescribesAVertexByItsEdgeAndTheMapsValues) {
+  const auto map = three_level_scene();
+  const TriangleMesh mesh = extract_mesh(*map);
+  const std::regex end_re(R"(\[([^\]]*)\])");
+  const std::regex value_re(R"((?:own|lattice|voxel) (-?[0-9.e+-]+))");
+  const std::regex t_re(R"(, t (-?[0-9.e+-]+):)");
+  int64_t checked = 0, with_lattice = 0;
+  for (std::size_t v = 0; v < mesh.positions_w.size(); v += 7) {
+    const std::string d = test::describe_vertex_in_map(*map, mesh.positions_w[v], mesh.levels[v]);
+    std::smatch t_match;
+    ASSERT_TRUE(std::regex_search(d, t_match, t_re)) << d;
+    const double t = std::stod(t_match[1]);
+    std::vector<std::vector<double>> ends;
+    for (auto e = std::sregex_iterator(d.begin(), d.end(), end_re); e != std::sregex_iterator();
+         ++e) {
+      const std::string inside = (*e)[1];
+      ends.emplace_back();
+      for (auto x = std::sregex_iterator(inside.begin(), inside.end(), value_re);
+           x != std::sregex_iterator(); ++x)
+        // An exact 0 is meshed as kZeroTsdf (mesh_kernels.h).
+        ends.back().push_back(std::stod((*x)[1]) == 0.0 ? kernels::kZeroTsdf : std::stod((*x)[1]));
+    }
+    ASSERT_EQ(ends.size(), 2u) << d;
+    with_lattice += d.find("lattice") != std::string::npos;
+    double closest = 1e9;
+    for (double f0 : ends[0])
+      for (double f1 : ends[1])
+        if (f0 != f1) closest = std::min(closest, std::abs(t - f0 / (f0 - f1)));
+    EXPECT_LT(closest, 1e-4) << d;
+    ++checked;
+  }
+  EXPECT_GT(checked, 1000);
+  EXPECT_GT(with_lattice, 10) << "level boundaries, sampled on the coarser lattice";
 }
 
 TEST(MeshPasses, AnEmptyMapGivesAnEmptyMesh) {

@@ -20,6 +20,7 @@
 #include "hivox/mesh/params.h"
 #include "hivox/mesh/triangle_mesh.h"
 #include "map/map_access.h"
+#include "map/sample_kernels.h"
 
 namespace hivox::test {
 
@@ -219,6 +220,92 @@ inline std::string describe_mesh_difference(const TriangleMesh& a, const Triangl
     return s;
   };
   return out + list(a, only_a, "the first") + list(b, only_b, "the second");
+}
+
+/// What `map` holds where vertex `p` of level `level` was made: its edge (the lattice points of
+/// the level below and above it along the axis where it is off the lattice), and at both ends
+/// the level's own voxel (TSDF, weight), or that its block is split (with the finer level's
+/// voxel there) or missing, and the value each coarser level gives there on its own lattice
+/// (what a mesher samples at a level boundary). For telling which of two meshers made a vertex from
+/// the map's values.
+inline std::string describe_vertex_in_map(const VoxelBlockMap& map, const Vec3f& p, int level) {
+  const MapView view = map.view();
+  if (level < 0 || level >= view.levels) return "level " + std::to_string(level) + " not in map";
+  const float voxel_m = view.level[level].voxel_size_m;
+  const Vec3f q{p.x / voxel_m, p.y / voxel_m, p.z / voxel_m};
+  int axis = 0;
+  float off = 0.0f;
+  for (int a = 0; a < 3; ++a) {
+    const float d = std::abs(q[a] - std::round(q[a]));
+    if (d > off) {
+      off = d;
+      axis = a;
+    }
+  }
+  const Vec3i lo{static_cast<int>(std::floor(q.x)), static_cast<int>(std::floor(q.y)),
+                 static_cast<int>(std::floor(q.z))};
+  Vec3i g = Vec3i{static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)),
+                  static_cast<int>(std::lround(q.z))};
+  g[axis] = lo[axis];
+  char head[160];
+  std::snprintf(head, sizeof head, "edge (%d %d %d)+%c at level %d, t %.6f:", g.x, g.y, g.z,
+                "xyz"[axis], level, static_cast<double>(q[axis] - static_cast<float>(g[axis])));
+  std::string out = head;
+  const auto cache = std::make_unique<kernels::BlockLookupCache>();
+  cache->reset();
+  for (int end = 0; end < 2; ++end) {
+    Vec3i v = g;
+    v[axis] += end;
+    out += end == 0 ? " [" : "; [";
+    const int32_t ptr = find_block_ptr(view.level[level], block_of_voxel(v));
+    char s[160];
+    if (ptr >= 0) {
+      const TsdfVoxel t = view.tsdf[int64_t{ptr} * kBlockVoxels + local_voxel_index(v)];
+      std::snprintf(s, sizeof s, "own %.7g w %d", static_cast<double>(tsdf_to_float(t.tsdf)),
+                    static_cast<int>(t.weight));
+    } else {
+      std::snprintf(s, sizeof s, "%s", ptr == kPtrSplit ? "split" : "no block");
+    }
+    out += s;
+    // A split block's point is a voxel of a finer level (the one its Split entries lead to).
+    for (int l = level - 1, k = 2; ptr == kPtrSplit && l >= 0; --l, k *= 2) {
+      const Vec3i fine{v.x * k, v.y * k, v.z * k};
+      const int32_t fine_ptr = find_block_ptr(view.level[l], block_of_voxel(fine));
+      if (fine_ptr >= 0) {
+        const TsdfVoxel t = view.tsdf[int64_t{fine_ptr} * kBlockVoxels + local_voxel_index(fine)];
+        std::snprintf(s, sizeof s, ", level %d voxel %.7g w %d", l,
+                      static_cast<double>(tsdf_to_float(t.tsdf)), static_cast<int>(t.weight));
+        out += s;
+      }
+      if (fine_ptr != kPtrSplit) break;
+    }
+    for (int l = level + 1; l < view.levels; ++l) {
+      float f = 0.0f;
+      int32_t nearest_ptr = -1;
+      int nearest_index = -1;
+      if (kernels::sample_on_coarser_lattice(view, *cache, level, v, l, 1.0f, &f, &nearest_ptr,
+                                             &nearest_index)) {
+        std::snprintf(s, sizeof s, ", level %d lattice %.7g", l, static_cast<double>(f));
+        out += s;
+      }
+    }
+    out += "]";
+  }
+  return out;
+}
+
+/// describe_vertex_in_map for the first vertex whose position differs between `a` and `b` (by
+/// index), each as its mesh made it.
+inline std::string describe_first_difference_in_map(const TriangleMesh& a, const TriangleMesh& b,
+                                                    const VoxelBlockMap& map) {
+  const std::size_t n = std::min(a.positions_w.size(), b.positions_w.size());
+  for (std::size_t v = 0; v < n; ++v)
+    if (norm(a.positions_w[v] - b.positions_w[v]) > 1e-6f && v < a.levels.size() &&
+        v < b.levels.size())
+      return "\nvertex " + std::to_string(v) +
+             " in the first: " + describe_vertex_in_map(map, a.positions_w[v], a.levels[v]) +
+             "\nin the second: " + describe_vertex_in_map(map, b.positions_w[v], b.levels[v]);
+  return {};
 }
 
 inline Eigen::Vector3d to_eigen(const Vec3f& v) {
