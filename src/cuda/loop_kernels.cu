@@ -289,12 +289,11 @@ constexpr int kRaycastThreads = kRaycastThreadsX * kRaycastThreadsY;
 /// the kernel's __grid_constant__: the functions it calls take the view by reference, which
 /// would otherwise copy it onto each thread's stack.
 template <bool kSplit>
-__device__ HIVOX_FORCEINLINE void cast_ray_of_thread(const MapView& map, const PinholeCamera& cam,
-                                                     const Rigid3f& T_wc,
-                                                     const kernels::RangeTiles& tiles,
-                                                     const kernels::RayMarchConstants& k,
-                                                     const RayHintImages& hint,
-                                                     const kernels::RaycastOutputView& out,
+__device__ HIVOX_FORCEINLINE void cast_ray_of_thread(const MapView& map, PinholeCamera cam,
+                                                     Rigid3f T_wc, kernels::RangeTiles tiles,
+                                                     kernels::RayMarchConstants k,
+                                                     RayHintImages hint,
+                                                     kernels::RaycastOutputView out,
                                                      AllocCounters* counters, int split_at_most) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
@@ -631,12 +630,10 @@ using RayKernel = void (*)(MapView, PinholeCamera, Rigid3f, kernels::RangeTiles,
 /// GpuReconstruction lets no other count through) the one without.
 template <bool kSplit, std::size_t... kCap>
 RayKernel ray_kernel(int registers, std::index_sequence<kCap...>) {
-  RayKernel kernel = cast_rays_kernel<kSplit>;
-  ((registers == kRaycastRegisterCaps[kCap]
-        ? kernel = capped_cast_rays_kernel<kSplit, kRaycastRegisterCaps[kCap]>
-        : kernel),
-   ...);
-  return kernel;
+  const RayKernel capped[] = {capped_cast_rays_kernel<kSplit, kRaycastRegisterCaps[kCap]>...};
+  for (std::size_t i = 0; i < sizeof...(kCap); ++i)
+    if (registers == kRaycastRegisterCaps[i]) return capped[i];
+  return cast_rays_kernel<kSplit>;
 }
 
 RayKernel ray_kernel(const RaycastLaunch& how) {

@@ -79,9 +79,6 @@ struct RayHintImages {
   const float* fallback_m = nullptr;
 };
 
-/// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
-/// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
-/// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
 /// How the rays are launched (GpuReconstruction's set_split_marches, set_raycast_registers).
 struct RaycastLaunch {
   /// > 0: a warp where at most that many rays march splits each march across its lanes
