@@ -4,8 +4,8 @@
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
 # alternated (the ray kernel's register caps, split marches, Gauss-Newton on the host, the coarse
 # grid off, together; 3 levels and the fixed grid), frames decoded as the loop goes (in turn and
-# ahead on 8 threads), meshing on the device against the host, and last compute-sanitizer's
-# memcheck on the newest tests.
+# ahead on 8 threads), meshing on the device against the host, ncu on the ray kernel (where
+# ncu is installed), and last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. A device machine that returns only a few files: give an OUT outside the
@@ -95,6 +95,16 @@ for data in fr1 desk; do
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
 bench desk_l3_mesh "$desk" 3 --poses gt --mesh
+# The ray kernel as ncu sees it, without and with a register cap: its registers, occupancy,
+# waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
+ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
+if [ -n "$ncu" ] && [ -n "$fr1" ]; then
+  for regs in 0 96; do
+    step "ncu_rays_regs$regs" "$ncu" --kernel-name regex:cast_rays --launch-skip 40 \
+      --launch-count 3 --section LaunchStats --section Occupancy --section SpeedOfLight \
+      --section WarpStateStats "$loop" "$fr1" --levels 3 --frames 50 --raycast-registers "$regs"
+  done
+fi
 if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
