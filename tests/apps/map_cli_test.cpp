@@ -245,8 +245,8 @@ TEST_F(MapCli, BadInputGetsOneClearLine) {
 TEST(MapCliInterrupt, AnInterruptedRunSavesItsMap) {
   test::TempDir dir;
   const auto r = test::run_hivox_interrupted(
-      "reconstruct 'synthetic:desk?frames=2000&noise=none' --poses gt --levels 1 --voxel-size "
-      "0.01 --truncation 0.04 --save-map " +
+      "reconstruct 'synthetic:desk?frames=2000&noise=none&width=160&height=120' --poses gt "
+      "--levels 1 --voxel-size 0.01 --truncation 0.04 --save-map " +
           (dir / "m.hvx").string() + " --out " + (dir / "run").string(),
       50, (dir / "log.txt").string());
   EXPECT_EQ(r.exit_code, 130) << r.output;

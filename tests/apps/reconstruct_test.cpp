@@ -253,8 +253,8 @@ TEST(Reconstruct, AnInterruptWritesTheFramesSoFarAndExitsNonZero) {
   test::TempDir dir;
   const fs::path out = dir / "run";
   const auto r = test::run_hivox_interrupted(
-      "reconstruct 'synthetic:desk?frames=2000&noise=none' --poses gt --levels 1 "
-      "--voxel-size 0.01 --truncation 0.04 --out " +
+      "reconstruct 'synthetic:desk?frames=2000&noise=none&width=160&height=120' --poses gt "
+      "--levels 1 --voxel-size 0.01 --truncation 0.04 --out " +
           out.string(),
       50, (dir / "log.txt").string());
   EXPECT_EQ(r.exit_code, 130) << r.output;
