@@ -689,7 +689,8 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   const TriangleMesh on_device = gpu->extract_mesh();
   const TriangleMesh on_host = extract_mesh(gpu->map());
   ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count())
-      << test::describe_mesh_difference(on_device, on_host);
+      << test::describe_mesh_difference(on_device, on_host)
+      << test::describe_first_difference_in_map(on_device, on_host, gpu->map());
   EXPECT_EQ(on_device.triangle_count(), on_host.triangle_count());
   EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f)
       << test::describe_mesh_difference(on_device, on_host)
