@@ -174,11 +174,12 @@ int main(int argc, char** argv) {
     gpu->set_gauss_newton_on_device(!gn_on_host);
     gpu->set_split_marches(split_marches);
     gpu->set_raycast_registers(raycast_registers);
+    const int registers = gpu->raycast_registers();
     std::printf(
         "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; the "
         "raycast's kernel takes %d registers a thread (at most %s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
-        split_marches, gpu->raycast_registers(),
+        split_marches, registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
     std::vector<StampedPose> gt;
@@ -277,7 +278,7 @@ int main(int argc, char** argv) {
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches
           << ", \"raycast_registers_at_most\": " << raycast_registers
-          << ", \"raycast_registers\": " << gpu->raycast_registers() << ", \"handover\": " << k
+          << ", \"raycast_registers\": " << registers << ", \"handover\": " << k
           << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads
           << ", \"wall_fps\": " << wall_fps << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms

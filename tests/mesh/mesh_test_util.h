@@ -144,14 +144,15 @@ inline std::vector<std::pair<const char*, MeshParams>> mesh_param_cases() {
 /// colours more than 1 apart in a channel, levels, triangles.
 struct MeshDifferences {
   int64_t positions = 0, normals = 0, colors = 0, levels = 0, triangles = 0;
-  float farthest_m = 0.0f;  ///< the largest distance between two vertices of the same index
+  float farthest_m = 0.0f;   ///< the largest distance between two vertices of the same index
+  int64_t first_apart = -1;  ///< the first index whose positions differ, or -1
 };
 inline MeshDifferences mesh_differences(const TriangleMesh& a, const TriangleMesh& b) {
   MeshDifferences d;
   for (std::size_t v = 0; v < a.positions_w.size() && v < b.positions_w.size(); ++v) {
     const float apart = norm(a.positions_w[v] - b.positions_w[v]);
     d.farthest_m = std::max(d.farthest_m, apart);
-    d.positions += apart > 1e-6f;
+    if (apart > 1e-6f && d.positions++ == 0) d.first_apart = static_cast<int64_t>(v);
     if (v < a.normals_w.size() && v < b.normals_w.size())
       d.normals += dot(a.normals_w[v], b.normals_w[v]) < 0.9999f;
     if (v < a.colors.size() && v < b.colors.size())
@@ -181,13 +182,11 @@ inline std::string describe_mesh_difference(const TriangleMesh& a, const Triangl
   std::string out = std::to_string(a.vertex_count()) + " / " + std::to_string(b.vertex_count()) +
                     " vertices, " + std::to_string(a.triangle_count()) + " / " +
                     std::to_string(b.triangle_count()) + " triangles";
-  const std::size_t n = std::min(a.positions_w.size(), b.positions_w.size());
-  for (std::size_t v = 0; v < n; ++v)
-    if (norm(a.positions_w[v] - b.positions_w[v]) > 1e-6f) {
-      out += "; first vertex apart: " + std::to_string(v) + " " + point(a.positions_w[v]) +
-             " level " + level(a, v) + " / " + point(b.positions_w[v]) + " level " + level(b, v);
-      break;
-    }
+  if (const int64_t first = mesh_differences(a, b).first_apart; first >= 0) {
+    const auto v = static_cast<std::size_t>(first);
+    out += "; first vertex apart: " + std::to_string(v) + " " + point(a.positions_w[v]) +
+           " level " + level(a, v) + " / " + point(b.positions_w[v]) + " level " + level(b, v);
+  }
   auto less = [](const Vec3f& p, const Vec3f& q) {
     return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
   };
@@ -224,8 +223,8 @@ inline std::string describe_mesh_difference(const TriangleMesh& a, const Triangl
 
 /// What `map` holds where vertex `p` of level `level` was made: its edge (the lattice points of
 /// the level below and above it along the axis where it is off the lattice), and at both ends
-/// the level's own voxel (TSDF, weight), or that its block is split (with the finer level's
-/// voxel there) or missing, and the value each coarser level gives there on its own lattice
+/// the voxel there (TSDF, weight) of the level or, where its block is split, of a finer one, and
+/// the value each coarser level gives there on its own lattice
 /// (what a mesher samples at a level boundary). For telling which of two meshers made a vertex from
 /// the map's values.
 inline std::string describe_vertex_in_map(const VoxelBlockMap& map, const Vec3f& p, int level) {
@@ -233,52 +232,35 @@ inline std::string describe_vertex_in_map(const VoxelBlockMap& map, const Vec3f&
   if (level < 0 || level >= view.levels) return "level " + std::to_string(level) + " not in map";
   const float voxel_m = view.level[level].voxel_size_m;
   const Vec3f q{p.x / voxel_m, p.y / voxel_m, p.z / voxel_m};
+  // The edge's axis: where the vertex is farthest from the lattice.
   int axis = 0;
-  float off = 0.0f;
-  for (int a = 0; a < 3; ++a) {
-    const float d = std::abs(q[a] - std::round(q[a]));
-    if (d > off) {
-      off = d;
-      axis = a;
-    }
-  }
-  const Vec3i lo{static_cast<int>(std::floor(q.x)), static_cast<int>(std::floor(q.y)),
-                 static_cast<int>(std::floor(q.z))};
-  Vec3i g = Vec3i{static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)),
-                  static_cast<int>(std::lround(q.z))};
-  g[axis] = lo[axis];
-  char head[160];
-  std::snprintf(head, sizeof head, "edge (%d %d %d)+%c at level %d, t %.6f:", g.x, g.y, g.z,
-                "xyz"[axis], level, static_cast<double>(q[axis] - static_cast<float>(g[axis])));
-  std::string out = head;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(q[a] - std::round(q[a])) > std::abs(q[axis] - std::round(q[axis]))) axis = a;
+  Vec3i g{static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)),
+          static_cast<int>(std::lround(q.z))};
+  g[axis] = static_cast<int>(std::floor(q[axis]));
+  char s[160];
+  std::snprintf(s, sizeof s, "edge (%d %d %d)+%c at level %d, t %.6f:", g.x, g.y, g.z, "xyz"[axis],
+                level, static_cast<double>(q[axis] - static_cast<float>(g[axis])));
+  std::string out = s;
   const auto cache = std::make_unique<kernels::BlockLookupCache>();
   cache->reset();
   for (int end = 0; end < 2; ++end) {
     Vec3i v = g;
     v[axis] += end;
     out += end == 0 ? " [" : "; [";
-    const int32_t ptr = find_block_ptr(view.level[level], block_of_voxel(v));
-    char s[160];
-    if (ptr >= 0) {
-      const TsdfVoxel t = view.tsdf[int64_t{ptr} * kBlockVoxels + local_voxel_index(v)];
-      std::snprintf(s, sizeof s, "own %.7g w %d", static_cast<double>(tsdf_to_float(t.tsdf)),
-                    static_cast<int>(t.weight));
+    // The voxel at the point: the level's own, or a finer one where its block is split.
+    int32_t ptr = -1;
+    Vec3i voxel;
+    const int at = kernels::voxel_at_or_finer(view, *cache, level, v, &ptr, &voxel);
+    if (at >= 0) {
+      const TsdfVoxel t = view.tsdf[int64_t{ptr} * kBlockVoxels + local_voxel_index(voxel)];
+      std::snprintf(s, sizeof s, "level %d voxel %.7g w %d", at,
+                    static_cast<double>(tsdf_to_float(t.tsdf)), static_cast<int>(t.weight));
     } else {
-      std::snprintf(s, sizeof s, "%s", ptr == kPtrSplit ? "split" : "no block");
+      std::snprintf(s, sizeof s, "no voxel at level %d or finer", level);
     }
     out += s;
-    // A split block's point is a voxel of a finer level (the one its Split entries lead to).
-    for (int l = level - 1, k = 2; ptr == kPtrSplit && l >= 0; --l, k *= 2) {
-      const Vec3i fine{v.x * k, v.y * k, v.z * k};
-      const int32_t fine_ptr = find_block_ptr(view.level[l], block_of_voxel(fine));
-      if (fine_ptr >= 0) {
-        const TsdfVoxel t = view.tsdf[int64_t{fine_ptr} * kBlockVoxels + local_voxel_index(fine)];
-        std::snprintf(s, sizeof s, ", level %d voxel %.7g w %d", l,
-                      static_cast<double>(tsdf_to_float(t.tsdf)), static_cast<int>(t.weight));
-        out += s;
-      }
-      if (fine_ptr != kPtrSplit) break;
-    }
     for (int l = level + 1; l < view.levels; ++l) {
       float f = 0.0f;
       int32_t nearest_ptr = -1;
@@ -298,14 +280,12 @@ inline std::string describe_vertex_in_map(const VoxelBlockMap& map, const Vec3f&
 /// index), each as its mesh made it.
 inline std::string describe_first_difference_in_map(const TriangleMesh& a, const TriangleMesh& b,
                                                     const VoxelBlockMap& map) {
-  const std::size_t n = std::min(a.positions_w.size(), b.positions_w.size());
-  for (std::size_t v = 0; v < n; ++v)
-    if (norm(a.positions_w[v] - b.positions_w[v]) > 1e-6f && v < a.levels.size() &&
-        v < b.levels.size())
-      return "\nvertex " + std::to_string(v) +
-             " in the first: " + describe_vertex_in_map(map, a.positions_w[v], a.levels[v]) +
-             "\nin the second: " + describe_vertex_in_map(map, b.positions_w[v], b.levels[v]);
-  return {};
+  const int64_t first = mesh_differences(a, b).first_apart;
+  const auto v = static_cast<std::size_t>(first);
+  if (first < 0 || v >= a.levels.size() || v >= b.levels.size()) return {};
+  return "\nvertex " + std::to_string(v) +
+         " in the first: " + describe_vertex_in_map(map, a.positions_w[v], a.levels[v]) +
+         "\nin the second: " + describe_vertex_in_map(map, b.positions_w[v], b.levels[v]);
 }
 
 inline Eigen::Vector3d to_eigen(const Vec3f& v) {
