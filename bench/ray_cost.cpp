@@ -13,8 +13,12 @@
 //   ray_cost ../shared/data/tum_fr1_rpy --frames 120 --at 119
 //   ray_cost synthetic:desk?frames=60 --levels 1 --top 10
 //
-// Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step) and
-// `no-grid` (unallocated space crossed block by block).
+// Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step),
+// `no-grid` (unallocated space crossed block by block) and `level-hints` (the grid, and each
+// ray's first look-up starting at the level its pixel hit in the raycast before, as the device's
+// rays start). Each variant also counts the rays' hash-table look-ups (a fresh block cache per
+// ray, as a GPU thread's): on a GPU each is a chain of dependent reads, and a warp waits for its
+// lane with the most; the counts are exact where the times are noisy.
 
 #include <CLI/CLI.hpp>
 
@@ -49,7 +53,9 @@ struct Ray {
   kernels::RayHints hints;
   kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
   double ns = 1e30;
-  float depth_m = 0;  ///< the hit's
+  int64_t lookups = 0;  ///< of the hash tables (the ray's block cache starts empty)
+  float depth_m = 0;    ///< the hit's
+  int level = -1;       ///< the hit's
 };
 
 const char* outcome_name(kernels::RayOutcome o) {
@@ -70,6 +76,7 @@ const char* outcome_name(kernels::RayOutcome o) {
 struct Variant {
   std::string name;
   kernels::RayMarchConstants k;
+  bool level_hints = false;  ///< each ray's search starts at the level its pixel hit last time
   std::vector<Ray> rays;
 };
 
@@ -78,9 +85,11 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   const int wy = (cam.height + kWarpHeight - 1) / kWarpHeight;
   std::vector<double> warp_max(static_cast<std::size_t>(wx) * wy, 0.0);
   std::vector<int> warp_slowest(warp_max.size(), -1);
+  std::vector<int64_t> warp_lookups(warp_max.size(), 0);
   double total = 0;
-  int64_t by_outcome[4] = {};
+  int64_t by_outcome[4] = {}, lookups_by_outcome[4] = {}, lookups = 0;
   double ns_by_outcome[4] = {};
+  int64_t hits_by_level[kMaxLevels] = {};
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       const int i = y * cam.width + x;
@@ -89,7 +98,11 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       const auto o = static_cast<int>(r.outcome);
       ++by_outcome[o];
       ns_by_outcome[o] += r.ns;
+      lookups_by_outcome[o] += r.lookups;
+      lookups += r.lookups;
+      if (r.level >= 0 && r.level < kMaxLevels) ++hits_by_level[r.level];
       const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
+      warp_lookups[w] = std::max(warp_lookups[w], r.lookups);
       if (r.ns > warp_max[w]) {
         warp_max[w] = r.ns;
         warp_slowest[w] = i;
@@ -116,6 +129,20 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
                 static_cast<long long>(by_outcome[o]),
                 by_outcome[o] > 0 ? ns_by_outcome[o] / by_outcome[o] : 0.0);
   std::printf("\n");
+  // Each look-up the cache does not answer is a chain of dependent reads on a GPU; a warp waits
+  // for its lane with the most.
+  const auto per = [](int64_t a, int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; };
+  std::printf("  table look-ups: %.2f a ray (", per(lookups, static_cast<int64_t>(v.rays.size())));
+  for (int o = 0; o < 4; ++o)
+    std::printf("%s%s %.2f", o > 0 ? ", " : "", outcome_name(static_cast<kernels::RayOutcome>(o)),
+                per(lookups_by_outcome[o], by_outcome[o]));
+  std::printf("); warps' most: %.2f a warp\n",
+              per(std::accumulate(warp_lookups.begin(), warp_lookups.end(), int64_t{0}),
+                  static_cast<int64_t>(warp_lookups.size())));
+  std::printf("  hits by level:");
+  for (int l = 0; l < kMaxLevels; ++l)
+    if (hits_by_level[l] > 0) std::printf(" %d: %lld", l, static_cast<long long>(hits_by_level[l]));
+  std::printf("\n");
   for (int t = 0; t < top && t < static_cast<int>(order.size()); ++t) {
     const int i = warp_slowest[order[static_cast<std::size_t>(t)]];
     const Ray& r = v.rays[static_cast<std::size_t>(i)];
@@ -140,7 +167,7 @@ int main(int argc, char** argv) {
   app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
   app.add_option("--top", top, "slowest warps to describe");
   app.add_option("--dump", dump,
-                 "write every ray's outcome and hit depth (first variant) here, one line a ray: "
+                 "write every ray's outcome and hit depth (last variant) here, one line a ray: "
                  "two builds' files are equal where a change keeps the raycast's result");
   CLI11_PARSE(app, argc, argv);
 
@@ -191,9 +218,13 @@ int main(int argc, char** argv) {
     variants.push_back(
         {"grid",
          kernels::march_constants(p.raycast, view, kernels::build_coarse_occupancy(map, &cells)),
+         false,
          {}});
-    variants.push_back(
-        {"no-grid", kernels::march_constants(p.raycast, view, kernels::CoarseOccupancy{}), {}});
+    variants.push_back({"no-grid",
+                        kernels::march_constants(p.raycast, view, kernels::CoarseOccupancy{}),
+                        false,
+                        {}});
+    variants.push_back({"level-hints", variants.front().k, true, {}});
 
     const std::size_t pixels = static_cast<std::size_t>(cam.width) * cam.height;
     for (Variant& v : variants) {
@@ -207,6 +238,7 @@ int main(int argc, char** argv) {
           const float start = hints.start_m != nullptr ? (*hints.start_m)(x, y) : 0.0f;
           const float fallback = hints.fallback_m != nullptr ? (*hints.fallback_m)(x, y) : 0.0f;
           r.hints = kernels::ray_hints(start, fallback, v.k, r.z_min, r.z_max);
+          if (v.level_hints && !previous.levels.empty()) r.hints.level = previous.levels(x, y);
           r.dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
         }
     }
@@ -220,13 +252,15 @@ int main(int argc, char** argv) {
               kernels::cast_ray(view, cache, T.t, r.dir, r.hints, r.z_min, r.z_max, v.k, &hit);
           const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
           r.ns = std::min(r.ns, ns);
+          r.lookups = cache.table_lookups;
           r.depth_m = hit.depth_m;
+          r.level = r.outcome == kernels::RayOutcome::Miss ? -1 : hit.level;
         }
     for (const Variant& v : variants) report(v, cam, top);
     if (!dump.empty()) {
       FILE* out = std::fopen(dump.c_str(), "w");
       if (out == nullptr) fail(ErrorCode::Io, "--dump {}: cannot be written", dump);
-      for (const Ray& r : variants.front().rays)
+      for (const Ray& r : variants.back().rays)
         std::fprintf(out, "%d %.7f\n", static_cast<int>(r.outcome), r.depth_m);
       std::fclose(out);
     }

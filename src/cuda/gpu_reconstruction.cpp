@@ -743,6 +743,7 @@ struct GpuReconstruction::Impl {
                  static_cast<int64_t>(c.width) * c.height, warp_nearest.get(), warped.get());
       hint.fallback_m = warped.get();
     }
+    if (has_model) hint.levels = model_levels.get();  // the surface's levels a raycast ago
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
                   tiles, k, hint, out, alloc_counters.get(), ray_launch);
     int32_t* hits = &host_counters.reserve(1)->raycast_hits;  // page-locked: a direct copy

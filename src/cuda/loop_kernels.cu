@@ -233,6 +233,7 @@ __device__ PixelRay pixel_ray(const PinholeCamera& cam, const Rigid3f& T_wc,
   const float fallback =
       hint.fallback_m != nullptr ? hint.fallback_m[static_cast<int64_t>(y) * cam.width + x] : 0.0f;
   r.hints = kernels::ray_hints(start, fallback, k, r.z_min, r.z_max);
+  if (hint.levels != nullptr) r.hints.level = hint.levels[static_cast<int64_t>(y) * cam.width + x];
   r.dir = T_wc.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
   return r;
 }

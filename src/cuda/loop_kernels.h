@@ -77,6 +77,9 @@ struct RayHintImages {
   int width = 0;
   int subsample = 1;
   const float* fallback_m = nullptr;
+  /// The previous raycast's levels (the model's own image: each ray reads its pixel before it
+  /// writes it): where each ray's search starts its look-ups (kernels::RayHints::level).
+  const int8_t* levels = nullptr;
 };
 
 /// How the rays are launched (GpuReconstruction's set_split_marches, set_raycast_registers).

@@ -28,6 +28,11 @@ struct BlockLookupCache {
     int32_t ptr = kPtrEmpty;
   };
   Slot slots[kSlots];
+#if !defined(__CUDA_ARCH__)
+  /// Look-ups the cache did not answer (each a search of the hash table): what a cost model of
+  /// the device's rays counts (bench/ray_cost). Host only.
+  int64_t table_lookups = 0;
+#endif
 
   HIVOX_HD void reset() {
     for (int i = 0; i < kSlots; ++i) slots[i].level = -1;
@@ -39,23 +44,47 @@ struct BlockLookupCache {
     s.pos = p;
     s.level = lvl;
     s.ptr = find_block_ptr(map.level[lvl], p);
+#if !defined(__CUDA_ARCH__)
+    ++table_lookups;
+#endif
     return s.ptr;
   }
 };
 
-/// The block storing world point `p_w`: starts at the coarsest level and descends through Split
-/// entries. Returns the block's ptr, or kPtrEmpty when nothing is stored there; `level` and
-/// `pos` receive the level and block where the search ended.
+/// The block storing world point `p_w`. Returns the block's ptr, or kPtrEmpty when nothing is
+/// stored there; `level` and `pos` receive the level and block where the search ended: the
+/// stored block, else the coarsest level with nothing there.
+/// The search starts at `start_level` (the coarsest level when it is out of range): from a
+/// level that stores the point it takes one look-up instead of one per level above it (a
+/// surface's neighbouring samples mostly lie at one level). From there it descends through Split
+/// entries, or climbs while nothing is stored, until a stored block, or a Split entry above
+/// an empty one. Since every stored block's coarser ancestors are Split and no region is stored
+/// at two levels, it ends where the descent from the coarsest level ends, from any start.
 HIVOX_HD inline int32_t locate_block(const MapView& map, BlockLookupCache& cache, const Vec3f& p_w,
-                                     int* level, Vec3i* pos) {
-  for (int l = map.levels - 1; l >= 0; --l) {
-    const Vec3i b = block_of_point(map.level[l], p_w);
-    const int32_t ptr = cache.find(map, l, b);
-    *level = l;
-    *pos = b;
-    if (ptr != kPtrSplit) return ptr;
+                                     int* level, Vec3i* pos, int start_level = -1) {
+  int l = start_level >= 0 && start_level < map.levels ? start_level : map.levels - 1;
+  Vec3i b = block_of_point(map.level[l], p_w);
+  int32_t ptr = cache.find(map, l, b);
+  if (ptr == kPtrSplit) {
+    while (ptr == kPtrSplit && l > 0) {
+      --l;
+      b = block_of_point(map.level[l], p_w);
+      ptr = cache.find(map, l, b);
+    }
+  } else {
+    while (ptr < 0 && l + 1 < map.levels) {
+      const Vec3i up = block_of_point(map.level[l + 1], p_w);
+      const int32_t up_ptr = cache.find(map, l + 1, up);
+      // A Split entry has all 8 children, so this is a guard: the region is level l's, and empty.
+      if (up_ptr == kPtrSplit) break;
+      l = l + 1;
+      b = up;
+      ptr = up_ptr;
+    }
   }
-  return kPtrEmpty;
+  *level = l;
+  *pos = b;
+  return ptr == kPtrSplit ? kPtrEmpty : ptr;
 }
 
 /// Irregular-grid interpolation (paper §V): the function of the trilinear form
@@ -608,13 +637,15 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_on_coarser_lattice(
   return true;
 }
 
-/// The TSDF at `p_w`, at whatever level stores it (with `ray_d`: see sample_trilinear).
+/// The TSDF at `p_w`, at whatever level stores it (with `ray_d`: see sample_trilinear), searched
+/// for from `start_level` (see locate_block: the level of a sample near it, where there is one).
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_tsdf(const MapView& map, BlockLookupCache& cache,
                                                        const Vec3f& p_w, int min_weight,
                                                        TsdfSample* out, int* level,
-                                                       const Vec3f* ray_d = nullptr) {
+                                                       const Vec3f* ray_d = nullptr,
+                                                       int start_level = -1) {
   Vec3i pos;
-  const int32_t ptr = locate_block(map, cache, p_w, level, &pos);
+  const int32_t ptr = locate_block(map, cache, p_w, level, &pos, start_level);
   if (ptr < 0) return false;
   return sample_trilinear(map, cache, *level, p_w, min_weight, out, pos, ptr, nullptr, ray_d);
 }

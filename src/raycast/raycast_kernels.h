@@ -63,7 +63,8 @@ HIVOX_HD HIVOX_NOINLINE inline Vec3f tsdf_normal_across_levels(const MapView& ma
     a[k] += h;
     TsdfSample sa;
     int la;
-    if (!sample_tsdf(map, cache, a, min_weight, &sa, &la)) return normalized(fallback);
+    if (!sample_tsdf(map, cache, a, min_weight, &sa, &la, nullptr, level))
+      return normalized(fallback);
     g[k] = sa.f - f_at_p;
   }
   return normalized(g);
@@ -207,7 +208,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_bracket(const MapView& map,
     const float zm = bracket_secant(b);
     TsdfSample sm;
     int lm;
-    const bool sampled = sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm, &d);
+    const bool sampled = sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm, &d, b.level);
     if (bracket_update(b, zm, sampled, sm, lm)) break;
   }
   bracket_hit(b, o, d, hit);
@@ -265,6 +266,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
   int32_t ptr = kPtrEmpty;
   Vec3f lo{1.0f, 1.0f, 1.0f}, hi{0.0f, 0.0f, 0.0f};  // empty: forces the first look-up
   NeighbourBlocks neighbours;                        // of the cells that reach beyond the block
+  int stored_level = -1;
   while (z <= z_end) {
     const Vec3f p = o + d * z;
     if (!((p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x < hi.x) & (p.y < hi.y) &
@@ -279,7 +281,8 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
         side_m = k.occupancy.side_m;
         lo = to_float(super_block) * side_m;
       } else {
-        ptr = locate_block(map, cache, p, &level, &pos);
+        ptr = locate_block(map, cache, p, &level, &pos, stored_level);
+        stored_level = ptr >= 0 ? level : -1;
         side_m = map.level[level].block_size_m;
         lo = to_float(pos) * side_m;
       }
@@ -323,7 +326,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
           const float zm = 0.5f * (z_lo + z_hi);
           TsdfSample sm;
           int lm;
-          if (!sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm)) {
+          if (!sample_tsdf(map, cache, o + d * zm, k.min_weight, &sm, &lm, nullptr, level)) {
             z_hi = zm;  // still unknown: the crossing, if any, is nearer
             continue;
           }
@@ -360,7 +363,8 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
           if (z_back < z_start) break;
           TsdfSample sb;
           int lb;
-          if (!sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb)) continue;
+          if (!sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb, nullptr, level))
+            continue;
           if (sb.f > 0.0f) {
             refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
             return hit->depth_m <= z_end;
@@ -469,14 +473,15 @@ HIVOX_HD inline HintStep hint_search_update(HintSearch& h, const MapView& map, c
 
 /// Finds the surface at a ray's measured depth `z_hint` (see HintSearch) and refines it by the
 /// secant method. Returns false when no bracket is found within a few samples (the caller
-/// marches instead).
+/// marches instead). `start_level`: where the first sample's look-up starts (locate_block).
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool hit_near_hint(const MapView& map,
                                                          BlockLookupCache& cache, const Vec3f& o,
                                                          const Vec3f& d, float z_hint,
-                                                         const RayMarchConstants& k, RayHit* hit) {
+                                                         const RayMarchConstants& k, RayHit* hit,
+                                                         int start_level = -1) {
   TsdfSample s;
   int l;
-  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l, &d)) return false;
+  if (!sample_tsdf(map, cache, o + d * z_hint, k.min_weight, &s, &l, &d, start_level)) return false;
   CrossingBracket b;
   if (s.at_crossing()) {
     exact_bracket(map, d, z_hint, s, l, &b);  // the usual case: the surface is in the hint's cell
@@ -485,7 +490,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool hit_near_hint(const MapView& map,
     if (!hint_search_begin(map, d, z_hint, s, l, k, &h)) return false;
     for (;;) {
       const float z1 = hint_search_next(h, k);
-      const bool sampled = sample_tsdf(map, cache, o + d * z1, k.min_weight, &s, &l, &d);
+      const bool sampled = sample_tsdf(map, cache, o + d * z1, k.min_weight, &s, &l, &d, l);
       const HintStep step = hint_search_update(h, map, d, z1, sampled, s, l, &b);
       if (step == HintStep::GiveUp) return false;
       if (step == HintStep::Bracketed) break;
@@ -663,6 +668,9 @@ struct RayHints {
   float hint = 0;
   float second = 0;
   bool hint_is_fallback = false;  ///< `hint` comes from the fallback (`second`, if any, not)
+  /// The level the surface near the hints is likely stored at (the pixel's last hit, say): the
+  /// search's first look-up starts there (locate_block); -1: at the coarsest level.
+  int level = -1;
 
   /// Whether a ray with these hints that ended with `outcome` found its surface at the fallback.
   HIVOX_HD bool found_at_fallback(RayOutcome outcome) const {
@@ -700,7 +708,8 @@ HIVOX_HD inline RayOutcome search_at_hints(const MapView& map, BlockLookupCache&
                                            const Vec3f& o, const Vec3f& d, const RayHints& hints,
                                            float z_max, const RayMarchConstants& k, RayHit* hit) {
   auto near = [&](float hint) {
-    return hint > 0.0f && hit_near_hint(map, cache, o, d, hint, k, hit) && hit->depth_m <= z_max;
+    return hint > 0.0f && hit_near_hint(map, cache, o, d, hint, k, hit, hints.level) &&
+           hit->depth_m <= z_max;
   };
   if (near(hints.hint)) return RayOutcome::AtHint;  // usually: the surface is at the depth fused
   if (near(hints.second)) return RayOutcome::AtSecondHint;

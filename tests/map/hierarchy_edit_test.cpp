@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <optional>
 #include <random>
 #include <set>
@@ -13,6 +14,8 @@
 #include "hivox/map/hierarchy_edit.h"
 #include "map/map_access.h"
 #include "map/map_invariants.h"
+#include "map/sample_kernels.h"
+#include "map/split_util.h"
 
 namespace hivox {
 namespace {
@@ -282,6 +285,64 @@ TEST(SplitMerge, InvalidRequestsAreCountedNotApplied) {
   const std::vector<BlockKey> not_split = {{{0, 0, 0}, 1}};
   EXPECT_EQ(merge_blocks(map, not_split).invalid, 1);
   test::expect_map_consistent(map);
+}
+
+// Where the block storing a point lies, found as the hierarchy defines it: from the coarsest
+// level down through Split entries (the level and block where that ends, and the ptr there).
+struct Located {
+  int32_t ptr = kPtrEmpty;
+  int level = -1;
+  Vec3i pos;
+};
+Located descend(const VoxelBlockMap& map, const Vec3f& p) {
+  Located r;
+  for (int l = map.levels() - 1; l >= 0; --l) {
+    r.level = l;
+    r.pos = block_of_point(map.view().level[l], p);
+    const std::optional<BlockRef> e = map.find(l, r.pos);
+    r.ptr = e ? e->ptr : kPtrEmpty;
+    if (r.ptr != kPtrSplit) break;
+  }
+  return r;
+}
+
+TEST(LocateBlock, EndsWhereTheDescentFromTheCoarsestEndsFromAnyStart) {
+  // A cube of coarse blocks, some split once or twice, in empty space; points inside and around.
+  std::mt19937 rng(8);
+  VoxelBlockMap map(three_levels());
+  allocate_cube(map, 2, 4, rng);
+  test::split_down(map, 2, [&](const BlockRef&) { return rng() % 3 == 0; });
+  test::expect_hierarchy_consistent(map);
+  const std::vector<int64_t> per_level = map.blocks_per_level();
+  ASSERT_GT(per_level[0], 0);
+  ASSERT_GT(per_level[1], 0);
+  ASSERT_GT(per_level[2], 0);
+  const MapView view = map.view();
+  const float side_m = 4 * view.level[2].block_size_m;
+  std::uniform_real_distribution<float> u(-0.75f * side_m, 0.75f * side_m), uz(-0.25f, 1.25f);
+  int at_level[3] = {}, empty = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3f p{u(rng), u(rng), uz(rng) * side_m};
+    const Located want = descend(map, p);
+    (want.ptr >= 0 ? at_level[want.level] : empty) += 1;
+    for (int start : {-1, 0, 1, 2, 3}) {
+      auto cache = std::make_unique<kernels::BlockLookupCache>();
+      int level = -9;
+      Vec3i pos;
+      const int32_t ptr = kernels::locate_block(view, *cache, p, &level, &pos, start);
+      ASSERT_EQ(ptr, want.ptr) << "start " << start;
+      ASSERT_EQ(level, want.level) << "start " << start;
+      ASSERT_TRUE(pos == want.pos) << "start " << start;
+      // What the start saves: from the level storing the point, one look-up.
+      if (want.ptr >= 0 && start == want.level) {
+        EXPECT_EQ(cache->table_lookups, 1);
+      }
+    }
+  }
+  EXPECT_GT(at_level[0], 300);
+  EXPECT_GT(at_level[1], 1000);
+  EXPECT_GT(at_level[2], 1000);
+  EXPECT_GT(empty, 1000);
 }
 
 }  // namespace
