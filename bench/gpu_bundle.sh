@@ -6,6 +6,11 @@
 #
 #   bench/gpu_bundle.sh BUILD DEST [DATA] [FRAMES]   # DATA: ../shared/data, FRAMES: 120
 #
+# With HIVOX_BUNDLE_BEFORE=PATH (the hivox_gpu_loop of a build before the change to measure, say
+# a worktree of the commit before), that binary goes in as bench/hivox_gpu_loop_before, and
+# gpu_check.sh alternates it with the bundle's own: a change written without a GPU measured
+# against what it changed, in one device call.
+#
 # Then, on the GPU machine, from the project's root:
 #
 #   export LD_LIBRARY_PATH=$PWD/DEST/lib HIVOX_DATA_DIR=$PWD/DEST/data
@@ -26,16 +31,25 @@ for binary in $binaries; do
     exit 2
   fi
 done
+before=${HIVOX_BUNDLE_BEFORE:-}
+if [ -n "$before" ] && [ ! -x "$before" ]; then
+  echo "$0: HIVOX_BUNDLE_BEFORE=$before is not an executable" >&2
+  exit 2
+fi
 rm -rf "$dest"
 mkdir -p "$dest/tests" "$dest/bench" "$dest/lib"
-for binary in $binaries; do
-  strip -o "$dest/$binary" "$build/$binary"
-  # Every library the binary loads from a path, but the C library, the loader and the driver
-  # (the GPU machine has its own).
-  ldd "$build/$binary" | awk '$2 == "=>" && $3 ~ /^\// {print $3}' |
+# pack SOURCE TARGET: the binary, stripped, and every library it loads from a path but the C
+# library, the loader and the driver (the GPU machine has its own).
+pack() {
+  strip -o "$dest/$2" "$1"
+  ldd "$1" | awk '$2 == "=>" && $3 ~ /^\// {print $3}' |
     grep -Ev '/(libc|libm|libdl|libpthread|librt|ld-linux[^/]*|libcuda)\.so' |
     while read -r lib; do cp -L "$lib" "$dest/lib/"; done
+}
+for binary in $binaries; do
+  pack "$build/$binary" "$binary"
 done
+[ -n "$before" ] && pack "$before" bench/hivox_gpu_loop_before
 
 fr1="$data/tum_fr1_rpy"
 if [ -d "$fr1" ]; then

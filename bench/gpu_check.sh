@@ -6,6 +6,8 @@
 # grid off, together; 3 levels and the fixed grid), frames decoded as the loop goes (in turn and
 # ahead on 8 threads), meshing on the device against the host, ncu on the ray kernel (where
 # ncu is installed), and last compute-sanitizer's memcheck on the newest tests.
+# With the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two
+# are alternated first: a change made without a GPU against what it changed.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. A device machine that returns only a few files: give an OUT outside the
@@ -70,6 +72,23 @@ bench() {
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
 # the host, the coarse occupancy grid off; then split marches without the grid, on the fixed
 # grid too (the hierarchy's target is 1.2x the fixed grid's time).
+# A bundle with the loop of the build before a change (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE): the
+# two alternated first, 3 levels and the fixed grid, each run's numbers in NAME.json.
+before="$build/bench/hivox_gpu_loop_before"
+if [ -x "$before" ]; then
+  for data in fr1 desk; do
+    src=$desk
+    [ "$data" = fr1 ] && src=$fr1
+    [ -z "$src" ] && continue
+    for round in a b c; do
+      for levels in 3 1; do
+        step "${data}_l${levels}_before_$round" "$before" "$src" --levels "$levels" \
+          --json "$out/${data}_l${levels}_before_$round.json"
+        bench "${data}_l${levels}_after_$round" "$src" "$levels"
+      done
+    done
+  done
+fi
 for data in fr1 desk; do
   src=$desk
   [ "$data" = fr1 ] && src=$fr1
@@ -110,4 +129,11 @@ if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > 
     "$build/tests/test_cuda_loop" \
     --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RegistersCapped*:*SplitMarches*'
 fi
+# Every run's frame time and raycast (mean ms) in one list, OUT/times.txt, and on the terminal: a
+# device call that brings back only its output's tail still has the numbers.
+for json in "$out"/*.json; do
+  [ -f "$json" ] || continue
+  printf '%-28s %s\n' "$(basename "$json" .json)" \
+    "$(sed -E 's/.*"raycast": ([^,]+), "total": ([^}]+)}.*"blocks": ([0-9]+).*/total \2  raycast \1  blocks \3/' "$json")"
+done | tee "$out/times.txt"
 echo "logs and numbers in $out"
