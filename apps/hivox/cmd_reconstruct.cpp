@@ -225,7 +225,7 @@ void run_reconstruct(const ReconstructOptions& options) {
     fmt::print("frames: {} of {}{} ({}x{}), poses: {}, threads: {}{}\n", frames, reader->size(),
                run.first_frame > 0 ? fmt::format(" from frame {}", run.first_frame) : "",
                info.rig.depth_camera.width, info.rig.depth_camera.height, run.poses.to_string(),
-               thread_count(),
+               reading.loop_threads,
                reading.frames > 0
                    ? fmt::format(", reading {} frames ahead on {} thread{}", reading.frames,
                                  reading.threads, reading.threads > 1 ? "s" : "")

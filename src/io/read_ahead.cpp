@@ -23,19 +23,13 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
     fail(ErrorCode::InvalidArgument,
          "reading ahead: {} frames on {} threads; both must be in [0, 64]", ahead, threads);
   if (slots_.empty() || first >= end) return;
-  int n = reader.reads_concurrently() ? std::max(threads, 1) : 1;
-  n = static_cast<int>(
-      std::min<std::size_t>({static_cast<std::size_t>(n), slots_.size(), end - first}));
-  // The reading threads use `threads` of the cores (several one each, one all of them for its
-  // parallel loops), the constructing thread's loops the cores left. Cores asked for twice make
-  // OpenMP's spinning teams wait on threads the system has descheduled: on a 16-core machine a
-  // GPU loop's frame copy, with its 16 threads beside 8 readers, took 10 ms instead of 0.1.
   const int caller_threads = thread_count();
-  const int loop_threads = n == 1 ? std::clamp(threads, 1, caller_threads) : 1;
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads_.reserve(static_cast<std::size_t>(n));
+  const Sharing share =
+      sharing(reader.reads_concurrently(), end - first, ahead, threads, caller_threads);
+  const int loop_threads = share.reader_threads;
+  threads_.reserve(static_cast<std::size_t>(share.readers));
   try {
-    for (int t = 0; t < n; ++t)
+    for (int t = 0; t < share.readers; ++t)
       threads_.emplace_back([this, loop_threads] { read_frames(loop_threads); });
   } catch (const std::system_error& e) {
     // No thread to be had: the frames are read in turn, as without reading ahead.
@@ -44,12 +38,31 @@ ReadAhead::ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, 
     stop();  // no thread left: next() reads in turn
     return;
   }
-  const int left = std::max(1, std::min(caller_threads, cores - n * loop_threads));
-  if (left < caller_threads) {
+  if (share.caller_threads < caller_threads) {
     owner_ = std::this_thread::get_id();
     owner_threads_ = caller_threads;
-    detail::use_thread_count(left);
+    detail::use_thread_count(share.caller_threads);
   }
+}
+
+ReadAhead::Sharing ReadAhead::sharing(bool concurrently, std::size_t frames, int ahead, int threads,
+                                      int caller_threads) {
+  Sharing s;
+  s.readers = concurrently ? std::max(threads, 1) : 1;
+  s.readers = static_cast<int>(std::min<std::size_t>(
+      {static_cast<std::size_t>(s.readers), static_cast<std::size_t>(std::max(ahead, 0)), frames}));
+  if (s.readers == 0) {  // nothing read ahead: the caller keeps its threads
+    s.caller_threads = caller_threads;
+    return s;
+  }
+  // The reading threads use `threads` of the cores (several one each, one all of them for its
+  // parallel loops), the caller's loops the cores left. Cores asked for twice make OpenMP's
+  // spinning teams wait on threads the system has descheduled: on a 16-core machine a GPU
+  // loop's frame copy, with its 16 threads beside 8 readers, took 10 ms instead of 0.1.
+  s.reader_threads = s.readers == 1 ? std::clamp(threads, 1, std::max(caller_threads, 1)) : 1;
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  s.caller_threads = std::max(1, std::min(caller_threads, cores - s.readers * s.reader_threads));
+  return s;
 }
 
 ReadAhead::~ReadAhead() {

@@ -126,8 +126,14 @@ ReadPlan read_plan(const RunParams& params, const DatasetReader& reader) {
   if (!reader.reads_concurrently()) threads = std::min(threads, 1);
   const int frames =
       params.read_ahead_frames < 0 ? ReadAhead::frames_for(threads) : params.read_ahead_frames;
-  if (frames == 0) return {};
-  return {frames, std::max(threads, 1)};
+  if (frames == 0) return {0, 0, thread_count()};
+  threads = std::max(threads, 1);
+  const std::size_t first = std::min(params.first_frame, reader.size());
+  std::size_t count = reader.size() - first;
+  if (params.max_frames > 0) count = std::min(count, params.max_frames);
+  return {frames, threads,
+          ReadAhead::sharing(reader.reads_concurrently(), count, frames, threads, thread_count())
+              .caller_threads};
 }
 
 namespace {

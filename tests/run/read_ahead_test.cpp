@@ -138,6 +138,8 @@ TEST(ReadAhead, TheReadersAndTheCallerShareTheCores) {
                    << cores << " cores, " << before << " threads before, " << now << " during");
       EXPECT_GE(now, 1);
       EXPECT_LE(now, before);
+      EXPECT_EQ(now, ReadAhead::sharing(concurrent, 8, 4, 2, before).caller_threads)
+          << "what a run's plan says its loops keep";
       if (now > 1) {
         EXPECT_LE(now + readers_use, cores);
       }
@@ -220,10 +222,18 @@ TEST(ReadAhead, ThePlanReadsOnTheCoresTheLoopLeavesFree) {
   EXPECT_EQ(read_plan(p, concurrent).frames, 8) << "two frames a thread";
   EXPECT_EQ(read_plan(p, one_at_a_time).threads, 1);
   EXPECT_EQ(read_plan(p, one_at_a_time).frames, 2);
+  // What the run's loops keep while the plan reads: as reading by it gives them.
+  for (const CountingReader* reader : {&concurrent, &one_at_a_time}) {
+    const ReadPlan plan = read_plan(p, *reader);
+    CountingReader same(10, reader == &concurrent);
+    ReadAhead frames(same, 0, 10, plan.frames, plan.threads);
+    EXPECT_EQ(plan.loop_threads, thread_count());
+  }
   p.read_ahead_frames = 5;
   EXPECT_EQ(read_plan(p, concurrent).frames, 5);
   p.read_ahead_frames = 0;
   EXPECT_EQ(read_plan(p, concurrent).frames, 0) << "each frame in turn";
+  EXPECT_EQ(read_plan(p, concurrent).loop_threads, thread_count()) << "nothing given up";
   // Automatic: a CPU loop on every core leaves none (the default), on fewer the rest.
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   p = RunParams{};

@@ -31,6 +31,17 @@ class ReadAhead {
   /// The frames read ahead for `threads` threads unless said otherwise: two each.
   static int frames_for(int threads) { return 2 * threads; }
 
+  /// How the cores are shared while `frames` frames are read `ahead` (> 0) on `threads` threads,
+  /// from a reader that reads `concurrently` or not, beside a caller whose parallel loops have
+  /// `caller_threads` threads.
+  struct Sharing {
+    int readers = 0;         ///< reading threads
+    int reader_threads = 0;  ///< each one's parallel loops (several readers: 1 each)
+    int caller_threads = 0;  ///< the caller's parallel loops while they read (at least 1)
+  };
+  static Sharing sharing(bool concurrently, std::size_t frames, int ahead, int threads,
+                         int caller_threads);
+
   ReadAhead(DatasetReader& reader, std::size_t first, std::size_t end, int ahead, int threads = 1);
   /// Stops reading (reads under way end first); frames read and not taken are dropped.
   ~ReadAhead();

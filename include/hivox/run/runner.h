@@ -98,10 +98,13 @@ struct RunParams {
   void validate() const;
 };
 
-/// How a run reads its frames: `frames` ahead on `threads` threads (0 frames: each in turn).
+/// How a run reads its frames: `frames` ahead on `threads` threads (0 frames: each in turn), and
+/// what the run's parallel loops keep while they read (thread_count() then: ReadAhead shares
+/// the cores).
 struct ReadPlan {
   int frames = 0;
   int threads = 0;
+  int loop_threads = 0;
 };
 /// What `params.read_ahead_frames` and `read_threads` come to for `reader` on this machine.
 ReadPlan read_plan(const RunParams& params, const DatasetReader& reader);
