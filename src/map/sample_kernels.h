@@ -241,6 +241,8 @@ struct CellCoords {
   Vec3f t;
   /// Whether the cell's 8 voxels reach beyond the block of its lowest voxel.
   HIVOX_HD bool spans_blocks() const { return (local.x == 7) | (local.y == 7) | (local.z == 7); }
+  /// Per axis, 1 where the cell reaches into the next block (neighbour_blocks' span).
+  HIVOX_HD Vec3i span() const { return {local.x == 7, local.y == 7, local.z == 7}; }
 };
 
 HIVOX_HD inline CellCoords cell_at(const LevelView& lv, const Vec3f& p_w) {
@@ -403,16 +405,28 @@ HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
 
 /// The 2x2x2 blocks of a level from a block up (neighbour_blocks with span 1 on every axis),
 /// looked up again only when asked for another block: consecutive cells that reach beyond one
-/// block (along a ray, across a packet) mostly reach from the same block.
+/// block (along a ray, across a packet) mostly reach from the same block. With a `span` (0 or 1
+/// per axis, as neighbour_blocks takes it), only the blocks in it are looked up, the others when
+/// a later call's span reaches them: a cell that reaches beyond its block along one axis needs 2
+/// of the 8, and on a GPU each look-up the cache does not answer is a chain of dependent reads.
+/// Slots outside every span asked for so far hold kNotLookedUp (negative, like an absent block):
+/// a caller reads only the slots of the span it asked for.
 struct NeighbourBlocks {
+  static constexpr int32_t kNotLookedUp = INT32_MIN;
   int level = -1;  ///< of `block` (-1: none yet)
   Vec3i block;
   int32_t ptrs[8];
-  HIVOX_HD const int32_t* get(const MapView& map, BlockLookupCache& cache, int l, const Vec3i& b) {
+  HIVOX_HD const int32_t* get(const MapView& map, BlockLookupCache& cache, int l, const Vec3i& b,
+                              const Vec3i& span = {1, 1, 1}) {
     if (l != level || !(b == block)) {
-      neighbour_blocks(map, cache, l, b, {1, 1, 1}, ptrs);
+      for (int d = 0; d < 8; ++d) ptrs[d] = kNotLookedUp;
       level = l;
       block = b;
+    }
+    for (int d = 0; d < 8; ++d) {
+      const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
+      if (ptrs[d] == kNotLookedUp && dx <= span.x && dy <= span.y && dz <= span.z)
+        ptrs[d] = cache.find(map, l, {b.x + dx, b.y + dy, b.z + dz});
     }
     return ptrs;
   }
@@ -483,10 +497,9 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
   int32_t own[8];
   const int32_t* blocks = own;
   if (neighbours != nullptr)
-    blocks = neighbours->get(map, cache, level, cell.block);
+    blocks = neighbours->get(map, cache, level, cell.block, cell.span());
   else
-    neighbour_blocks(map, cache, level, cell.block, {local.x == 7, local.y == 7, local.z == 7},
-                     own);
+    neighbour_blocks(map, cache, level, cell.block, cell.span(), own);
   // Usually every block the cell reaches into is stored at this level too.
   const CellRead read = read_trilinear(map, blocks, cell, min_weight, out, dv);
   if (read != CellRead::Absent) return read == CellRead::Sampled;
@@ -559,8 +572,9 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_trilinear(
     return true;
   }
   if (neighbours != nullptr) {  // the usual case, inline: every corner stored at this level
-    const CellRead read = read_trilinear(map, neighbours->get(map, cache, level, cell.block), cell,
-                                         min_weight, out, dv_or_null);
+    const CellRead read =
+        read_trilinear(map, neighbours->get(map, cache, level, cell.block, cell.span()), cell,
+                       min_weight, out, dv_or_null);
     if (read != CellRead::Absent) return read == CellRead::Sampled;
   }
   return sample_trilinear_across_blocks(map, cache, level, cell, min_weight, out, neighbours,

@@ -345,5 +345,44 @@ TEST(LocateBlock, EndsWhereTheDescentFromTheCoarsestEndsFromAnyStart) {
   EXPECT_GT(empty, 1000);
 }
 
+TEST(NeighbourBlocks, LooksUpOnlyTheBlocksOfTheSpansAskedFor) {
+  // Blocks of one level with gaps: some of the 2x2x2 around a block are absent.
+  std::mt19937 rng(9);
+  VoxelBlockMap map(three_levels());
+  std::vector<BlockKey> keys;
+  for (int x = 0; x < 6; ++x)
+    for (int y = 0; y < 6; ++y)
+      for (int z = 0; z < 6; ++z)
+        if (rng() % 3 != 0) keys.push_back({{x, y, z}, 1});
+  map.insert_blocks(keys);
+  const MapView view = map.view();
+  std::uniform_int_distribution<int> pos(0, 4), bit(0, 1);
+  for (int trial = 0; trial < 500; ++trial) {
+    const Vec3i b{pos(rng), pos(rng), pos(rng)};
+    int32_t all[8];
+    auto reference = std::make_unique<kernels::BlockLookupCache>();
+    kernels::neighbour_blocks(view, *reference, 1, b, {1, 1, 1}, all);
+    auto cache = std::make_unique<kernels::BlockLookupCache>();
+    kernels::NeighbourBlocks nb;
+    bool asked[8] = {};
+    for (int call = 0; call < 3; ++call) {
+      const Vec3i span{bit(rng), bit(rng), bit(rng)};
+      const int32_t* got = nb.get(view, *cache, 1, b, span);
+      int64_t distinct = 0;
+      for (int d = 0; d < 8; ++d) {
+        const bool in_span = (d & 1) <= span.x && ((d >> 1) & 1) <= span.y && (d >> 2) <= span.z;
+        asked[d] = asked[d] || in_span;
+        distinct += asked[d];
+        if (asked[d]) {
+          EXPECT_EQ(got[d], all[d]) << "slot " << d;
+        } else {
+          EXPECT_EQ(got[d], kernels::NeighbourBlocks::kNotLookedUp) << "slot " << d;
+        }
+      }
+      EXPECT_EQ(cache->table_lookups, distinct) << "each block of the spans once, no other";
+    }
+  }
+}
+
 }  // namespace
 }  // namespace hivox
