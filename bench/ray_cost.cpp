@@ -18,18 +18,21 @@
 // ray's first look-up starting at the level its pixel hit in the raycast before, as the device's
 // rays start). Each variant also counts the rays' hash-table look-ups (a fresh block cache per
 // ray, as a GPU thread's): on a GPU each is a chain of dependent reads, and a warp waits for its
-// lane with the most; the counts are exact where the times are noisy.
+// lane with the most; the counts are exact where the times are noisy. The device's allocation
+// walk over the frame's band (find_blocks) is counted likewise, a pixel.
 
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cstdio>
 #include <memory>
 #include <numeric>
 #include <string>
 #include <vector>
 
+#include "fusion/fusion_kernels.h"
 #include "hivox/core/error.h"
 #include "hivox/io/dataset.h"
 #include "hivox/pipeline/reconstruction.h"
@@ -153,6 +156,57 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   }
 }
 
+/// The device's allocation walk (find_blocks) as a thread walks it: one pixel's truncation band
+/// from the coarsest level down through Split blocks, its visitor remembering only its last
+/// block. Counts the hash-table look-ups, by level.
+struct WalkCounter {
+  const MapView& map;
+  int64_t lookups[kMaxLevels] = {};
+  Vec3i last{INT_MIN, INT_MIN, INT_MIN};
+  int last_level = -1;
+  int32_t last_ptr = kPtrEmpty;
+  int32_t block(int level, const Vec3i& pos) {
+    if (level == last_level && pos == last) return last_ptr;
+    ++lookups[level];
+    const int32_t entry = find_entry(map.level[level], pos);
+    last_ptr = entry == kNoEntry ? kPtrEmpty : map.level[level].entries[entry].ptr;
+    last = pos;
+    last_level = level;
+    return last_ptr;
+  }
+};
+
+/// The look-ups of frame `f`'s allocation walk over `map` at its true pose, a valid pixel.
+void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
+                 const ReconstructionParams& p) {
+  kernels::DepthFrameView depth;
+  depth.depth_m = {f.depth_m.data(), f.depth_m.width(), f.depth_m.height()};
+  depth.camera = rig.depth_camera;
+  depth.min_depth_m = std::max(p.fusion.depth_range.min_m, 1e-6f);
+  depth.max_depth_m = p.fusion.depth_range.max_m;
+  const Rigid3f T = to_rigid3f(*f.T_wc_gt);
+  WalkCounter walk{map};
+  int64_t pixels = 0;
+  for (int y = 0; y < depth.depth_m.height; ++y)
+    for (int x = 0; x < depth.depth_m.width; ++x) {
+      Vec3f a, b;
+      if (!kernels::band_segment(depth, T, map.truncation_m, x, y, &a, &b)) continue;
+      ++pixels;
+      walk.last_level = -1;  // a thread a pixel
+      kernels::walk_segment(map, a, b, walk);
+    }
+  const auto per_pixel = [&](int64_t n) {
+    return pixels > 0 ? static_cast<double>(n) / pixels : 0.0;
+  };
+  int64_t all = 0;
+  for (int l = 0; l < map.levels; ++l) all += walk.lookups[l];
+  std::printf("allocation walk: %lld pixels, %.2f table look-ups a pixel (",
+              static_cast<long long>(pixels), per_pixel(all));
+  for (int l = 0; l < map.levels; ++l)
+    std::printf("%slevel %d: %.2f", l > 0 ? ", " : "", l, per_pixel(walk.lookups[l]));
+  std::printf(")\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -202,6 +256,7 @@ int main(int argc, char** argv) {
     const MapView view = map.view();
     std::printf("%s, frame %d: %lld blocks, %d levels; model raycast %dx%d\n", spec.c_str(), at,
                 static_cast<long long>(map.blocks_in_use()), map.levels(), cam.width, cam.height);
+    report_walk(view, reader->read(static_cast<std::size_t>(at)), rig, p);
 
     // Range tiles as the device fills them.
     const float min_m = std::max(p.fusion.depth_range.min_m, 1e-3f);
