@@ -60,38 +60,38 @@ step test_cuda_kernels "$build/tests/test_cuda_kernels"
 
 loop="$build/bench/hivox_gpu_loop"
 desk="synthetic:desk?frames=150&noise=kinect"
-# bench NAME DATA LEVELS [FLAGS...]: one run of the loop, its numbers in OUT/NAME.json.
-bench() {
-  local name=$1 data=$2 levels=$3
-  shift 3
+# run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
+# (none without DATA: fr1/rpy not given).
+run_loop() {
+  local binary=$1 name=$2 data=$3 levels=$4
+  shift 4
   [ -z "$data" ] && return
-  step "$name" "$loop" "$data" --levels "$levels" "$@" --json "$out/$name.json"
+  step "$name" "$binary" "$data" --levels "$levels" "$@" --json "$out/$name.json"
 }
+# bench NAME DATA LEVELS [FLAGS...]: a run of the bundle's loop.
+bench() { run_loop "$loop" "$@"; }
+# data_of fr1|desk: what the loop runs on (fr1/rpy's folder, empty when not given).
+data_of() { if [ "$1" = fr1 ]; then echo "$fr1"; else echo "$desk"; fi; }
+# A bundle with the loop of the build before a change (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE): the
+# two alternated first, 3 levels and the fixed grid.
+before="$build/bench/hivox_gpu_loop_before"
+if [ -x "$before" ]; then
+  for data in fr1 desk; do
+    for round in a b c; do
+      for levels in 3 1; do
+        run_loop "$before" "${data}_l${levels}_before_$round" "$(data_of $data)" "$levels"
+        bench "${data}_l${levels}_after_$round" "$(data_of $data)" "$levels"
+      done
+    done
+  done
+fi
 # Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
 # the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
 # the host, the coarse occupancy grid off; then split marches without the grid, on the fixed
 # grid too (the hierarchy's target is 1.2x the fixed grid's time).
-# A bundle with the loop of the build before a change (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE): the
-# two alternated first, 3 levels and the fixed grid, each run's numbers in NAME.json.
-before="$build/bench/hivox_gpu_loop_before"
-if [ -x "$before" ]; then
-  for data in fr1 desk; do
-    src=$desk
-    [ "$data" = fr1 ] && src=$fr1
-    [ -z "$src" ] && continue
-    for round in a b c; do
-      for levels in 3 1; do
-        step "${data}_l${levels}_before_$round" "$before" "$src" --levels "$levels" \
-          --json "$out/${data}_l${levels}_before_$round.json"
-        bench "${data}_l${levels}_after_$round" "$src" "$levels"
-      done
-    done
-  done
-fi
 for data in fr1 desk; do
-  src=$desk
-  [ "$data" = fr1 ] && src=$fr1
+  src=$(data_of $data)
   bench "${data}_l3_default_a" "$src" 3
   bench "${data}_l3_regs96_a" "$src" 3 --raycast-registers 96
   bench "${data}_l3_regs64_a" "$src" 3 --raycast-registers 64

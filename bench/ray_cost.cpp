@@ -83,6 +83,11 @@ struct Variant {
   std::vector<Ray> rays;
 };
 
+/// a / b (0 when b is 0).
+double ratio(int64_t a, int64_t b) {
+  return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0;
+}
+
 void report(const Variant& v, const PinholeCamera& cam, int top) {
   const int wx = (cam.width + kWarpWidth - 1) / kWarpWidth;
   const int wy = (cam.height + kWarpHeight - 1) / kWarpHeight;
@@ -134,14 +139,14 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   std::printf("\n");
   // Each look-up the cache does not answer is a chain of dependent reads on a GPU; a warp waits
   // for its lane with the most.
-  const auto per = [](int64_t a, int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; };
-  std::printf("  table look-ups: %.2f a ray (", per(lookups, static_cast<int64_t>(v.rays.size())));
+  std::printf("  table look-ups: %.2f a ray (",
+              ratio(lookups, static_cast<int64_t>(v.rays.size())));
   for (int o = 0; o < 4; ++o)
     std::printf("%s%s %.2f", o > 0 ? ", " : "", outcome_name(static_cast<kernels::RayOutcome>(o)),
-                per(lookups_by_outcome[o], by_outcome[o]));
+                ratio(lookups_by_outcome[o], by_outcome[o]));
   std::printf("); warps' most: %.2f a warp\n",
-              per(std::accumulate(warp_lookups.begin(), warp_lookups.end(), int64_t{0}),
-                  static_cast<int64_t>(warp_lookups.size())));
+              ratio(std::accumulate(warp_lookups.begin(), warp_lookups.end(), int64_t{0}),
+                    static_cast<int64_t>(warp_lookups.size())));
   std::printf("  hits by level:");
   for (int l = 0; l < kMaxLevels; ++l)
     if (hits_by_level[l] > 0) std::printf(" %d: %lld", l, static_cast<long long>(hits_by_level[l]));
@@ -168,8 +173,7 @@ struct WalkCounter {
   int32_t block(int level, const Vec3i& pos) {
     if (level == last_level && pos == last) return last_ptr;
     ++lookups[level];
-    const int32_t entry = find_entry(map.level[level], pos);
-    last_ptr = entry == kNoEntry ? kPtrEmpty : map.level[level].entries[entry].ptr;
+    last_ptr = find_block_ptr(map.level[level], pos);
     last = pos;
     last_level = level;
     return last_ptr;
@@ -195,15 +199,12 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
       walk.last_level = -1;  // a thread a pixel
       kernels::walk_segment(map, a, b, walk);
     }
-  const auto per_pixel = [&](int64_t n) {
-    return pixels > 0 ? static_cast<double>(n) / pixels : 0.0;
-  };
   int64_t all = 0;
   for (int l = 0; l < map.levels; ++l) all += walk.lookups[l];
   std::printf("allocation walk: %lld pixels, %.2f table look-ups a pixel (",
-              static_cast<long long>(pixels), per_pixel(all));
+              static_cast<long long>(pixels), ratio(all, pixels));
   for (int l = 0; l < map.levels; ++l)
-    std::printf("%slevel %d: %.2f", l > 0 ? ", " : "", l, per_pixel(walk.lookups[l]));
+    std::printf("%slevel %d: %.2f", l > 0 ? ", " : "", l, ratio(walk.lookups[l], pixels));
   std::printf(")\n");
 }
 
@@ -242,8 +243,9 @@ int main(int argc, char** argv) {
     RaycastResult previous;
     RaycastHints hints;
     Pose T_wc;
+    RgbdFrame f;  // after the loop: frame `at`
     for (int i = 0; i <= at; ++i) {
-      const RgbdFrame f = reader->read(static_cast<std::size_t>(i));
+      f = reader->read(static_cast<std::size_t>(i));
       if (!f.T_wc_gt) fail(ErrorCode::InvalidArgument, "{}: frame {} has no ground truth", spec, i);
       loop.integrate(f, *f.T_wc_gt);
       T_wc = *f.T_wc_gt;
@@ -256,7 +258,7 @@ int main(int argc, char** argv) {
     const MapView view = map.view();
     std::printf("%s, frame %d: %lld blocks, %d levels; model raycast %dx%d\n", spec.c_str(), at,
                 static_cast<long long>(map.blocks_in_use()), map.levels(), cam.width, cam.height);
-    report_walk(view, reader->read(static_cast<std::size_t>(at)), rig, p);
+    report_walk(view, f, rig, p);
 
     // Range tiles as the device fills them.
     const float min_m = std::max(p.fusion.depth_range.min_m, 1e-3f);

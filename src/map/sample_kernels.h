@@ -385,6 +385,16 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool corner_from_other_level(const MapView
   return true;
 }
 
+/// Slot `d` (0..7) of the 2x2x2 blocks from `block` up: the block, `block` + (d & 1,
+/// (d >> 1) & 1, d >> 2).
+HIVOX_HD inline Vec3i neighbour_block(const Vec3i& block, int d) {
+  return {block.x + (d & 1), block.y + ((d >> 1) & 1), block.z + (d >> 2)};
+}
+/// Whether slot `d` lies within `span` (0 or 1 per axis: how far past the block a cell reaches).
+HIVOX_HD inline bool slot_in_span(int d, const Vec3i& span) {
+  return ((d & 1) <= span.x) & (((d >> 1) & 1) <= span.y) & ((d >> 2) <= span.z);
+}
+
 /// The blocks of `level` that voxels `block`'s origin + [0, 8 + 8 * span) reach into, one or
 /// two per axis (`span` 0 or 1 per axis): `ptrs[neighbour_slot(x, y, z)]` holds the block of
 /// the voxel at (x, y, z) from that origin; slots beyond the span are kPtrEmpty.
@@ -392,12 +402,8 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void neighbour_blocks(const MapView& map,
                                                             BlockLookupCache& cache, int level,
                                                             const Vec3i& block, const Vec3i& span,
                                                             int32_t ptrs[8]) {
-  for (int d = 0; d < 8; ++d) {
-    const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-    ptrs[d] = ((dx > span.x) | (dy > span.y) | (dz > span.z))
-                  ? kPtrEmpty
-                  : cache.find(map, level, {block.x + dx, block.y + dy, block.z + dz});
-  }
+  for (int d = 0; d < 8; ++d)
+    ptrs[d] = slot_in_span(d, span) ? cache.find(map, level, neighbour_block(block, d)) : kPtrEmpty;
 }
 HIVOX_HD inline int neighbour_slot(int x, int y, int z) {
   return (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
@@ -423,11 +429,9 @@ struct NeighbourBlocks {
       level = l;
       block = b;
     }
-    for (int d = 0; d < 8; ++d) {
-      const int dx = d & 1, dy = (d >> 1) & 1, dz = d >> 2;
-      if (ptrs[d] == kNotLookedUp && dx <= span.x && dy <= span.y && dz <= span.z)
-        ptrs[d] = cache.find(map, l, {b.x + dx, b.y + dy, b.z + dz});
-    }
+    for (int d = 0; d < 8; ++d)
+      if (ptrs[d] == kNotLookedUp && slot_in_span(d, span))
+        ptrs[d] = cache.find(map, l, neighbour_block(b, d));
     return ptrs;
   }
 };

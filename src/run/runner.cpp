@@ -76,6 +76,12 @@ void check_device(const Device& device) {
        device.to_string());
 #endif
 }
+
+/// The frames a run of `params` goes through on `reader` (none when the first is beyond it).
+std::size_t frames_to_run(const RunParams& params, const DatasetReader& reader) {
+  const std::size_t available = reader.size() - std::min(params.first_frame, reader.size());
+  return params.max_frames > 0 ? std::min(params.max_frames, available) : available;
+}
 }  // namespace
 
 std::unique_ptr<Reconstruction> make_reconstruction(const ReconstructionParams& params,
@@ -128,11 +134,9 @@ ReadPlan read_plan(const RunParams& params, const DatasetReader& reader) {
       params.read_ahead_frames < 0 ? ReadAhead::frames_for(threads) : params.read_ahead_frames;
   if (frames == 0) return {0, 0, thread_count()};
   threads = std::max(threads, 1);
-  const std::size_t first = std::min(params.first_frame, reader.size());
-  std::size_t count = reader.size() - first;
-  if (params.max_frames > 0) count = std::min(count, params.max_frames);
   return {frames, threads,
-          ReadAhead::sharing(reader.reads_concurrently(), count, frames, threads, thread_count())
+          ReadAhead::sharing(reader.reads_concurrently(), frames_to_run(params, reader), frames,
+                             threads, thread_count())
               .caller_threads};
 }
 
@@ -177,9 +181,7 @@ class Run {
     result.reconstruction = make_reconstruction();
     rec_ = result.reconstruction.get();
     if (params_.poses.source == PoseSource::Icp) rec_->check_tracking();
-    const std::size_t available = reader_.size() - params_.first_frame;
-    summary_.frames_total =
-        params_.max_frames > 0 ? std::min(params_.max_frames, available) : available;
+    summary_.frames_total = frames_to_run(params_, reader_);
     if (callbacks_.on_start) callbacks_.on_start(*rec_, summary_.frames_total);
     frame_loop();
     if (rec_->frame_stats().empty()) {

@@ -359,9 +359,9 @@ TEST(NeighbourBlocks, LooksUpOnlyTheBlocksOfTheSpansAskedFor) {
   std::uniform_int_distribution<int> pos(0, 4), bit(0, 1);
   for (int trial = 0; trial < 500; ++trial) {
     const Vec3i b{pos(rng), pos(rng), pos(rng)};
-    int32_t all[8];
-    auto reference = std::make_unique<kernels::BlockLookupCache>();
-    kernels::neighbour_blocks(view, *reference, 1, b, {1, 1, 1}, all);
+    int32_t all[8];  // the 2x2x2 blocks from b up, slot d at b + (d & 1, d >> 1 & 1, d >> 2)
+    for (int d = 0; d < 8; ++d)
+      all[d] = find_block_ptr(view.level[1], {b.x + (d & 1), b.y + ((d >> 1) & 1), b.z + (d >> 2)});
     auto cache = std::make_unique<kernels::BlockLookupCache>();
     kernels::NeighbourBlocks nb;
     bool asked[8] = {};

@@ -138,8 +138,6 @@ TEST(ReadAhead, TheReadersAndTheCallerShareTheCores) {
                    << cores << " cores, " << before << " threads before, " << now << " during");
       EXPECT_GE(now, 1);
       EXPECT_LE(now, before);
-      EXPECT_EQ(now, ReadAhead::sharing(concurrent, 8, 4, 2, before).caller_threads)
-          << "what a run's plan says its loops keep";
       if (now > 1) {
         EXPECT_LE(now + readers_use, cores);
       }
