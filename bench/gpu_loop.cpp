@@ -197,6 +197,7 @@ int main(int argc, char** argv) {
       else
         gpu->integrate(f, *f.T_wc_gt);
     }
+    gpu->synchronize();  // the last frame's raycast
     const double wall_fps = static_cast<double>(n - k) / (loop_watch.elapsed_ms() / 1e3);
     std::printf("the loop's wall clock: %.0f fps, frames %s\n", wall_fps,
                 read_threads < 0 ? "from memory"

@@ -68,6 +68,8 @@ class QueueMark {
     if (event_ == nullptr) check_status(cudaEventCreate(&event_), what);
     check_status(cudaEventRecord(event_), what);
   }
+  /// Waits until the device has passed this mark (recorded).
+  void wait(const char* what) const { check_status(cudaEventSynchronize(event_), what); }
   /// Milliseconds on the device from `earlier` to this mark (both recorded, both passed).
   double ms_since(const QueueMark& earlier, const char* what) const {
     float ms = 0;

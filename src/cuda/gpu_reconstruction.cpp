@@ -37,7 +37,7 @@ void parallel_copy(void* dst, const void* src, std::size_t bytes) {
   });
 }
 
-void synchronize(const char* stage) {
+void wait_for_device(const char* stage) {
   check_status(cudaDeviceSynchronize(), stage);
 }
 
@@ -131,8 +131,9 @@ struct GpuReconstruction::Impl {
   MutableMapView view;
   // The pool's counters as last read from the device (read_pool_counters).
   int32_t high_water = 0;
-  int32_t free_count = 0;    ///< free pool blocks
-  int64_t blocks = 0;        ///< in use
+  int32_t free_count = 0;             ///< free pool blocks
+  int64_t blocks = 0;                 ///< in use
+  std::vector<int64_t> level_blocks;  ///< in use, per level (finest first)
   bool memory_full = false;  ///< the pool stopped growing once: the device's memory is full
   int64_t dropped = 0;       ///< blocks dropped so far (the continued map's included)
 
@@ -146,6 +147,13 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<AllocCounters> host_counters;
   PinnedBuffer<int32_t> host_pool_counters;
   QueueMark fuse_start, allocated, integrated;  ///< the allocation's and integration's times
+  // The model raycast last launched and not yet waited for. A frame does not wait for the
+  // raycast it ends with: the host goes on to the next frame's upload (its copy into page-locked
+  // memory) while the device raycasts, and the next frame waits after it (take_raycast) and
+  // reports the raycast, the one its tracking uses.
+  QueueMark ray_start, ray_end;
+  PinnedBuffer<int32_t> host_hits;
+  bool raycast_pending = false;
   // The super-blocks holding blocks (grown by insertions; on the host as of the last frame's
   // allocation) and the raycast's coarse occupancy grid over them.
   Buffer<kernels::SuperBlockBounds> occupancy_bounds;
@@ -355,6 +363,7 @@ struct GpuReconstruction::Impl {
     high_water = c[kHighWater];
     free_count = c[kBlockFreeCount];
     blocks = map_params.max_blocks - free_count;
+    level_blocks.assign(c + kLevelCount, c + kLevelCount + map_params.levels);
   }
 
   /// room_for's rule, checked once on the map handed over: the never-popped part of the free
@@ -391,6 +400,7 @@ struct GpuReconstruction::Impl {
     visible.reset(capacity, &total_bytes);
     alloc_counters.reset(1, &total_bytes);
     host_counters.reserve(1);
+    host_hits.reserve(1);
     host_pool_counters.reserve(kCounters);
     depth.reset(pixels, &total_bytes);
     if (map_params.store_color && params.fusion.integrate_color) {
@@ -462,7 +472,7 @@ struct GpuReconstruction::Impl {
     Job* staged = host.reserve(jobs.size());
     download_async(staged, device.get(), jobs.size(), what);
     download_async(c, counters.get(), kCounters, what);
-    synchronize(what);
+    wait_for_device(what);
     jobs.assign(staged, staged + jobs.size());
     std::erase_if(jobs, [](const Job& j) { return j.ok == 0; });
   }
@@ -519,7 +529,7 @@ struct GpuReconstruction::Impl {
     download_async(counts, refine_counts.get(), 3, "refinement (counts)");
     download_async(split_head, split_list.get(), head, "refinement (split list)");
     download_async(merge_head, merge_list.get(), head, "refinement (merge list)");
-    synchronize("refinement (candidates)");
+    wait_for_device("refinement (candidates)");
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
     std::copy_n(split_head, std::min(head, splits.size()), splits.data());
@@ -685,7 +695,7 @@ struct GpuReconstruction::Impl {
     download_async(c, alloc_counters.get(), 1, "reading the counters");
     download_async(pc, counters.get(), kCounters, "reading the pool's counters");
     download_async(hb, occupancy_bounds.get(), 1, "reading the super-blocks' bounds");
-    synchronize("integration");
+    wait_for_device("integration");
     s.allocate_ms = allocated.ms_since(fuse_start, "timing the allocation");
     s.integrate_ms = integrated.ms_since(allocated, "timing the integration");
     set_pool_counters(pc);
@@ -705,9 +715,8 @@ struct GpuReconstruction::Impl {
   }
 
   /// Raycasts the model at `T_wc`; `frame_hint`: the frame on the device was taken there, its
-  /// depth tells the rays where to start.
-  void raycast_model(const Pose& T_wc, bool frame_hint, FrameStats& s) {
-    Stopwatch stage;
+  /// depth tells the rays where to start. Launched only: take_raycast waits for it.
+  void raycast_model(const Pose& T_wc, bool frame_hint) {
     const ImageLevel& m0 = model[0];
     kernels::RangeTiles tiles =
         kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0.camera);
@@ -729,6 +738,7 @@ struct GpuReconstruction::Impl {
         kernels::march_constants(params.raycast, view.read, occupancy);
     const kernels::RaycastOutputView out{m0.depth.get(), m0.points.get(), m0.normals.get(),
                                          model_colors.get(), model_levels.get()};
+    ray_start.record("timing the raycast");
     check_status(cudaMemsetAsync(&alloc_counters.get()->raycast_hits, 0, sizeof(int32_t)),
                  "clearing counters");
     const DepthRange& range = params.fusion.depth_range;
@@ -746,12 +756,21 @@ struct GpuReconstruction::Impl {
     if (has_model) hint.levels = model_levels.get();  // the surface's levels a raycast ago
     cuda::raycast(view.read, high_water, m0.camera, to_rigid3f(T_wc), range.min_m, range.max_m,
                   tiles, k, hint, out, alloc_counters.get(), ray_launch);
-    int32_t* hits = &host_counters.reserve(1)->raycast_hits;  // page-locked: a direct copy
-    copy_to_host(hits, &alloc_counters.get()->raycast_hits, sizeof(int32_t), "raycast");
-    s.raycast_hits = *hits;
+    download_async(host_hits.reserve(1), &alloc_counters.get()->raycast_hits, 1, "raycast");
+    ray_end.record("timing the raycast");
+    raycast_pending = true;
     model_T_wc = T_wc;
     has_model = true;
-    s.raycast_ms = stage.lap_ms();
+  }
+
+  /// Waits for the raycast launched last (if not yet waited for) and adds it to `s`: its time on
+  /// the device and its hits.
+  void take_raycast(FrameStats& s) {
+    if (!raycast_pending) return;
+    ray_end.wait("raycast");
+    raycast_pending = false;
+    s.raycast_ms += ray_end.ms_since(ray_start, "timing the raycast");
+    s.raycast_hits = *host_hits.reserve(1);
   }
 
   TrackResult track(const Pose& T_init) {
@@ -806,7 +825,7 @@ struct GpuReconstruction::Impl {
     };
     if (!gauss_newton_on_device) {
       const icp::Alignment a = icp::align(tp, reduce, T_init);
-      synchronize("tracking");  // the valid pixels' copy is done (without passes too)
+      wait_for_device("tracking");  // the valid pixels' copy is done (without passes too)
       icp::judge_alignment(tp, a, reduce, *valid_pixels, T_init, &result);
       result.icp_ms = watch.lap_ms();
       return result;
@@ -866,8 +885,9 @@ const FrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pos
   Stopwatch total;
   const IntegrationFrame f = m.upload_frame(frame, T_wc);
   s.upload_ms = total.elapsed_ms();
+  m.take_raycast(s);  // the frame before's, which the upload overlapped
   m.fuse(f, T_wc, s);
-  m.raycast_model(T_wc, true, s);
+  m.raycast_model(T_wc, true);
   return m.record(frame, T_wc, total, s);
 }
 
@@ -883,8 +903,13 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   const Pose T_prev = m.trajectory.empty() ? *m.resume_pose : m.trajectory.back().T_wc;
   const IntegrationFrame f0 = m.upload_frame(frame, T_prev);
   s.upload_ms = total.elapsed_ms();
+  m.take_raycast(s);  // the model tracked against, made after the frame before
   Stopwatch stage;
-  if (!m.has_model || !m.model_T_wc.isApprox(T_prev)) m.raycast_model(T_prev, false, s);
+  if (!m.has_model || !m.model_T_wc.isApprox(T_prev)) {
+    m.raycast_model(T_prev, false);
+    m.take_raycast(s);
+    stage.restart();
+  }
   m.last_track = m.track(m.motion.start(T_prev));
   s.take_track(m.last_track);
   s.track_ms = stage.lap_ms();
@@ -898,8 +923,12 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   IntegrationFrame f = f0;
   f.constants.T_cw = to_rigid3f(T_wc.inverse());
   m.fuse(f, T_wc, s);
-  m.raycast_model(T_wc, true, s);
+  m.raycast_model(T_wc, true);
   return m.record(frame, T_wc, total, s);
+}
+
+void GpuReconstruction::synchronize() const {
+  wait_for_device("waiting for the device");
 }
 
 const std::vector<StampedPose>& GpuReconstruction::trajectory() const {
@@ -1112,12 +1141,7 @@ TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
 }
 
 std::vector<int64_t> GpuReconstruction::blocks_per_level() const {
-  const Impl& m = *impl_;
-  int32_t c[kCounters];
-  m.counters.download(c, kCounters);
-  std::vector<int64_t> out;
-  for (int l = 0; l < m.map_params.levels; ++l) out.push_back(c[kLevelCount + l]);
-  return out;
+  return impl_->level_blocks;
 }
 
 RaycastResult GpuReconstruction::download_model() const {

@@ -291,12 +291,21 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
   Reconstruction cpu(p, rig);
   std::vector<StampedPose> gt;
   const Pose first = *data.read(0).T_wc_gt;
+  int64_t model_hits = 0;  // of the model raycast after the frame before
   for (std::size_t i = 0; i < data.size(); ++i) {
     const RgbdFrame f = data.read(i);
     gt.push_back({f.timestamp_s, *f.T_wc_gt});
     cpu.track_and_integrate(f, 0.0, first);
     const FrameStats& s = gpu.track_and_integrate(f, first);
     EXPECT_TRUE(s.fused) << "frame " << i;
+    // A frame reports the raycast it waited for: the one after the frame before, which its
+    // tracking used (none for the first).
+    EXPECT_EQ(s.raycast_hits, model_hits) << "frame " << i;
+    EXPECT_EQ(s.raycast_ms > 0, i > 0) << "frame " << i;
+    const RaycastResult model = gpu.download_model();
+    model_hits = 0;
+    for (std::size_t k = 0; k < model.depth_m.size(); ++k)
+      model_hits += model.depth_m.data()[k] > 0;
   }
   double max_dt = 0, max_dr = 0;
   for (std::size_t i = 0; i < gt.size(); ++i) {

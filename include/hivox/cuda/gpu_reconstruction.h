@@ -52,13 +52,20 @@ class GpuReconstruction {
 
   /// Fuses `frame` at the given pose (no tracking), then raycasts the model at it. Stage times
   /// are wall-clock on the host around each stage, the device synchronised at its end, except
-  /// the allocation's and the integration's: the device's own (CUDA events), which need no wait.
+  /// the allocation's, the integration's and the raycast's: the device's own (CUDA events), which
+  /// need no wait. A frame returns without waiting for its raycast, so that the host copies the
+  /// next frame in while the device raycasts; the next frame waits for it after its upload and
+  /// reports it (its raycast_ms and raycast_hits are the raycast after the frame before).
   const FrameStats& integrate(const RgbdFrame& frame, const Pose& T_wc);
   /// Tracks `frame` against the last model (the first frame of a new map takes `T_wc_first`),
   /// fuses it unless tracking is lost, and raycasts the model at the new pose.
   const FrameStats& track_and_integrate(const RgbdFrame& frame,
                                         const Pose& T_wc_first = Pose::Identity());
 
+  /// Waits until the device has done all it was given: the last frame's raycast, which the
+  /// frame did not wait for. For timing a loop by the host's clock; results read from the device
+  /// (the model, the map, a mesh) wait for it themselves.
+  void synchronize() const;
   /// Where tracking's Gauss-Newton steps run: on the device (the default), in each pass's last
   /// block, every pass launched at once and the result read back once per frame; or on the
   /// host, each pass's sums read back before the next pass. Both take the same steps
@@ -102,7 +109,8 @@ class GpuReconstruction {
   /// the bus. Where the device has no memory left for the passes, the map is meshed on the host
   /// (the same mesh), with a warning.
   TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
-  /// Allocated blocks per level (finest first), read from the device's counters.
+  /// Allocated blocks per level (finest first), from the device's counters as the last frame
+  /// read them (no round trip).
   std::vector<int64_t> blocks_per_level() const;
   /// The last model raycast (the depth camera subsampled by the tracking's model_subsample),
   /// copied to the host.

@@ -64,6 +64,9 @@ struct FrameStats {
   double allocate_ms = 0;
   double integrate_ms = 0;
   double refine_ms = 0;
+  /// The model raycast after this frame's fusion; on a device (`GpuReconstruction`), the one
+  /// this frame waited for: the raycast after the frame before, which the frame's tracking uses
+  /// (a device frame does not wait for the raycast it ends with), its time the device's own.
   double raycast_ms = 0;
   double total_ms = 0;  ///< processing, reading excluded
   int64_t valid_pixels = 0;
@@ -74,8 +77,8 @@ struct FrameStats {
   std::vector<int64_t> blocks_per_level;  ///< finest first
   int64_t splits = 0;
   int64_t merges = 0;
-  int64_t refine_waiting = 0;  ///< splits/merges postponed for lack of room
-  int64_t raycast_hits = 0;
+  int64_t refine_waiting = 0;        ///< splits/merges postponed for lack of room
+  int64_t raycast_hits = 0;          ///< of the raycast of raycast_ms
   int64_t raycast_hits_at_hint = 0;  ///< of them, found near their start hint (no march)
   /// Tracking (frames from track_and_integrate; others are Good with no ICP numbers).
   TrackingQuality tracking = TrackingQuality::Good;
