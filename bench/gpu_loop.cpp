@@ -81,9 +81,10 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5, read_threads = -1;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false, mesh = false, gn_on_host = false, no_coarse_grid = false;
+  bool cpu = false, mesh = false, gn_on_host = false, no_coarse_grid = false, graph = false;
   int split_marches = 0;
   int raycast_registers = 0;
+  int allocation_pixels = 1;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -100,6 +101,9 @@ int main(int argc, char** argv) {
   app.add_flag("--gn-on-host", gn_on_host,
                "tracking's Gauss-Newton steps on the host, each pass's sums read back "
                "(GpuReconstruction::set_gauss_newton_on_device(false))");
+  app.add_flag("--tracking-graph", graph,
+               "tracking's ICP passes launched as one CUDA graph, recorded at the first tracked "
+               "frame (GpuReconstruction::set_tracking_graph)");
   app.add_option("--split-marches", split_marches,
                  "split a warp's marches across its lanes where at most this many of its rays "
                  "march (GpuReconstruction::set_split_marches; 0: each ray its own)");
@@ -107,6 +111,9 @@ int main(int argc, char** argv) {
                  "at most this many registers a thread of the raycast's kernel: 128, 96, 80 or "
                  "64, more warps at once (GpuReconstruction::set_raycast_registers; 0: the "
                  "compiler's choice)");
+  app.add_option("--allocation-pixels", allocation_pixels,
+                 "pixels a thread of the allocation walks: 1, 2 (2x1) or 4 (2x2), skipping the "
+                 "look-ups of blocks it has seen (GpuReconstruction::set_allocation_pixels)");
   app.add_flag("--no-coarse-grid", no_coarse_grid,
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
@@ -174,6 +181,8 @@ int main(int argc, char** argv) {
     gpu->set_gauss_newton_on_device(!gn_on_host);
     gpu->set_split_marches(split_marches);
     gpu->set_raycast_registers(raycast_registers);
+    gpu->set_allocation_pixels(allocation_pixels);
+    gpu->set_tracking_graph(graph);
     const int registers = gpu->raycast_registers();
     std::printf(
         "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; the "
@@ -279,7 +288,9 @@ int main(int argc, char** argv) {
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches
           << ", \"raycast_registers_at_most\": " << raycast_registers
-          << ", \"raycast_registers\": " << registers << ", \"handover\": " << k
+          << ", \"raycast_registers\": " << registers
+          << ", \"allocation_pixels\": " << allocation_pixels
+          << ", \"tracking_graph\": " << (graph ? "true" : "false") << ", \"handover\": " << k
           << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads
           << ", \"wall_fps\": " << wall_fps << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms

@@ -161,26 +161,35 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   }
 }
 
-/// The device's allocation walk (find_blocks) as a thread walks it: one pixel's truncation band
-/// from the coarsest level down through Split blocks, its visitor remembering only its last
-/// block. Counts the hash-table look-ups, by level.
+/// The device's allocation walk (find_blocks) as a thread walks it: its pixels' truncation bands
+/// one after another, each from the coarsest level down through Split blocks, its visitor
+/// remembering the blocks it looked up in `slots` slots (the device's SeenBlocks: 1, the last
+/// block, for a thread of one pixel; 16 for several): a block's side effects (its stamp, its
+/// missing key) are done at its first look-up, so a thread visits the same blocks with fewer
+/// look-ups. Counts the hash-table look-ups, by level.
 struct WalkCounter {
   const MapView& map;
+  uint32_t mask = 0;  ///< slots - 1
   int64_t lookups[kMaxLevels] = {};
-  Vec3i last{INT_MIN, INT_MIN, INT_MIN};
-  int last_level = -1;
-  int32_t last_ptr = kPtrEmpty;
+  struct Slot {
+    Vec3i pos;
+    int level = -1;
+    int32_t ptr = kPtrEmpty;
+  } slots[16];
+  void reset() {
+    for (Slot& s : slots) s.level = -1;
+  }
   int32_t block(int level, const Vec3i& pos) {
-    if (level == last_level && pos == last) return last_ptr;
+    Slot& s = slots[(block_hash(pos, mask) + static_cast<uint32_t>(level) * 17u) & mask];
+    if (s.level == level && s.pos == pos) return s.ptr;
     ++lookups[level];
-    last_ptr = find_block_ptr(map.level[level], pos);
-    last = pos;
-    last_level = level;
-    return last_ptr;
+    s = {pos, level, find_block_ptr(map.level[level], pos)};
+    return s.ptr;
   }
 };
 
-/// The look-ups of frame `f`'s allocation walk over `map` at its true pose, a valid pixel.
+/// The look-ups of frame `f`'s allocation walk over `map` at its true pose, a valid pixel, with
+/// threads of 1, 2x1 and 2x2 pixels (GpuReconstruction::set_allocation_pixels).
 void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
                  const ReconstructionParams& p) {
   kernels::DepthFrameView depth;
@@ -189,23 +198,29 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
   depth.min_depth_m = std::max(p.fusion.depth_range.min_m, 1e-6f);
   depth.max_depth_m = p.fusion.depth_range.max_m;
   const Rigid3f T = to_rigid3f(*f.T_wc_gt);
-  WalkCounter walk{map};
-  int64_t pixels = 0;
-  for (int y = 0; y < depth.depth_m.height; ++y)
-    for (int x = 0; x < depth.depth_m.width; ++x) {
-      Vec3f a, b;
-      if (!kernels::band_segment(depth, T, map.truncation_m, x, y, &a, &b)) continue;
-      ++pixels;
-      walk.last_level = -1;  // a thread a pixel
-      kernels::walk_segment(map, a, b, walk);
-    }
-  int64_t all = 0;
-  for (int l = 0; l < map.levels; ++l) all += walk.lookups[l];
-  std::printf("allocation walk: %lld pixels, %.2f table look-ups a pixel (",
-              static_cast<long long>(pixels), ratio(all, pixels));
-  for (int l = 0; l < map.levels; ++l)
-    std::printf("%slevel %d: %.2f", l > 0 ? ", " : "", l, ratio(walk.lookups[l], pixels));
-  std::printf(")\n");
+  for (auto [w, h] : {std::pair{1, 1}, std::pair{2, 1}, std::pair{2, 2}}) {
+    WalkCounter walk{map, w * h == 1 ? 0u : 15u};
+    int64_t pixels = 0;
+    for (int ty = 0; ty < depth.depth_m.height; ty += h)
+      for (int tx = 0; tx < depth.depth_m.width; tx += w) {
+        walk.reset();  // a thread's pixels
+        for (int y = ty; y < std::min(ty + h, depth.depth_m.height); ++y)
+          for (int x = tx; x < std::min(tx + w, depth.depth_m.width); ++x) {
+            Vec3f a, b;
+            if (!kernels::band_segment(depth, T, map.truncation_m, x, y, &a, &b)) continue;
+            ++pixels;
+            kernels::walk_segment(map, a, b, walk);
+          }
+      }
+    int64_t all = 0;
+    for (int l = 0; l < map.levels; ++l) all += walk.lookups[l];
+    std::printf(
+        "allocation walk, %dx%d pixels a thread: %lld pixels, %.2f table look-ups a pixel (", w, h,
+        static_cast<long long>(pixels), ratio(all, pixels));
+    for (int l = 0; l < map.levels; ++l)
+      std::printf("%slevel %d: %.2f", l > 0 ? ", " : "", l, ratio(walk.lookups[l], pixels));
+    std::printf(")\n");
+  }
 }
 
 }  // namespace

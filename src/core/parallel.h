@@ -16,6 +16,7 @@
 #if defined(HIVOX_CUDA_CODE)  // (hd.h)
 #include <cuda_runtime.h>
 
+#include <type_traits>
 #include <utility>
 #endif
 
@@ -62,15 +63,26 @@ __global__ void grid_stride_loop(int64_t n, Body body) {
 }  // namespace detail
 
 #if defined(HIVOX_CUDA_CODE)
+namespace detail {
+/// The stream the calling thread's launches go to: the default stream, or a stream that
+/// records them into a graph (cuda::LaunchGraph).
+inline cudaStream_t& launch_stream() {
+  thread_local cudaStream_t stream = nullptr;
+  return stream;
+}
+}  // namespace detail
+
 /// Launches `kernel(args...)` on a grid of `grid` blocks of `block` threads: CUDA's
-/// `kernel<<<grid, block>>>(args...)`, written once for nvcc and for the CPU emulation (which
-/// runs the grid before it returns). Every kernel of the CUDA loop starts here.
+/// `kernel<<<grid, block, 0, stream>>>(args...)` on the thread's launch stream, written once for
+/// nvcc and for the CPU emulation (which runs the grid before it returns, or records it with
+/// its arguments while a graph is recorded). Every kernel of the CUDA loop starts here.
 template <typename... Params, typename... Args>
 void launch(void (*kernel)(Params...), dim3 grid, dim3 block, Args&&... args) {
 #if defined(HIVOX_CUDA_EMULATION)
-  cuda::emulation::run_grid(grid, block, [&] { kernel(args...); });
+  cuda::emulation::launch_on(detail::launch_stream(), grid, block,
+                             [kernel, ... held = std::decay_t<Args>(args)] { kernel(held...); });
 #else
-  kernel<<<grid, block>>>(std::forward<Args>(args)...);
+  kernel<<<grid, block, 0, detail::launch_stream()>>>(std::forward<Args>(args)...);
 #endif
 }
 #endif

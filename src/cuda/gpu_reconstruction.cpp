@@ -184,8 +184,13 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<int32_t> host_valid_pixels;  ///< the frame's valid pixels, read with the sums
   bool gauss_newton_on_device = true;
   RaycastLaunch ray_launch;             ///< see set_split_marches, set_raycast_registers
+  int allocation_pixels = 1;            ///< see set_allocation_pixels
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
   PinnedBuffer<kernels::IcpState> host_icp_state;
+  Buffer<Rigid3f> icp_model_pose;  ///< world to the model's camera, for the passes on the device
+  PinnedBuffer<Rigid3f> host_model_pose;
+  bool icp_graph_on = false;  ///< see set_tracking_graph
+  LaunchGraph icp_graph;      ///< the passes of Gauss-Newton on the device, recorded once
 
   // Refinement.
   Buffer<BlockRef> split_list;
@@ -443,6 +448,8 @@ struct GpuReconstruction::Impl {
     host_valid_pixels.reserve(1);
     icp_state.reset(1, &total_bytes);
     host_icp_state.reserve(1);
+    icp_model_pose.reset(1, &total_bytes);
+    host_model_pose.reserve(1);
     if (map_params.levels > 1) {
       // At most every visible block splits; their parents (each once) may merge.
       split_list.reset(list, &total_bytes);
@@ -673,7 +680,7 @@ struct GpuReconstruction::Impl {
                             free_blocks, static_cast<int64_t>(missing_list.size())))};
     const Rigid3f T = to_rigid3f(T_wc);
     find_blocks(view.read, f.depth, T, map_params.truncation_m, stamps.get(), frame, missing,
-                visible.get(), alloc_counters.get());
+                visible.get(), alloc_counters.get(), allocation_pixels);
     AllocCounters* c = host_counters.reserve(1);
     copy_to_host(c, alloc_counters.get(), sizeof(AllocCounters),
                  "allocation (reading the counters)");
@@ -832,18 +839,34 @@ struct GpuReconstruction::Impl {
     }
     // Gauss-Newton on the device: every level's passes launched at once, each stepping the state
     // where its sums end (a pass at a stopped level does nothing); the state is read back once.
+    // Recorded as a graph, the passes read the model's pose from device memory too: their
+    // arguments are then every frame's.
     kernels::IcpState* state = host_icp_state.reserve(1);
     *state = kernels::icp_start(icp::to_posed(T_init));
     upload_async(icp_state.get(), state, 1, "tracking (Gauss-Newton's start)");
-    for (int level = tp.levels() - 1; level >= 0; --level) {
-      const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
-      const ImageLevel& M = model[static_cast<std::size_t>(level)];
-      const kernels::IcpPass pass = pass_at(level, Rigid3f{});
-      for (int it = 0; it < tp.iterations[static_cast<std::size_t>(level)]; ++it)
-        icp_pass_on_device(pass, F.points.get(), F.normals.get(),
-                           static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
-                           M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(),
-                           icp_state.get(), level, tp.convergence_step);
+    if (icp_graph_on) {
+      Rigid3f* model_pose = host_model_pose.reserve(1);
+      *model_pose = T_model_cw;
+      upload_async(icp_model_pose.get(), model_pose, 1, "tracking (the model's pose)");
+    }
+    const Rigid3f* model_pose_on_device = icp_graph_on ? icp_model_pose.get() : nullptr;
+    const auto passes = [&] {
+      for (int level = tp.levels() - 1; level >= 0; --level) {
+        const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
+        const ImageLevel& M = model[static_cast<std::size_t>(level)];
+        const kernels::IcpPass pass = pass_at(level, Rigid3f{});
+        for (int it = 0; it < tp.iterations[static_cast<std::size_t>(level)]; ++it)
+          icp_pass_on_device(pass, F.points.get(), F.normals.get(),
+                             static_cast<int64_t>(F.camera.width) * F.camera.height, M.points.get(),
+                             M.normals.get(), icp_partials.get(), icp_done.get(), icp_sums.get(),
+                             icp_state.get(), model_pose_on_device, level, tp.convergence_step);
+      }
+    };
+    if (icp_graph_on) {
+      if (!icp_graph.recorded()) load_icp_pass_kernels();
+      icp_graph.run(passes, "tracking (the passes' graph)");
+    } else {
+      passes();
     }
     copy_to_host(state, icp_state.get(), sizeof(kernels::IcpState), "tracking (Gauss-Newton)");
     icp::judge_alignment(tp, icp::alignment_of(*state), reduce, *valid_pixels, T_init, &result);
@@ -956,6 +979,15 @@ void GpuReconstruction::set_raycast_registers(int at_most) {
          "raycast registers: at most {} a thread is not 0 (the compiler's choice) or one of {}",
          at_most, fmt::join(kRaycastRegisterCaps, ", "));
   impl_->ray_launch.registers_at_most = at_most;
+}
+void GpuReconstruction::set_tracking_graph(bool on) {
+  impl_->icp_graph_on = on;
+}
+void GpuReconstruction::set_allocation_pixels(int per_thread) {
+  if (per_thread != 1 && per_thread != 2 && per_thread != 4)
+    fail(ErrorCode::InvalidArgument, "allocation: {} pixels a thread is not 1, 2 (2x1) or 4 (2x2)",
+         per_thread);
+  impl_->allocation_pixels = per_thread;
 }
 int GpuReconstruction::raycast_registers() const {
   return raycast_kernel_registers(impl_->ray_launch);

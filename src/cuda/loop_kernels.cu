@@ -34,6 +34,31 @@ unsigned grid_for(int64_t n, int threads = kThreads) {
   return static_cast<unsigned>(blocks < 1 ? 1 : blocks);
 }
 
+/// The blocks an allocation thread has looked up, in `kSlots` slots (direct-mapped as
+/// kernels::BlockLookupCache's): 1 keeps the last one (a thread of one pixel: its band's
+/// neighbouring steps cross the same block); a thread of several pixels keeps 16 (neighbouring
+/// pixels' bands cross the same blocks).
+template <int kSlots>
+struct SeenBlocks {
+  static_assert((kSlots & (kSlots - 1)) == 0, "a power of two");
+  Vec3i pos[kSlots];
+  int level[kSlots];
+  int32_t ptr[kSlots];
+  __device__ SeenBlocks() {
+    for (int i = 0; i < kSlots; ++i) level[i] = -1;
+  }
+  __device__ static int slot(int l, const Vec3i& p) {
+    return kSlots == 1
+               ? 0
+               : static_cast<int>((block_hash(p, kSlots - 1) + static_cast<uint32_t>(l) * 17u) &
+                                  (kSlots - 1));
+  }
+};
+
+/// The allocation walk's visitor: a block's first look-up in the thread stamps it (listed as
+/// visible on its first visit this frame) or records it as missing; a block the thread has seen
+/// already needs neither again, so its look-up is skipped.
+template <int kSlots>
 struct FindVisitor {
   const MapView& map;
   int32_t* stamps;
@@ -41,17 +66,15 @@ struct FindVisitor {
   const BlockKeySet& missing;
   BlockRef* visible;
   AllocCounters* counters;
-  // The last block looked up: neighbouring steps of a band cross the same block.
-  Vec3i last_pos{INT_MIN, INT_MIN, INT_MIN};
-  int last_level = -1;
-  int32_t last_ptr = kPtrEmpty;
+  SeenBlocks<kSlots> seen;
 
   __device__ void add_missing(int level, const Vec3i& pos) {
     add_unique(missing, level, pos, &counters->missing);
   }
 
   __device__ int32_t block(int level, const Vec3i& pos) {
-    if (level == last_level && pos == last_pos) return last_ptr;
+    const int s = SeenBlocks<kSlots>::slot(level, pos);
+    if (seen.level[s] == level && seen.pos[s] == pos) return seen.ptr[s];
     const LevelView& lv = map.level[level];
     const int32_t entry = find_entry(lv, pos);
     const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
@@ -60,25 +83,31 @@ struct FindVisitor {
         ptr >= 0 && stamps[ptr] != frame && atomicExch(&stamps[ptr], frame) != frame;
     const int32_t slot = append_index(first_visit, &counters->visible);
     if (first_visit) visible[slot] = BlockRef{pos, level, entry, ptr};
-    last_level = level;
-    last_pos = pos;
-    last_ptr = ptr;
+    seen.level[s] = level;
+    seen.pos[s] = pos;
+    seen.ptr[s] = ptr;
     return ptr;
   }
 };
 
+/// One thread per `kW` x `kH` pixels, each pixel's truncation band walked in turn
+/// (kernels::walk_segment); with several pixels the thread remembers 16 blocks across them.
+template <int kW, int kH>
 __global__ void find_blocks_kernel(MapView map, kernels::DepthFrameView depth, Rigid3f T_wc,
                                    float mu_m, int32_t* stamps, int32_t frame, BlockKeySet missing,
                                    BlockRef* visible, AllocCounters* counters) {
-  const int x = blockIdx.x * blockDim.x + threadIdx.x;
-  const int y = blockIdx.y * blockDim.y + threadIdx.y;
-  const bool in_image = x < depth.depth_m.width && y < depth.depth_m.height;
-  Vec3f a, b;
-  const bool valid = in_image && kernels::band_segment(depth, T_wc, mu_m, x, y, &a, &b);
-  count_warp(valid, &counters->valid_pixels);
-  if (!valid) return;
-  FindVisitor visitor{map, stamps, frame, missing, visible, counters};
-  kernels::walk_segment(map, a, b, visitor);
+  const int x0 = (blockIdx.x * blockDim.x + threadIdx.x) * kW;
+  const int y0 = (blockIdx.y * blockDim.y + threadIdx.y) * kH;
+  FindVisitor<kW * kH == 1 ? 1 : 16> visitor{map, stamps, frame, missing, visible, counters};
+  for (int dy = 0; dy < kH; ++dy)
+    for (int dx = 0; dx < kW; ++dx) {
+      const int x = x0 + dx, y = y0 + dy;
+      const bool in_image = x < depth.depth_m.width && y < depth.depth_m.height;
+      Vec3f a, b;
+      const bool valid = in_image && kernels::band_segment(depth, T_wc, mu_m, x, y, &a, &b);
+      count_warp(valid, &counters->valid_pixels);
+      if (valid) kernels::walk_segment(map, a, b, visitor);
+    }
 }
 
 /// One CUDA block per missing key: its first thread inserts the block (kernels::allocate_block),
@@ -557,14 +586,19 @@ __global__ void __launch_bounds__(kThreads)
 
 /// The pass with Gauss-Newton on the device: the pose comes from `state`, and a level the state
 /// skips gets no pass. Held to 64 registers (4 blocks an SM, as the host's pass runs): the pose in
-/// registers would take it to 79.
+/// registers would take it to 79. With `kModelPoseInMemory`, the model's pose comes from
+/// `T_model_cw` (the arguments are then every frame's, for a LaunchGraph), else from `c`
+/// (T_model_cw not read): the model's pose copied into the pass takes 52 more bytes of spills a
+/// thread.
+template <bool kModelPoseInMemory>
 __global__ void __launch_bounds__(kThreads, 4)
     icp_state_kernel(kernels::IcpPass c, const Vec3f* points_c, const Vec3f* normals_c,
                      int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                      float* partials, unsigned* done, double* sums, const kernels::IcpState* state,
-                     int level) {
+                     const Rigid3f* T_model_cw, int level) {
   if (kernels::icp_skips(*state, level)) return;  // the same for every thread: no pass
   c.T_wc = kernels::rigid3f_of(state->T);
+  if constexpr (kModelPoseInMemory) c.T_model_cw = *T_model_cw;
   icp_pass(c, points_c, normals_c, pixels, model_points, model_normals, partials, done, sums);
 }
 
@@ -585,10 +619,22 @@ dim3 image_grid(int w, int h, dim3 threads) {
 
 void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
                  float mu_m, int32_t* stamps, int32_t frame, const BlockKeySet& missing,
-                 BlockRef* visible, AllocCounters* counters) {
+                 BlockRef* visible, AllocCounters* counters, int pixels_per_thread) {
   const dim3 threads(16, 8);
-  launch(find_blocks_kernel, image_grid(depth.depth_m.width, depth.depth_m.height, threads),
-         threads, map, depth, T_wc, mu_m, stamps, frame, missing, visible, counters);
+  const int w = depth.depth_m.width, h = depth.depth_m.height;
+  switch (pixels_per_thread) {  // the caller checked it (1, 2 or 4)
+    case 2:
+      launch(find_blocks_kernel<2, 1>, image_grid((w + 1) / 2, h, threads), threads, map, depth,
+             T_wc, mu_m, stamps, frame, missing, visible, counters);
+      break;
+    case 4:
+      launch(find_blocks_kernel<2, 2>, image_grid((w + 1) / 2, (h + 1) / 2, threads), threads, map,
+             depth, T_wc, mu_m, stamps, frame, missing, visible, counters);
+      break;
+    default:
+      launch(find_blocks_kernel<1, 1>, image_grid(w, h, threads), threads, map, depth, T_wc, mu_m,
+             stamps, frame, missing, visible, counters);
+  }
   check_last("allocation (finding blocks)");
 }
 
@@ -763,12 +809,58 @@ void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f
 void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
                         int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                         float* partials, unsigned* done, double* sums, kernels::IcpState* state,
-                        int level, double convergence_step) {
+                        const Rigid3f* T_model_cw, int level, double convergence_step) {
   const unsigned blocks = icp_blocks(pixels);
-  launch(icp_state_kernel, blocks, kThreads, pass, points_c, normals_c, pixels, model_points,
-         model_normals, partials, done, sums, state, level);
+  if (T_model_cw != nullptr)
+    launch(icp_state_kernel<true>, blocks, kThreads, pass, points_c, normals_c, pixels,
+           model_points, model_normals, partials, done, sums, state, T_model_cw, level);
+  else
+    launch(icp_state_kernel<false>, blocks, kThreads, pass, points_c, normals_c, pixels,
+           model_points, model_normals, partials, done, sums, state, T_model_cw, level);
   launch(icp_step_kernel, 1, 1, state, sums, level, convergence_step);
   check_last("ICP pass");
+}
+
+void load_icp_pass_kernels() {
+#if !defined(HIVOX_CUDA_EMULATION)
+  cudaFuncAttributes attributes{};
+  check_status(cudaFuncGetAttributes(&attributes, icp_state_kernel<true>),
+               "loading tracking's kernels");
+  check_status(cudaFuncGetAttributes(&attributes, icp_step_kernel), "loading tracking's kernels");
+#endif
+}
+
+LaunchGraph::~LaunchGraph() {
+  if (exec_ != nullptr) cudaGraphExecDestroy(static_cast<cudaGraphExec_t>(exec_));
+  if (graph_ != nullptr) cudaGraphDestroy(static_cast<cudaGraph_t>(graph_));
+  if (stream_ != nullptr) cudaStreamDestroy(static_cast<cudaStream_t>(stream_));
+}
+
+void LaunchGraph::run(const std::function<void()>& record, const char* what) {
+  if (exec_ == nullptr) {
+    cudaStream_t stream = nullptr;
+    check_status(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking), what);
+    stream_ = stream;
+    check_status(cudaStreamBeginCapture(stream, cudaStreamCaptureModeThreadLocal), what);
+    cudaStream_t& launches = hivox::detail::launch_stream();
+    cudaGraph_t graph = nullptr;
+    launches = stream;
+    try {
+      record();
+    } catch (...) {
+      launches = nullptr;
+      cudaStreamEndCapture(stream, &graph);
+      if (graph != nullptr) cudaGraphDestroy(graph);
+      throw;
+    }
+    launches = nullptr;
+    check_status(cudaStreamEndCapture(stream, &graph), what);
+    graph_ = graph;
+    cudaGraphExec_t exec = nullptr;
+    check_status(cudaGraphInstantiate(&exec, graph, 0), what);
+    exec_ = exec;
+  }
+  check_status(cudaGraphLaunch(static_cast<cudaGraphExec_t>(exec_), nullptr), what);
 }
 
 }  // namespace hivox::cuda

@@ -1,10 +1,11 @@
 #pragma once
 // The CUDA loop's launches: host-callable functions on the kernels' plain types (no CUDA types,
-// no Eigen), defined in loop_kernels.cu. Every launch goes on the default stream; none waits for
-// the device unless it says so.
+// no Eigen), defined in loop_kernels.cu. Every launch goes on the default stream (or into a
+// LaunchGraph's recording); none waits for the device unless it says so.
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/core/camera.h"
@@ -47,10 +48,12 @@ struct BlockKeySet {
 
 /// Stage one of allocation: every valid pixel walks its truncation band through the levels;
 /// blocks found are stamped with `frame` and listed as visible once, missing ones go into the
-/// set. `missing.keys` must be cleared (all ones) before.
+/// set. `missing.keys` must be cleared (all ones) before. `pixels_per_thread`: 1, 2 (2x1) or 4
+/// (2x2) pixels walked by one thread, which skips the look-ups of blocks it has seen (the same
+/// blocks found, fewer look-ups, fewer threads).
 void find_blocks(const MapView& map, const kernels::DepthFrameView& depth, const Rigid3f& T_wc,
                  float mu_m, int32_t* stamps, int32_t frame, const BlockKeySet& missing,
-                 BlockRef* visible, AllocCounters* counters);
+                 BlockRef* visible, AllocCounters* counters, int pixels_per_thread = 1);
 
 /// Stage two: inserts the `count` distinct missing blocks (lock-free, kernels::allocate_block)
 /// and appends the new ones to the visible list, stamped; grows `bounds` (device memory) by
@@ -137,13 +140,40 @@ void icp_reduce(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f
                 int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                 float* partials, unsigned* done, double* sums, double* host_sums);
 /// One ICP pass with Gauss-Newton on the device: the pose comes from `state` (pass.T_wc is not
-/// read), a pass at a level the state skips does nothing, and a one-thread kernel after it steps
-/// the state with the sums (kernels::icp_update). Nothing waits: every pass is launched one after
-/// another and the state is read back once.
+/// read), the model's from `T_model_cw` in device memory where it is not null (then a frame's
+/// passes have the same arguments as every other frame's: LaunchGraph), else from
+/// pass.T_model_cw; a pass at a level the state skips does nothing, and a one-thread kernel after
+/// it steps the state with the sums (kernels::icp_update). Nothing waits: every pass is launched
+/// one after another and the state is read back once.
 void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, const Vec3f* normals_c,
                         int64_t pixels, const Vec3f* model_points, const Vec3f* model_normals,
                         float* partials, unsigned* done, double* sums, kernels::IcpState* state,
-                        int level, double convergence_step);
+                        const Rigid3f* T_model_cw, int level, double convergence_step);
+
+/// Loads icp_pass_on_device's kernels (with the model's pose in device memory) into the device
+/// before a LaunchGraph records them: a kernel's first launch may load it, which is no launch a
+/// recording stream may make. Nothing in the CPU emulation.
+void load_icp_pass_kernels();
+
+/// Launches recorded once and replayed as one CUDA graph: one call from the host a replay, and
+/// on the device the kernels follow each other without waiting for the host's launches.
+/// `run(record)` records the launches `record` makes (the first time) and launches the graph;
+/// the launches keep the first call's arguments, so what changes between calls must be read
+/// from device memory.
+class LaunchGraph {
+ public:
+  LaunchGraph() = default;
+  ~LaunchGraph();
+  LaunchGraph(const LaunchGraph&) = delete;
+  LaunchGraph& operator=(const LaunchGraph&) = delete;
+  void run(const std::function<void()>& record, const char* what);
+  bool recorded() const { return exec_ != nullptr; }
+
+ private:
+  void* stream_ = nullptr;  // CUDA's handles, kept out of this header
+  void* graph_ = nullptr;
+  void* exec_ = nullptr;
+};
 
 // ---- refinement (refine_kernels.cu): the CPU Refiner's decisions and the map's split and merge
 // edits, per block on the device ----------------------------------------------------------------

@@ -205,12 +205,20 @@ ReconstructionParams params_for(int levels, float voxel_m, float truncation_m) {
   return p;
 }
 
+/// The GPU loop's opt-ins (GpuReconstruction's set_split_marches, set_raycast_registers,
+/// set_allocation_pixels).
+struct DeviceOptions {
+  int split_marches = 0;
+  int raycast_registers = 0;
+  int allocation_pixels = 1;
+};
+
 /// Fuses `first` frames on the CPU (refining between frames when the map has several levels),
 /// hands the map to the GPU, then fuses (and refines) frames [first, last) at their true poses
-/// on both. `split_marches`, `raycast_registers`: GpuReconstruction's set_split_marches and
-/// set_raycast_registers.
+/// on both, the GPU with options `o`.
 void compare_fusion(const std::string& spec, int levels, float voxel_m, float truncation_m,
-                    int first, int last, int split_marches = 0, int raycast_registers = 0) {
+                    int first, int last, const DeviceOptions& o = {}) {
+  const int raycast_registers = o.raycast_registers;
   SyntheticDataset data(parse_synthetic_spec(spec));
   const CameraRig& rig = data.info().rig;
   const ReconstructionParams p = params_for(levels, voxel_m, truncation_m);
@@ -223,8 +231,9 @@ void compare_fusion(const std::string& spec, int levels, float voxel_m, float tr
     if (levels > 1) refiner.refine(map, a.visible_blocks, *f.T_wc_gt);
   }
   cuda::GpuReconstruction gpu(p, rig, map);
-  gpu.set_split_marches(split_marches);
+  gpu.set_split_marches(o.split_marches);
   gpu.set_raycast_registers(raycast_registers);
+  gpu.set_allocation_pixels(o.allocation_pixels);
   const int registers = gpu.raycast_registers();
   std::printf("[ raycast  ] its kernel takes %d registers a thread (at most %d asked)\n", registers,
               raycast_registers);
@@ -271,14 +280,28 @@ TEST(GpuLoop, FusesIntoAHierarchyHandedOverByTheCpu) {
 // all 32 rays march) finds what the CPU's whole marches find.
 TEST(GpuLoop, SplitMarchesRaycastAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
-  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40, 32);
+  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40,
+                 {.split_marches = 32});
 }
 
 // The model raycast's kernel capped at 64 registers a thread (the most spilled of its builds)
 // finds what the CPU finds.
 TEST(GpuLoop, RaycastsAsTheCpuDoesWithItsRegistersCapped) {
   HIVOX_REQUIRE_CUDA();
-  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40, 0, 64);
+  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40,
+                 {.raycast_registers = 64});
+}
+
+// Allocation threads that walk 2x2 pixels each (skipping the look-ups of blocks seen) find the
+// CPU's blocks, on a fixed grid and in a hierarchy, and 2x1 ones in the hierarchy.
+TEST(GpuLoop, AllocatesAsTheCpuDoesWithSeveralPixelsAThread) {
+  HIVOX_REQUIRE_CUDA();
+  compare_fusion("synthetic:desk?frames=12&noise=kinect", 1, 0.005f, 0.02f, 0, 12,
+                 {.allocation_pixels = 4});
+  compare_fusion("synthetic:desk?frames=40&noise=kinect", 3, 0.002f, 0.024f, 25, 40,
+                 {.allocation_pixels = 4});
+  compare_fusion("synthetic:desk?frames=34&noise=kinect", 3, 0.002f, 0.024f, 25, 34,
+                 {.allocation_pixels = 2});
 }
 
 TEST(GpuLoop, TracksAsTheCpuDoes) {
@@ -329,13 +352,16 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
 /// Gauss-Newton stepped on the device (every pass launched at once, the state read back once a
 /// frame) against the host's stepping of the same sums: the same increments and verdicts, poses
 /// equal to the float pose's rounding (the device's double sin and cos differ in the last bits).
+/// And the device's passes recorded once as a CUDA graph and replayed every frame
+/// (set_tracking_graph): the launches one by one's poses and iteration counts, to the bit.
 TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
   const CameraRig& rig = data.info().rig;
   const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
-  cuda::GpuReconstruction host(p, rig), on_device(p, rig);
+  cuda::GpuReconstruction host(p, rig), on_device(p, rig), graph(p, rig);
   host.set_gauss_newton_on_device(false);
+  graph.set_tracking_graph(true);
   const Pose first = *data.read(0).T_wc_gt;
   int64_t iterations_differ = 0, verdicts_differ = 0;
   double max_dt = 0, max_dr = 0;
@@ -349,6 +375,13 @@ TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
     const Pose d = host.trajectory().back().T_wc.inverse() * on_device.trajectory().back().T_wc;
     max_dt = std::max(max_dt, d.translation().norm());
     max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+    const FrameStats& g = graph.track_and_integrate(f, first);
+    EXPECT_EQ(g.track_iterations, b.track_iterations) << "frame " << i << ", as a graph";
+    const Pose& tb = on_device.trajectory().back().T_wc;
+    const Pose& tg = graph.trajectory().back().T_wc;
+    EXPECT_TRUE(tb.matrix() == tg.matrix())
+        << "frame " << i << ", as a graph: " << (tb.translation() - tg.translation()).norm() * 1e3
+        << " mm apart";
   }
   std::printf(
       "[ track    ] %zu frames, Gauss-Newton on the device against the host: poses at most %.4f "
@@ -764,6 +797,12 @@ TEST(GpuLoop, BadInputIsRefusedWithAClearError) {
         << cap.what();
   }
   EXPECT_EQ(error_of([&] { gpu.set_split_marches(33); }).code(), ErrorCode::InvalidArgument);
+  for (const int bad : {0, 3, 8}) {
+    const Error pixels = error_of([&] { gpu.set_allocation_pixels(bad); });
+    EXPECT_EQ(pixels.code(), ErrorCode::InvalidArgument);
+    EXPECT_TRUE(contains(pixels.what(), fmt::format("allocation: {} pixels a thread", bad)))
+        << pixels.what();
+  }
   p.device = Device::cpu();
   const Error cpu = error_of([&] { cuda::GpuReconstruction(p, data.info().rig); });
   EXPECT_TRUE(contains(cpu.what(), "needs a CUDA device")) << cpu.what();

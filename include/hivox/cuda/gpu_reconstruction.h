@@ -73,6 +73,13 @@ class GpuReconstruction {
   /// 0.48 instead of 0.54 ms a frame on fr1/rpy).
   void set_gauss_newton_on_device(bool on);
 
+  /// Whether tracking's ICP passes (with Gauss-Newton on the device: two kernels a pass, 40 a
+  /// frame with the default iterations) are launched as one CUDA graph, recorded at the first
+  /// tracked frame, instead of one launch at a time: one call from the host instead of 40, and
+  /// no wait for the host's launches between the kernels. The same kernels with the same
+  /// arguments (the poses are read from device memory), so the same poses. Off by default: not
+  /// yet timed on a GPU.
+  void set_tracking_graph(bool on);
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
   /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of
@@ -88,6 +95,13 @@ class GpuReconstruction {
   /// was 4 % slower on an H200 (2026-11-26); the others, which fit every warp at once, are not
   /// yet timed, so not the default. `Error(InvalidArgument)` for other counts.
   void set_raycast_registers(int at_most);
+  /// How many pixels' truncation bands one thread of the allocation walks: 1 (the default), 2
+  /// (2x1) or 4 (2x2), the thread skipping the look-ups of blocks it has seen (16 remembered). The
+  /// same blocks found: neighbouring pixels' bands cross the same blocks, so the hash-table
+  /// look-ups a pixel fall (fr1/rpy frame 119, `bench/ray_cost`: 8.60, 6.08, 4.77 with 3 levels;
+  /// 5.98, 3.78, 2.60 on the fixed grid) while the threads are fewer. Not yet timed on a GPU, so
+  /// not the default. `Error(InvalidArgument)` for other counts.
+  void set_allocation_pixels(int per_thread);
   /// The registers a thread of the model raycast's kernel takes now, as the device's driver
   /// reports them (0 in the CPU emulation of CUDA).
   int raycast_registers() const;

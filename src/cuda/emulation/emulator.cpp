@@ -311,6 +311,18 @@ struct Event {
   std::chrono::steady_clock::time_point at;
 };
 
+/// A recorded launch: its configuration and its threads' function (the arguments held).
+struct Launch {
+  dim3 grid, block;
+  std::function<void()> thread;
+};
+struct Graph {
+  std::vector<Launch> launches;
+};
+struct Stream {
+  Graph* capture = nullptr;  ///< the graph being recorded, or null
+};
+
 // ---- the driver's virtual memory ---------------------------------------------------------------
 
 struct Allocation {
@@ -416,6 +428,16 @@ void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
     state.run(thread, b);
     running = nullptr;
   }
+}
+
+void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()> thread) {
+  if (stream != nullptr) {
+    if (Graph* g = reinterpret_cast<Stream*>(stream)->capture) {
+      g->launches.push_back({grid, block, std::move(thread)});
+      return;
+    }
+  }
+  run_grid(grid, block, thread);
 }
 
 unsigned lane() {
@@ -635,6 +657,49 @@ cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
 }
 cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t) {
   return cudaMemset(ptr, value, bytes);
+}
+
+cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned) {
+  *stream = reinterpret_cast<cudaStream_t>(new e::Stream{});
+  return cudaSuccess;
+}
+cudaError_t cudaStreamDestroy(cudaStream_t stream) {
+  auto* s = reinterpret_cast<e::Stream*>(stream);
+  if (s != nullptr && s->capture != nullptr) e::die("a stream destroyed while it captures");
+  delete s;
+  return cudaSuccess;
+}
+cudaError_t cudaStreamBeginCapture(cudaStream_t stream, cudaStreamCaptureMode) {
+  auto* s = reinterpret_cast<e::Stream*>(stream);
+  if (s == nullptr) e::die("a capture on the default stream (a GPU refuses it)");
+  if (s->capture != nullptr) e::die("a capture begun on a stream that captures");
+  s->capture = new e::Graph{};
+  return cudaSuccess;
+}
+cudaError_t cudaStreamEndCapture(cudaStream_t stream, cudaGraph_t* graph) {
+  auto* s = reinterpret_cast<e::Stream*>(stream);
+  if (s == nullptr || s->capture == nullptr)
+    e::die("a capture ended on a stream that does not capture");
+  *graph = reinterpret_cast<cudaGraph_t>(s->capture);
+  s->capture = nullptr;
+  return cudaSuccess;
+}
+cudaError_t cudaGraphInstantiate(cudaGraphExec_t* exec, cudaGraph_t graph, unsigned long long) {
+  *exec = reinterpret_cast<cudaGraphExec_t>(new e::Graph(*reinterpret_cast<e::Graph*>(graph)));
+  return cudaSuccess;
+}
+cudaError_t cudaGraphLaunch(cudaGraphExec_t exec, cudaStream_t stream) {
+  for (const e::Launch& l : reinterpret_cast<e::Graph*>(exec)->launches)
+    e::launch_on(stream, l.grid, l.block, l.thread);
+  return cudaSuccess;
+}
+cudaError_t cudaGraphExecDestroy(cudaGraphExec_t exec) {
+  delete reinterpret_cast<e::Graph*>(exec);
+  return cudaSuccess;
+}
+cudaError_t cudaGraphDestroy(cudaGraph_t graph) {
+  delete reinterpret_cast<e::Graph*>(graph);
+  return cudaSuccess;
 }
 
 cudaError_t cudaEventCreate(cudaEvent_t* event) {

@@ -38,6 +38,9 @@ namespace hivox::cuda::emulation {
 /// built-in indices set; returns when all have finished. A configuration a GPU refuses (no
 /// blocks, more than 1024 threads a block) sets the last error instead, as a launch would.
 void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread);
+/// run_grid on `stream`: now, or recorded into the stream's graph while it captures (`thread`
+/// then holds the kernel's arguments by value).
+void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()> thread);
 
 enum class WarpOp : uint8_t { Shuffle, ShuffleDown, ShuffleXor, Ballot };
 
