@@ -4,10 +4,9 @@
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
 # alternated (the ray kernel's register caps, split marches, Gauss-Newton on the host, allocation
 # threads of several pixels, tracking as a graph, the coarse grid off, together; 3 levels and the
-# fixed grid), frames decoded as the loop goes (in turn and
-# ahead on 8 threads), meshing on the device against the host, ncu on the ray kernel (where
-# ncu is installed), and last compute-sanitizer's memcheck on the newest tests and its initcheck
-# on the mesh tests.
+# fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads), meshing on the
+# device against the host, ncu on the ray kernel (where ncu is installed), and last
+# compute-sanitizer's memcheck on the newest tests and its initcheck on the mesh tests.
 # With the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two
 # are alternated first: a change made without a GPU against what it changed.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
@@ -91,9 +90,8 @@ fi
 # the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
 # the host, allocation threads of 2x1 and 2x2 pixels, tracking's passes as one CUDA graph, the
-# coarse occupancy grid off; then split
-# marches without the grid, on the fixed grid too (the hierarchy's target is 1.2x the fixed
-# grid's time).
+# coarse occupancy grid off; then split marches without the grid, on the fixed grid too (the
+# hierarchy's target is 1.2x the fixed grid's time).
 for data in fr1 desk; do
   src=$(data_of $data)
   bench "${data}_l3_default_a" "$src" 3

@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
                "tracking's Gauss-Newton steps on the host, each pass's sums read back "
                "(GpuReconstruction::set_gauss_newton_on_device(false))");
   app.add_flag("--tracking-graph", graph,
-               "tracking's ICP passes launched as one CUDA graph, recorded at the first tracked "
+               "tracking's ICP passes launched as one CUDA graph, recorded at the second tracked "
                "frame (GpuReconstruction::set_tracking_graph)");
   app.add_option("--split-marches", split_marches,
                  "split a warp's marches across its lanes where at most this many of its rays "

@@ -38,6 +38,7 @@
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
+#include "map/sample_kernels.h"
 #include "raycast/coarse_occupancy.h"
 #include "raycast/raycast_kernels.h"
 #include "raycast/surface_tiles.h"
@@ -163,25 +164,21 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
 
 /// The device's allocation walk (find_blocks) as a thread walks it: its pixels' truncation bands
 /// one after another, each from the coarsest level down through Split blocks, its visitor
-/// remembering the blocks it looked up in `slots` slots (the device's SeenBlocks: 1, the last
-/// block, for a thread of one pixel; 16 for several): a block's side effects (its stamp, its
+/// remembering the blocks it looked up in `slots` slots (as the device's FindVisitor: 1, the
+/// last block, for a thread of one pixel; 16 for several): a block's side effects (its stamp, its
 /// missing key) are done at its first look-up, so a thread visits the same blocks with fewer
 /// look-ups. Counts the hash-table look-ups, by level.
 struct WalkCounter {
   const MapView& map;
-  uint32_t mask = 0;  ///< slots - 1
+  uint32_t count = 1;  ///< slots used, 1 or 16
   int64_t lookups[kMaxLevels] = {};
-  struct Slot {
-    Vec3i pos;
-    int level = -1;
-    int32_t ptr = kPtrEmpty;
-  } slots[16];
+  kernels::BlockSlot slots[16];
   void reset() {
-    for (Slot& s : slots) s.level = -1;
+    for (kernels::BlockSlot& s : slots) s.level = -1;
   }
   int32_t block(int level, const Vec3i& pos) {
-    Slot& s = slots[(block_hash(pos, mask) + static_cast<uint32_t>(level) * 17u) & mask];
-    if (s.level == level && s.pos == pos) return s.ptr;
+    kernels::BlockSlot& s = slots[kernels::block_slot(level, pos, count)];
+    if (s.holds(level, pos)) return s.ptr;
     ++lookups[level];
     s = {pos, level, find_block_ptr(map.level[level], pos)};
     return s.ptr;
@@ -199,7 +196,7 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
   depth.max_depth_m = p.fusion.depth_range.max_m;
   const Rigid3f T = to_rigid3f(*f.T_wc_gt);
   for (auto [w, h] : {std::pair{1, 1}, std::pair{2, 1}, std::pair{2, 2}}) {
-    WalkCounter walk{map, w * h == 1 ? 0u : 15u};
+    WalkCounter walk{map, w * h == 1 ? 1u : 16u};
     int64_t pixels = 0;
     for (int ty = 0; ty < depth.depth_m.height; ty += h)
       for (int tx = 0; tx < depth.depth_m.width; tx += w) {

@@ -844,12 +844,13 @@ struct GpuReconstruction::Impl {
     kernels::IcpState* state = host_icp_state.reserve(1);
     *state = kernels::icp_start(icp::to_posed(T_init));
     upload_async(icp_state.get(), state, 1, "tracking (Gauss-Newton's start)");
+    const Rigid3f* model_pose_on_device = nullptr;
     if (icp_graph_on) {
       Rigid3f* model_pose = host_model_pose.reserve(1);
       *model_pose = T_model_cw;
       upload_async(icp_model_pose.get(), model_pose, 1, "tracking (the model's pose)");
+      model_pose_on_device = icp_model_pose.get();
     }
-    const Rigid3f* model_pose_on_device = icp_graph_on ? icp_model_pose.get() : nullptr;
     const auto passes = [&] {
       for (int level = tp.levels() - 1; level >= 0; --level) {
         const ImageLevel& F = pyramid[static_cast<std::size_t>(level)];
@@ -862,12 +863,10 @@ struct GpuReconstruction::Impl {
                              icp_state.get(), model_pose_on_device, level, tp.convergence_step);
       }
     };
-    if (icp_graph_on) {
-      if (!icp_graph.recorded()) load_icp_pass_kernels();
+    if (icp_graph_on)
       icp_graph.run(passes, "tracking (the passes' graph)");
-    } else {
+    else
       passes();
-    }
     copy_to_host(state, icp_state.get(), sizeof(kernels::IcpState), "tracking (Gauss-Newton)");
     icp::judge_alignment(tp, icp::alignment_of(*state), reduce, *valid_pixels, T_init, &result);
     result.icp_ms = watch.lap_ms();

@@ -13,6 +13,7 @@
 #include "cuda/device_memory.h"
 #include "hivox/core/device.h"
 #include "map/map_kernels.h"
+#include "map/sample_kernels.h"
 
 namespace hivox::cuda {
 
@@ -34,30 +35,12 @@ unsigned grid_for(int64_t n, int threads = kThreads) {
   return static_cast<unsigned>(blocks < 1 ? 1 : blocks);
 }
 
-/// The blocks an allocation thread has looked up, in `kSlots` slots (direct-mapped as
-/// kernels::BlockLookupCache's): 1 keeps the last one (a thread of one pixel: its band's
-/// neighbouring steps cross the same block); a thread of several pixels keeps 16 (neighbouring
-/// pixels' bands cross the same blocks).
-template <int kSlots>
-struct SeenBlocks {
-  static_assert((kSlots & (kSlots - 1)) == 0, "a power of two");
-  Vec3i pos[kSlots];
-  int level[kSlots];
-  int32_t ptr[kSlots];
-  __device__ SeenBlocks() {
-    for (int i = 0; i < kSlots; ++i) level[i] = -1;
-  }
-  __device__ static int slot(int l, const Vec3i& p) {
-    return kSlots == 1
-               ? 0
-               : static_cast<int>((block_hash(p, kSlots - 1) + static_cast<uint32_t>(l) * 17u) &
-                                  (kSlots - 1));
-  }
-};
-
 /// The allocation walk's visitor: a block's first look-up in the thread stamps it (listed as
 /// visible on its first visit this frame) or records it as missing; a block the thread has seen
-/// already needs neither again, so its look-up is skipped.
+/// already needs neither again, so its look-up is skipped. It remembers the blocks it looked up
+/// in `kSlots` direct-mapped slots: 1 keeps the last one (a thread of one pixel: its band's
+/// neighbouring steps cross the same block); a thread of several pixels keeps 16 (neighbouring
+/// pixels' bands cross the same blocks).
 template <int kSlots>
 struct FindVisitor {
   const MapView& map;
@@ -66,15 +49,15 @@ struct FindVisitor {
   const BlockKeySet& missing;
   BlockRef* visible;
   AllocCounters* counters;
-  SeenBlocks<kSlots> seen;
+  kernels::BlockSlot seen[kSlots];
 
   __device__ void add_missing(int level, const Vec3i& pos) {
     add_unique(missing, level, pos, &counters->missing);
   }
 
   __device__ int32_t block(int level, const Vec3i& pos) {
-    const int s = SeenBlocks<kSlots>::slot(level, pos);
-    if (seen.level[s] == level && seen.pos[s] == pos) return seen.ptr[s];
+    kernels::BlockSlot& s = seen[kernels::block_slot(level, pos, kSlots)];
+    if (s.holds(level, pos)) return s.ptr;
     const LevelView& lv = map.level[level];
     const int32_t entry = find_entry(lv, pos);
     const int32_t ptr = entry == kNoEntry ? kPtrEmpty : lv.entries[entry].ptr;
@@ -83,9 +66,7 @@ struct FindVisitor {
         ptr >= 0 && stamps[ptr] != frame && atomicExch(&stamps[ptr], frame) != frame;
     const int32_t slot = append_index(first_visit, &counters->visible);
     if (first_visit) visible[slot] = BlockRef{pos, level, entry, ptr};
-    seen.level[s] = level;
-    seen.pos[s] = pos;
-    seen.ptr[s] = ptr;
+    s = {pos, level, ptr};
     return ptr;
   }
 };
@@ -821,15 +802,6 @@ void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, con
   check_last("ICP pass");
 }
 
-void load_icp_pass_kernels() {
-#if !defined(HIVOX_CUDA_EMULATION)
-  cudaFuncAttributes attributes{};
-  check_status(cudaFuncGetAttributes(&attributes, icp_state_kernel<true>),
-               "loading tracking's kernels");
-  check_status(cudaFuncGetAttributes(&attributes, icp_step_kernel), "loading tracking's kernels");
-#endif
-}
-
 LaunchGraph::~LaunchGraph() {
   if (exec_ != nullptr) cudaGraphExecDestroy(static_cast<cudaGraphExec_t>(exec_));
   if (graph_ != nullptr) cudaGraphDestroy(static_cast<cudaGraph_t>(graph_));
@@ -837,6 +809,11 @@ LaunchGraph::~LaunchGraph() {
 }
 
 void LaunchGraph::run(const std::function<void()>& record, const char* what) {
+  if (!launched_) {
+    record();
+    launched_ = true;
+    return;
+  }
   if (exec_ == nullptr) {
     cudaStream_t stream = nullptr;
     check_status(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking), what);

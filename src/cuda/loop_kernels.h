@@ -150,16 +150,13 @@ void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, con
                         float* partials, unsigned* done, double* sums, kernels::IcpState* state,
                         const Rigid3f* T_model_cw, int level, double convergence_step);
 
-/// Loads icp_pass_on_device's kernels (with the model's pose in device memory) into the device
-/// before a LaunchGraph records them: a kernel's first launch may load it, which is no launch a
-/// recording stream may make. Nothing in the CPU emulation.
-void load_icp_pass_kernels();
-
 /// Launches recorded once and replayed as one CUDA graph: one call from the host a replay, and
 /// on the device the kernels follow each other without waiting for the host's launches.
-/// `run(record)` records the launches `record` makes (the first time) and launches the graph;
-/// the launches keep the first call's arguments, so what changes between calls must be read
-/// from device memory.
+/// `run(record)` makes the launches `record` makes: the first call one by one (which loads their
+/// kernels: a kernel's first launch may load it, which a recording stream must not do), the
+/// second records them and launches the graph, every later call launches the graph. The
+/// launches keep the second call's arguments, so what changes between calls must be read from
+/// device memory.
 class LaunchGraph {
  public:
   LaunchGraph() = default;
@@ -167,9 +164,9 @@ class LaunchGraph {
   LaunchGraph(const LaunchGraph&) = delete;
   LaunchGraph& operator=(const LaunchGraph&) = delete;
   void run(const std::function<void()>& record, const char* what);
-  bool recorded() const { return exec_ != nullptr; }
 
  private:
+  bool launched_ = false;   // once, one by one
   void* stream_ = nullptr;  // CUDA's handles, kept out of this header
   void* graph_ = nullptr;
   void* exec_ = nullptr;

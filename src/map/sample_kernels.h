@@ -11,6 +11,20 @@
 
 namespace hivox::kernels {
 
+/// A slot of a direct-mapped cache of block look-ups: block `pos` of `level` and its `ptr`
+/// (level -1: empty).
+struct BlockSlot {
+  Vec3i pos;
+  int32_t level = -1;
+  int32_t ptr = kPtrEmpty;
+  HIVOX_HD bool holds(int lvl, const Vec3i& p) const { return level == lvl && pos == p; }
+};
+
+/// The slot of block `p` of level `lvl` among `slots` (a power of two) direct-mapped slots.
+HIVOX_HD inline uint32_t block_slot(int lvl, const Vec3i& p, uint32_t slots) {
+  return (block_hash(p, slots - 1) + static_cast<uint32_t>(lvl) * 17u) & (slots - 1);
+}
+
 /// Direct-mapped cache of block look-ups (absent blocks included). Neighbouring samples (along a
 /// ray, between neighbouring rays, across a mesh block) mostly need the same few blocks; a CPU
 /// driver keeps one cache per thread, a GPU thread one of its own. Valid while the map's layout
@@ -22,12 +36,7 @@ struct BlockLookupCache {
 #else
   static constexpr int kSlots = 4096;  // 80 KB: a CPU thread's row of rays crosses ~100 blocks
 #endif
-  struct Slot {
-    Vec3i pos;
-    int32_t level = -1;
-    int32_t ptr = kPtrEmpty;
-  };
-  Slot slots[kSlots];
+  BlockSlot slots[kSlots];
 #if !defined(__CUDA_ARCH__)
   /// Look-ups the cache did not answer (each a search of the hash table): what a cost model of
   /// the device's rays counts (bench/ray_cost). Host only.
@@ -39,8 +48,8 @@ struct BlockLookupCache {
   }
   /// `ptr` of block `p` at `lvl` (kPtrEmpty when absent), from the cache or the hash table.
   HIVOX_HD int32_t find(const MapView& map, int lvl, const Vec3i& p) {
-    Slot& s = slots[(block_hash(p, kSlots - 1) + static_cast<uint32_t>(lvl) * 17u) & (kSlots - 1)];
-    if (s.level == lvl && s.pos == p) return s.ptr;
+    BlockSlot& s = slots[block_slot(lvl, p, kSlots)];
+    if (s.holds(lvl, p)) return s.ptr;
     s.pos = p;
     s.level = lvl;
     s.ptr = find_block_ptr(map.level[lvl], p);

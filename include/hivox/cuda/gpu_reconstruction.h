@@ -74,11 +74,11 @@ class GpuReconstruction {
   void set_gauss_newton_on_device(bool on);
 
   /// Whether tracking's ICP passes (with Gauss-Newton on the device: two kernels a pass, 40 a
-  /// frame with the default iterations) are launched as one CUDA graph, recorded at the first
-  /// tracked frame, instead of one launch at a time: one call from the host instead of 40, and
-  /// no wait for the host's launches between the kernels. The same kernels with the same
-  /// arguments (the poses are read from device memory), so the same poses. Off by default: not
-  /// yet timed on a GPU.
+  /// frame with the default iterations) are launched as one CUDA graph, recorded at the second
+  /// tracked frame (the first launches them one by one), instead of one launch at a time: one call
+  /// from the host instead of 40, and no wait for the host's launches between the kernels. The same
+  /// kernels with the same arguments (the poses are read from device memory), so the same poses.
+  /// Off by default: not yet timed on a GPU.
   void set_tracking_graph(bool on);
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
