@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <numeric>
 #include <vector>
 
@@ -154,6 +155,36 @@ TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
   EXPECT_DEATH(cudaMemcpy(out, out, sizeof(int), cudaMemcpyHostToDevice),
                "host-to-device reads from device memory");
   cudaFree(out);
+}
+
+/// New device memory holds what HIVOX_EMULATION_FILL says: 0xA5 by default, a byte, or bytes of
+/// each allocation's own; a value that is neither stops the program with the variable's name.
+TEST(CudaEmulationDeathTest, NewMemoryHoldsTheFillAsked) {
+  constexpr std::size_t kBytes = 1000;
+  const auto filled = [&](const char* fill) {
+    if (fill != nullptr)
+      setenv("HIVOX_EMULATION_FILL", fill, 1);
+    else
+      unsetenv("HIVOX_EMULATION_FILL");
+    unsigned char* p = device_array<unsigned char>(kBytes);
+    std::vector<unsigned char> host = download(p, kBytes);
+    cudaFree(p);
+    return host;
+  };
+  const auto all = [](const std::vector<unsigned char>& v, int byte) {
+    return std::all_of(v.begin(), v.end(), [&](unsigned char b) { return b == byte; });
+  };
+  EXPECT_TRUE(all(filled(nullptr), 0xA5));
+  EXPECT_TRUE(all(filled("7"), 7));
+  EXPECT_TRUE(all(filled("0xff"), 0xFF));
+  const std::vector<unsigned char> a = filled("random"), b = filled("random");
+  EXPECT_NE(a, b);
+  // Bytes of every value, none of them a run: at least 200 distinct 0-255 values in 1000 bytes.
+  std::vector<bool> seen(256);
+  for (const unsigned char x : a) seen[x] = true;
+  EXPECT_GT(std::count(seen.begin(), seen.end(), true), 200);
+  EXPECT_DEATH(filled("256"), "HIVOX_EMULATION_FILL=256 is neither a byte");
+  unsetenv("HIVOX_EMULATION_FILL");
 }
 
 /// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <boost/context/fiber.hpp>
 #include <boost/context/stack_context.hpp>
 #include <chrono>
@@ -286,6 +287,36 @@ DeviceMemory& device_memory() {
   return memory;
 }
 
+/// What memory a GPU hands out holds: not cleared, so new device memory is filled [p, p + bytes).
+/// By default with 0xA5, except cudaMalloc's beyond 64 MiB (`large`), left as they come;
+/// HIVOX_EMULATION_FILL=N (a byte, 0-255) fills all of it with N, =random each allocation with
+/// bytes of its own, so that a kernel reading memory nothing wrote gives results that move with
+/// the fill. Read at each allocation.
+void fill_new(void* p, std::size_t bytes, bool large) {
+  static std::atomic<uint64_t> allocations{0};
+  const char* v = std::getenv("HIVOX_EMULATION_FILL");
+  if (v == nullptr || *v == '\0') {
+    if (!large) std::memset(p, 0xA5, bytes);
+    return;
+  }
+  if (std::string_view(v) != "random") {
+    char* end = nullptr;
+    const long byte = std::strtol(v, &end, 0);
+    if (*end != '\0' || byte < 0 || byte > 255)
+      die("HIVOX_EMULATION_FILL=%s is neither a byte (0-255) nor \"random\"", v);
+    std::memset(p, static_cast<int>(byte), bytes);
+    return;
+  }
+  uint64_t x = 0x9E3779B97F4A7C15ull * (1 + allocations.fetch_add(1));  // xorshift64
+  auto* out = static_cast<unsigned char*>(p);
+  for (std::size_t i = 0; i < bytes; i += 8) {
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    std::memcpy(out + i, &x, std::min<std::size_t>(8, bytes - i));
+  }
+}
+
 std::size_t stack_limit = 1024;
 /// Launches sized by the multiprocessor count (the ICP's grid-stride reduction) get smaller grids
 /// than on an H100 (132): the same code with fewer threads, each taking more of the items.
@@ -388,7 +419,7 @@ CUresult vm_set_access(CUdeviceptr ptr, std::size_t size, const CUmemAccessDesc*
     return CUDA_ERROR_INVALID_VALUE;
   if (mprotect(reinterpret_cast<void*>(ptr), size, PROT_READ | PROT_WRITE) != 0)
     return CUDA_ERROR_INVALID_VALUE;
-  std::memset(reinterpret_cast<void*>(ptr), 0xA5, size);
+  fill_new(reinterpret_cast<void*>(ptr), size, false);
   return CUDA_SUCCESS;
 }
 
@@ -595,7 +626,7 @@ const char* cudaGetErrorString(cudaError_t error) {
 
 cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
   // Aligned as cudaMalloc's (256 bytes), of the exact size (an ASan build then sees a read past
-  // its end); up to 64 MiB filled with a pattern, as a GPU's memory is not cleared either.
+  // its end); filled (fill_new), as a GPU's memory is not cleared either.
   const std::size_t size = std::max<std::size_t>(bytes, 1);
   e::DeviceMemory& memory = e::device_memory();
   if (!memory.take(size)) return e::record(cudaErrorMemoryAllocation);
@@ -604,7 +635,7 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
     memory.give_back(size);
     return e::record(cudaErrorMemoryAllocation);
   }
-  if (size <= (std::size_t{64} << 20)) std::memset(p, 0xA5, size);
+  e::fill_new(p, size, size > (std::size_t{64} << 20));
   memory.add(p, size);
   *ptr = p;
   return cudaSuccess;
