@@ -753,8 +753,20 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
     test::expect_hierarchy_consistent(gpu->map());
   }
   // The Reconstruction meshes on the device: the mesh of its map downloaded, vertex for vertex.
+  // And the same mesh when made again (a result that moves between calls would be a race or a
+  // read of memory nothing wrote, not arithmetic).
   const TriangleMesh on_device = gpu->extract_mesh();
   const TriangleMesh on_host = extract_mesh(gpu->map());
+  {
+    const TriangleMesh again = gpu->extract_mesh();
+    const test::MeshDifferences d = test::mesh_differences(on_device, again);
+    std::printf("[ mesh     ] the device's mesh made twice: %lld / %lld vertices, %lld apart\n",
+                static_cast<long long>(on_device.vertex_count()),
+                static_cast<long long>(again.vertex_count()), static_cast<long long>(d.positions));
+    EXPECT_EQ(again.vertex_count(), on_device.vertex_count());
+    EXPECT_EQ(d.positions, 0) << test::describe_mesh_difference(on_device, again);
+    EXPECT_EQ(again.triangles, on_device.triangles);
+  }
   ASSERT_EQ(on_device.vertex_count(), on_host.vertex_count())
       << test::describe_mesh_difference(on_device, on_host)
       << test::describe_first_difference_in_map(on_device, on_host, gpu->map());
