@@ -174,7 +174,7 @@ struct WalkCounter {
   int64_t lookups[kMaxLevels] = {};
   kernels::BlockSlot slots[16];
   void reset() {
-    for (kernels::BlockSlot& s : slots) s.level = -1;
+    for (kernels::BlockSlot& s : slots) s = {};
   }
   int32_t block(int level, const Vec3i& pos) {
     kernels::BlockSlot& s = slots[kernels::block_slot(level, pos, count)];
