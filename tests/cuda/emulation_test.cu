@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <cstdlib>
 #include <numeric>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "core/parallel.h"
@@ -30,6 +32,29 @@ std::vector<T> download(const T* p, std::size_t n) {
   EXPECT_EQ(cudaMemcpy(host.data(), p, n * sizeof(T), cudaMemcpyDeviceToHost), cudaSuccess);
   return host;
 }
+
+/// Sets environment variable `name` to `value` (null: unsets it) for its lifetime, then restores
+/// what it held.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    set(value);
+  }
+  ~ScopedEnv() { set(old_ ? old_->c_str() : nullptr); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  void set(const char* value) {
+    if (value != nullptr)
+      setenv(name_, value, 1);
+    else
+      unsetenv(name_);
+  }
+  const char* name_;
+  std::optional<std::string> old_;
+};
 
 /// Each block sums its threads' values through shared memory: a tree with a barrier per step.
 __global__ void block_sums(const int* in, int* out) {
@@ -144,6 +169,8 @@ __global__ void mask_without_own_lane(int* out) {
 }
 
 TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
+  // The threads named are the first to get there in the default schedule.
+  const ScopedEnv in_order("HIVOX_EMULATION_SCHEDULE", "in-order");
   int* out = device_array<int>(32);
   EXPECT_DEATH(launch(shuffle_without_lane_31, 1, 32, out),
                "block \\(0,0,0\\) of 32 threads cannot go on: 1 finished");
@@ -185,6 +212,60 @@ TEST(CudaEmulationDeathTest, NewMemoryHoldsTheFillAsked) {
   EXPECT_GT(std::count(seen.begin(), seen.end(), true), 200);
   EXPECT_DEATH(filled("256"), "HIVOX_EMULATION_FILL=256 is neither a byte");
   unsetenv("HIVOX_EMULATION_FILL");
+}
+
+/// Each thread takes the next slot for its index (the threads' order through the atomic), then
+/// adds one to `counter` without an atomic but with an atomic between its read and its write: a
+/// race that loses updates whenever another thread runs in between.
+__global__ void order_and_race(int* next, int* slots, int* counter, int* calls) {
+  slots[atomicAdd(next, 1)] = static_cast<int>(threadIdx.x);
+  const int v = *counter;
+  atomicAdd(calls, 1);
+  *counter = v + 1;
+}
+
+/// HIVOX_EMULATION_SCHEDULE orders a block's threads: in index order by default, from the last
+/// with `reverse`, drawn with `random` (each launch its own order); the last two switch threads at
+/// atomics, so the race above loses updates there and not in index order (with `reverse` all
+/// but one: every thread reads before any writes).
+TEST(CudaEmulationDeathTest, TheScheduleOrdersThreadsAndSwitchesThemAtAtomics) {
+  constexpr int kThreads = 64;
+  struct Outcome {
+    std::vector<int> slots;
+    int counter = 0, calls = 0;
+  };
+  const auto run = [&](const char* schedule) {
+    const ScopedEnv asked("HIVOX_EMULATION_SCHEDULE", schedule);
+    int* ints = device_array<int>(3 + kThreads);
+    EXPECT_EQ(cudaMemset(ints, 0, 3 * sizeof(int)), cudaSuccess);
+    launch(order_and_race, 1, kThreads, ints, ints + 3, ints + 1, ints + 2);
+    EXPECT_EQ(cudaGetLastError(), cudaSuccess);
+    const std::vector<int> all = download(ints, 3 + kThreads);
+    cudaFree(ints);
+    return Outcome{std::vector<int>(all.begin() + 3, all.end()), all[1], all[2]};
+  };
+  std::vector<int> in_order(kThreads);
+  std::iota(in_order.begin(), in_order.end(), 0);
+  for (const char* schedule : {static_cast<const char*>(nullptr), "in-order"}) {
+    const Outcome o = run(schedule);
+    EXPECT_EQ(o.slots, in_order);
+    EXPECT_EQ(o.counter, kThreads);  // one thread after another: no update lost
+  }
+  const Outcome reverse = run("reverse");
+  EXPECT_EQ(reverse.slots.front(), kThreads - 1);
+  EXPECT_EQ(reverse.counter, 1);
+  const Outcome a = run("random:7"), c = run("random");
+  EXPECT_NE(a.slots, c.slots);
+  EXPECT_NE(a.slots, in_order);
+  EXPECT_LT(a.counter, kThreads);
+  for (const Outcome& o : {reverse, a, c}) {
+    EXPECT_EQ(o.calls, kThreads);  // the atomics themselves lose nothing
+    std::vector<int> sorted = o.slots;
+    std::sort(sorted.begin(), sorted.end());
+    EXPECT_EQ(sorted, in_order);
+  }
+  EXPECT_DEATH(run("sideways"), "HIVOX_EMULATION_SCHEDULE=sideways is none of");
+  EXPECT_DEATH(run("random:x"), "HIVOX_EMULATION_SCHEDULE=random:x is none of");
 }
 
 /// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).

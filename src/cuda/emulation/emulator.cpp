@@ -90,6 +90,52 @@ uint3 unflatten(int64_t i, uint3 dim) {
                static_cast<unsigned>(i / (int64_t{dim.x} * dim.y))};
 }
 
+/// The order in which a grid's blocks and a block's threads run (HIVOX_EMULATION_SCHEDULE, read
+/// at each launch). `InOrder`: blocks and threads in index order, a thread switching only where
+/// it waits. `Reverse`: both from the last index, and a thread yields to the next at every
+/// atomic and fence. `Random`: both in an order drawn per launch and block from `seed`, and a
+/// thread yields at half of its atomics and fences to a ready thread drawn the same way. A result
+/// that changes with the schedule depends on an order a GPU does not promise.
+enum class Schedule : uint8_t { InOrder, Reverse, Random };
+struct ScheduleAsked {
+  Schedule kind = Schedule::InOrder;
+  uint64_t seed = 0;
+};
+
+ScheduleAsked schedule_asked() {
+  const char* v = std::getenv("HIVOX_EMULATION_SCHEDULE");
+  if (v == nullptr || *v == '\0' || std::string_view(v) == "in-order") return {};
+  const std::string_view s(v);
+  if (s == "reverse") return {Schedule::Reverse, 0};
+  if (s == "random") return {Schedule::Random, 1};
+  if (s.substr(0, 7) == "random:" && s.size() > 7) {
+    char* end = nullptr;
+    const unsigned long long seed = std::strtoull(v + 7, &end, 10);
+    if (*end == '\0' && v[7] != '-') return {Schedule::Random, seed};
+  }
+  die("HIVOX_EMULATION_SCHEDULE=%s is none of in-order, reverse, random, random:SEED", v);
+}
+
+/// splitmix64: the next draw of the generator whose state is `x`.
+uint64_t draw(uint64_t& x) {
+  uint64_t z = (x += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+/// 0, 1, ..., n - 1 in the schedule's order (`rng` drawn from for Random).
+std::vector<int64_t> scheduled_order(int64_t n, Schedule kind, uint64_t& rng) {
+  std::vector<int64_t> order(static_cast<std::size_t>(n));
+  for (int64_t i = 0; i < n; ++i)
+    order[static_cast<std::size_t>(i)] = kind == Schedule::Reverse ? n - 1 - i : i;
+  if (kind == Schedule::Random)
+    for (int64_t i = n - 1; i > 0; --i)
+      std::swap(order[static_cast<std::size_t>(i)],
+                order[static_cast<std::size_t>(draw(rng) % static_cast<uint64_t>(i + 1))]);
+  return order;
+}
+
 enum class Wait : uint8_t { None, Barrier, Warp };
 
 /// One thread of the running block.
@@ -116,9 +162,12 @@ struct Block {
   std::vector<unsigned> warp_arrived;  // per warp: the lanes in a warp operation
   std::vector<int> ready;              // threads whose wait is over
   int next = 0, done = 0, at_barrier = 0;
-  int current = -1;        // the thread running now
-  int switched_from = -1;  // what just switched away: a thread, kScheduler or kFinished
-  ctx::fiber scheduler;    // the scheduler's continuation while the threads run
+  int current = -1;  // the thread running now
+  Schedule schedule = Schedule::InOrder;
+  uint64_t rng = 0;            // Random's draws for this block
+  std::vector<int64_t> order;  // the threads' start order (empty: in index order)
+  int switched_from = -1;      // what just switched away: a thread, kScheduler or kFinished
+  ctx::fiber scheduler;        // the scheduler's continuation while the threads run
 
   void enter(int id) {
     current = id;
@@ -137,13 +186,37 @@ struct Block {
   /// What runs next: a thread whose wait is over, else a new fiber for the next thread, else
   /// (`or_scheduler`) the scheduler; an empty fiber when nothing can run.
   ctx::fiber take_next(bool or_scheduler) {
-    if (!ready.empty()) {
-      const int id = ready.back();
-      ready.pop_back();
-      return std::move(threads[static_cast<std::size_t>(id)].parked);
-    }
+    if (!ready.empty()) return std::move(threads[static_cast<std::size_t>(take_ready())].parked);
     if (next < n) return worker();
     return or_scheduler ? std::move(scheduler) : ctx::fiber{};
+  }
+
+  /// Removes and returns a thread whose wait is over: the last one that became ready, or for
+  /// Random one drawn.
+  int take_ready() {
+    if (schedule == Schedule::Random)
+      std::swap(ready[static_cast<std::size_t>(draw(rng) % ready.size())], ready.back());
+    const int id = ready.back();
+    ready.pop_back();
+    return id;
+  }
+
+  /// At an atomic or a fence: under the Reverse and Random schedules the running thread may let
+  /// another run first and goes on after the threads ready now. Reverse starts every thread
+  /// before it resumes one (each then runs up to its next atomic, turn by turn); Random draws
+  /// between starting the next thread and resuming a ready one.
+  void yield() {
+    if (schedule == Schedule::InOrder || (ready.empty() && next >= n)) return;
+    if (schedule == Schedule::Random && (draw(rng) & 1u) == 0) return;
+    const bool start = next < n && (ready.empty() || schedule == Schedule::Reverse ||
+                                    draw(rng) % (ready.size() + 1) == 0);
+    const int me = current;
+    ctx::fiber other =
+        start ? worker() : std::move(threads[static_cast<std::size_t>(take_ready())].parked);
+    ready.insert(ready.begin(), me);
+    switched_from = me;
+    file(std::move(other).resume());
+    enter(me);
   }
 
   /// Parks the running thread until its wait is over.
@@ -157,7 +230,9 @@ struct Block {
   /// Releases the barrier when every thread that has not finished is at it.
   bool release_barrier(int self) {
     if (at_barrier == 0 || next < n || at_barrier + done < n) return false;
-    for (int i = 0; i < n; ++i) {
+    // Taken last first: InOrder's threads go on from the last, Reverse's from the first.
+    for (int k = 0; k < n; ++k) {
+      const int i = schedule == Schedule::Reverse ? n - 1 - k : k;
       Thread& t = threads[static_cast<std::size_t>(i)];
       if (t.wait != Wait::Barrier) continue;
       t.wait = Wait::None;
@@ -171,7 +246,9 @@ struct Block {
     return ctx::fiber(std::allocator_arg, StackPool{}, [this](ctx::fiber&& from) {
       file(std::move(from));
       while (next < n) {
-        const int id = next++;
+        const int id =
+            order.empty() ? next : static_cast<int>(order[static_cast<std::size_t>(next)]);
+        ++next;
         enter(id);
         (*body)();
         ++done;
@@ -199,9 +276,14 @@ struct Block {
         blockIdx.x, blockIdx.y, blockIdx.z, n, done, waits);
   }
 
-  void run(const std::function<void()>& thread, uint3 dim) {
+  /// Runs the block's threads under schedule `kind` (`seed`: this block's draws for Random).
+  void run(const std::function<void()>& thread, uint3 dim, Schedule kind, uint64_t seed) {
     body = &thread;
     n = static_cast<int>(dim.x * dim.y * dim.z);
+    schedule = kind;
+    rng = seed;
+    order.clear();
+    if (kind != Schedule::InOrder) order = scheduled_order(n, kind, rng);
     threads.clear();
     threads.resize(static_cast<std::size_t>(n));
     for (int i = 0; i < n; ++i) threads[static_cast<std::size_t>(i)].idx = unflatten(i, dim);
@@ -449,14 +531,23 @@ void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
   if (running != nullptr) die("a kernel launched from a kernel");
   const int64_t blocks = int64_t{grid.x} * grid.y * grid.z;
   const uint3 g{grid.x, grid.y, grid.z}, b{block.x, block.y, block.z};
+  // Each launch draws its orders from the seed and its number (a program that launches the same
+  // kernels in the same order gets the same orders in every run).
+  static std::atomic<uint64_t> launches{0};
+  const ScheduleAsked asked = schedule_asked();
+  uint64_t rng = asked.seed ^ (0xD1B54A32D192ED03ull * (1 + launches.fetch_add(1)));
+  std::vector<int64_t> order;
+  if (asked.kind != Schedule::InOrder) order = scheduled_order(blocks, asked.kind, rng);
 #pragma omp parallel for schedule(dynamic, 1)
-  for (int64_t i = 0; i < blocks; ++i) {
+  for (int64_t k = 0; k < blocks; ++k) {
+    const int64_t i = order.empty() ? k : order[static_cast<std::size_t>(k)];
     thread_local Block state;
     running = &state;
     gridDim = g;
     blockDim = b;
     blockIdx = unflatten(i, g);
-    state.run(thread, b);
+    uint64_t block_rng = rng ^ static_cast<uint64_t>(i);
+    state.run(thread, b, asked.kind, draw(block_rng));
     running = nullptr;
   }
 }
@@ -473,6 +564,10 @@ void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()>
 
 unsigned lane() {
   return static_cast<unsigned>(running_block("a warp function").current) & 31u;
+}
+
+void at_atomic() {
+  if (running != nullptr && running->current >= 0) running->yield();
 }
 
 uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {

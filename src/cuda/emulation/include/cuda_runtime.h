@@ -52,6 +52,10 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg);
 /// This thread's lane in its warp.
 unsigned lane();
 
+/// Called by every atomic and fence before it acts: under the Reverse and Random schedules
+/// (HIVOX_EMULATION_SCHEDULE) the thread may let other threads of its block run first.
+void at_atomic();
+
 template <typename T>
 uint64_t to_bits(T v) {
   static_assert(sizeof(T) <= 8 && std::is_trivially_copyable_v<T>);
@@ -76,6 +80,7 @@ T shuffle(WarpOp op, unsigned mask, T value, unsigned arg) {
 /// and maximum).
 template <typename T, typename Keeps>
 T atomic_keep(T* p, T v, Keeps keeps) {
+  at_atomic();
   std::atomic_ref<T> a(*p);
   T old = a.load(std::memory_order_relaxed);
   while (keeps(v, old) && !a.compare_exchange_weak(old, v, std::memory_order_relaxed)) {
@@ -87,6 +92,7 @@ T atomic_keep(T* p, T v, Keeps keeps) {
 
 void __syncthreads();
 inline void __threadfence() {
+  hivox::cuda::emulation::at_atomic();
   __atomic_thread_fence(__ATOMIC_SEQ_CST);
 }
 
@@ -136,18 +142,22 @@ T __ldcg(const T* p) {
 // CUDA's atomics are relaxed.
 template <typename T>
 T atomicAdd(T* p, std::type_identity_t<T> v) {
+  hivox::cuda::emulation::at_atomic();
   return std::atomic_ref<T>(*p).fetch_add(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicOr(T* p, std::type_identity_t<T> v) {
+  hivox::cuda::emulation::at_atomic();
   return std::atomic_ref<T>(*p).fetch_or(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicExch(T* p, std::type_identity_t<T> v) {
+  hivox::cuda::emulation::at_atomic();
   return std::atomic_ref<T>(*p).exchange(v, std::memory_order_relaxed);
 }
 template <typename T>
 T atomicCAS(T* p, std::type_identity_t<T> expected, std::type_identity_t<T> desired) {
+  hivox::cuda::emulation::at_atomic();
   std::atomic_ref<T>(*p).compare_exchange_strong(expected, desired, std::memory_order_relaxed);
   return expected;  // on failure compare_exchange wrote the value held here
 }
