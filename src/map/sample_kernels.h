@@ -50,9 +50,7 @@ struct BlockLookupCache {
   HIVOX_HD int32_t find(const MapView& map, int lvl, const Vec3i& p) {
     BlockSlot& s = slots[block_slot(lvl, p, kSlots)];
     if (s.holds(lvl, p)) return s.ptr;
-    s.pos = p;
-    s.level = lvl;
-    s.ptr = find_block_ptr(map.level[lvl], p);
+    s = {p, lvl, find_block_ptr(map.level[lvl], p)};
 #if !defined(__CUDA_ARCH__)
     ++table_lookups;
 #endif
