@@ -1,6 +1,7 @@
 // The CPU emulation of CUDA (src/cuda/emulation) on kernels whose results are known by hand:
-// barriers, shared memory, warp operations, atomics, the launch errors a GPU gives, and the
-// misuses it stops with a message. Built only with -DHIVOX_CUDA_EMULATION=ON.
+// barriers, shared memory, warp operations, atomics, the queue of copies, the schedules, the
+// launch errors a GPU gives, and the misuses it stops with a message. Built only with
+// -DHIVOX_CUDA_EMULATION=ON.
 
 #include <cuda.h>
 #include <cuda_runtime.h>
@@ -266,6 +267,79 @@ TEST(CudaEmulationDeathTest, TheScheduleOrdersThreadsAndSwitchesThemAtAtomics) {
   }
   EXPECT_DEATH(run("sideways"), "HIVOX_EMULATION_SCHEDULE=sideways is none of");
   EXPECT_DEATH(run("random:x"), "HIVOX_EMULATION_SCHEDULE=random:x is none of");
+}
+
+/// Writes `value` to `*out`.
+__global__ void store(int* out, int value) {
+  *out = value;
+}
+
+/// *out = *in.
+__global__ void copy_one(const int* in, int* out) {
+  *out = *in;
+}
+
+/// Copies with page-locked host memory are left to the device's queue, as on a GPU: a download
+/// reaches the host only at a synchronisation that waits for it (until then its host side holds
+/// the fill), with the device's bytes of when it was queued; an upload reads its host side when
+/// the device gets to it. Copies with pageable memory are done when they return.
+TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
+  const ScopedEnv fill("HIVOX_EMULATION_FILL", nullptr);  // 0xA5 bytes
+  constexpr int kFill = static_cast<int>(0xA5A5A5A5u);
+  int* dev = device_array<int>(2);
+  int* host = nullptr;
+  ASSERT_EQ(cudaMallocHost(reinterpret_cast<void**>(&host), 2 * sizeof(int)), cudaSuccess);
+  cudaEvent_t before = nullptr, after = nullptr;
+  ASSERT_EQ(cudaEventCreate(&before), cudaSuccess);
+  ASSERT_EQ(cudaEventCreate(&after), cudaSuccess);
+
+  launch(store, 1, 1, dev, 42);
+  ASSERT_EQ(cudaEventRecord(before, nullptr), cudaSuccess);
+  ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, nullptr), cudaSuccess);
+  ASSERT_EQ(cudaEventRecord(after, nullptr), cudaSuccess);
+  launch(store, 1, 1, dev, 7);  // after the download: not in it
+  EXPECT_EQ(host[0], kFill);
+  ASSERT_EQ(cudaEventSynchronize(before), cudaSuccess);
+  EXPECT_EQ(host[0], kFill);  // the event came before the copy
+  ASSERT_EQ(cudaEventSynchronize(after), cudaSuccess);
+  EXPECT_EQ(host[0], 42);
+
+  // cudaDeviceSynchronize and a blocking copy wait for every download.
+  ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, nullptr), cudaSuccess);
+  EXPECT_EQ(host[0], kFill);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  EXPECT_EQ(host[0], 7);
+  launch(store, 1, 1, dev, 8);
+  ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, nullptr), cudaSuccess);
+  int pageable = 0;
+  ASSERT_EQ(cudaMemcpy(&pageable, dev + 1, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+  EXPECT_EQ(host[0], 8);
+
+  // An upload reads the host when the next kernel comes: a host write before that is uploaded.
+  host[1] = 1;
+  ASSERT_EQ(cudaMemcpyAsync(dev, host + 1, sizeof(int), cudaMemcpyHostToDevice, nullptr),
+            cudaSuccess);
+  host[1] = 2;
+  launch(copy_one, 1, 1, dev, dev + 1);
+  host[1] = 3;  // too late
+  ASSERT_EQ(cudaMemcpy(&pageable, dev + 1, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+  EXPECT_EQ(pageable, 2);
+
+  // With pageable memory the copy is done at once, either way.
+  pageable = 5;
+  ASSERT_EQ(cudaMemcpyAsync(dev, &pageable, sizeof(int), cudaMemcpyHostToDevice, nullptr),
+            cudaSuccess);
+  pageable = 0;
+  ASSERT_EQ(cudaMemcpyAsync(&pageable, dev, sizeof(int), cudaMemcpyDeviceToHost, nullptr),
+            cudaSuccess);
+  EXPECT_EQ(pageable, 5);
+
+  cudaEventDestroy(before);
+  cudaEventDestroy(after);
+  EXPECT_EQ(cudaFreeHost(host), cudaSuccess);
+  EXPECT_EQ(cudaFreeHost(host), cudaErrorInvalidValue);  // not page-locked memory any more
+  cudaGetLastError();
+  cudaFree(dev);
 }
 
 /// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).

@@ -316,14 +316,10 @@ cudaError_t record(cudaError_t e) {
   return e;
 }
 
-/// Device memory: what cudaMalloc gave and what is reserved for virtual memory, by start; and
-/// the memory in use (cudaMalloc's and the driver's allocations, not reservations) against the
-/// device's size, which the tests can lower (hivoxEmulationSetDeviceMemory).
-struct DeviceMemory {
+/// Address ranges by start.
+struct AddressRanges {
   std::mutex mutex;
   std::map<uintptr_t, std::size_t> ranges;
-  std::size_t in_use = 0;
-  std::size_t size = std::size_t{80} << 30;  // an H100's
 
   void add(const void* p, std::size_t bytes) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -338,6 +334,24 @@ struct DeviceMemory {
     ranges.erase(it);
     return bytes;
   }
+  /// Whether [p, p + bytes) lies in one range.
+  bool holds(const void* p, std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const uintptr_t a = reinterpret_cast<uintptr_t>(p);
+    auto it = ranges.upper_bound(a);
+    if (it == ranges.begin()) return false;
+    --it;
+    return a + bytes <= it->first + it->second;
+  }
+};
+
+/// Device memory: what cudaMalloc gave and what is reserved for virtual memory; and the memory
+/// in use (cudaMalloc's and the driver's allocations, not reservations) against the device's
+/// size, which the tests can lower (hivoxEmulationSetDeviceMemory).
+struct DeviceMemory : AddressRanges {
+  std::size_t in_use = 0;
+  std::size_t size = std::size_t{80} << 30;  // an H100's
+
   /// Counts `bytes` more in use; false (nothing counted) where the device has not that much free.
   bool take(std::size_t bytes) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -353,19 +367,17 @@ struct DeviceMemory {
     std::lock_guard<std::mutex> lock(mutex);
     return in_use < size ? size - in_use : 0;
   }
-  /// Whether [p, p + bytes) lies in one range.
-  bool holds(const void* p, std::size_t bytes) {
-    std::lock_guard<std::mutex> lock(mutex);
-    const uintptr_t a = reinterpret_cast<uintptr_t>(p);
-    auto it = ranges.upper_bound(a);
-    if (it == ranges.begin()) return false;
-    --it;
-    return a + bytes <= it->first + it->second;
-  }
 };
 
 DeviceMemory& device_memory() {
   static DeviceMemory memory;
+  return memory;
+}
+
+/// Page-locked host memory (cudaMallocHost's): where a GPU's cudaMemcpyAsync returns before the
+/// copy is done.
+AddressRanges& pinned_memory() {
+  static AddressRanges memory;
   return memory;
 }
 
@@ -420,8 +432,73 @@ void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind ki
     die("%s device-to-host writes to device memory at %p", what, dst);
 }
 
+/// The device's queue of copies between page-locked host memory and the device, which a GPU may
+/// still be doing when cudaMemcpyAsync returns. An upload reads its host side when the device
+/// gets to it: just before the next kernel, copy or memset. A download reads the device at once
+/// (nothing queued after it has run yet) but hands its bytes to the host only at a
+/// synchronisation that waits for it: cudaDeviceSynchronize, a blocking copy, a free, or an
+/// event recorded after it. Until then its host side holds what new device memory holds
+/// (fill_new), so a host that reads it without waiting reads nonsense, as it may on a GPU.
+class CopyQueue {
+ public:
+  void upload(void* dst, const void* src, std::size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    uploads_.push_back({dst, src, bytes});
+  }
+  void download(void* dst, const void* src, std::size_t bytes) {
+    run_uploads();
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto* from = static_cast<const unsigned char*>(src);
+    downloads_.push_back({dst, std::vector<unsigned char>(from, from + bytes), queued_++});
+    fill_new(dst, bytes, false);
+  }
+  /// Before the device does anything: the uploads queued, in order.
+  void run_uploads() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const Upload& u : uploads_) std::memcpy(u.dst, u.src, u.bytes);
+    uploads_.clear();
+  }
+  /// The downloads queued before mark `before` (every one by default) handed to the host.
+  void finish(uint64_t before = UINT64_MAX) {
+    run_uploads();
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::erase_if(downloads_, [&](const Download& d) {
+      if (d.mark >= before) return false;
+      std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
+      return true;
+    });
+  }
+  /// The mark of what is queued now (an event's).
+  uint64_t mark() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return queued_;
+  }
+
+ private:
+  struct Upload {
+    void* dst;
+    const void* src;
+    std::size_t bytes;
+  };
+  struct Download {
+    void* dst;
+    std::vector<unsigned char> bytes;
+    uint64_t mark;
+  };
+  std::mutex mutex_;
+  std::vector<Upload> uploads_;
+  std::vector<Download> downloads_;
+  uint64_t queued_ = 0;
+};
+
+CopyQueue& copy_queue() {
+  static CopyQueue queue;
+  return queue;
+}
+
 struct Event {
   std::chrono::steady_clock::time_point at;
+  uint64_t mark = 0;  // the copy queue's when recorded
 };
 
 /// A recorded launch: its configuration and its threads' function (the arguments held).
@@ -529,6 +606,7 @@ void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
     return;
   }
   if (running != nullptr) die("a kernel launched from a kernel");
+  copy_queue().run_uploads();
   const int64_t blocks = int64_t{grid.x} * grid.y * grid.z;
   const uint3 g{grid.x, grid.y, grid.z}, b{block.x, block.y, block.z};
   // Each launch draws its orders from the seed and its number (a program that launches the same
@@ -689,6 +767,7 @@ cudaError_t cudaDeviceSetLimit(cudaLimit limit, std::size_t value) {
   return cudaSuccess;
 }
 cudaError_t cudaDeviceSynchronize() {
+  e::copy_queue().finish();
   return e::last_error;
 }
 cudaError_t cudaGetLastError() {
@@ -737,6 +816,7 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
 }
 cudaError_t cudaFree(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
+  e::copy_queue().finish();  // a free waits for the device
   const std::size_t bytes = e::device_memory().remove(ptr);
   if (bytes == 0) return e::record(cudaErrorInvalidValue);
   e::device_memory().give_back(bytes);
@@ -756,10 +836,16 @@ cudaError_t hivoxEmulationSetDeviceMemory(std::size_t bytes) {
   return cudaSuccess;
 }
 cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {
-  *ptr = std::malloc(std::max<std::size_t>(bytes, 1));
-  return *ptr != nullptr ? cudaSuccess : e::record(cudaErrorMemoryAllocation);
+  const std::size_t size = std::max<std::size_t>(bytes, 1);
+  *ptr = std::malloc(size);
+  if (*ptr == nullptr) return e::record(cudaErrorMemoryAllocation);
+  e::pinned_memory().add(*ptr, size);
+  return cudaSuccess;
 }
 cudaError_t cudaFreeHost(void* ptr) {
+  if (ptr == nullptr) return cudaSuccess;
+  e::copy_queue().finish();  // a free waits for the device
+  if (e::pinned_memory().remove(ptr) == 0) return e::record(cudaErrorInvalidValue);
   std::free(ptr);
   return cudaSuccess;
 }
@@ -767,15 +853,32 @@ cudaError_t cudaFreeHost(void* ptr) {
 cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
   if (bytes == 0) return cudaSuccess;
   e::check_copy(dst, src, bytes, kind);
+  e::copy_queue().finish();  // a blocking copy waits for everything queued before it
   std::memcpy(dst, src, bytes);
   return cudaSuccess;
 }
 cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
                             cudaStream_t) {
-  return cudaMemcpy(dst, src, bytes, kind);  // synchronous here
+  if (bytes == 0) return cudaSuccess;
+  e::check_copy(dst, src, bytes, kind);
+  // Only copies with page-locked host memory are left to the queue; with pageable memory a GPU
+  // finishes them before returning.
+  if (kind == cudaMemcpyHostToDevice && e::pinned_memory().holds(src, bytes)) {
+    e::copy_queue().upload(dst, src, bytes);
+  } else if (kind == cudaMemcpyDeviceToHost && e::pinned_memory().holds(dst, bytes)) {
+    e::copy_queue().download(dst, src, bytes);
+  } else if (kind == cudaMemcpyDeviceToDevice) {
+    e::copy_queue().run_uploads();
+    std::memcpy(dst, src, bytes);
+  } else {
+    e::copy_queue().finish();
+    std::memcpy(dst, src, bytes);
+  }
+  return cudaSuccess;
 }
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
   if (bytes == 0) return cudaSuccess;
+  e::copy_queue().run_uploads();
   if (!e::device_memory().holds(ptr, bytes))
     e::die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
   std::memset(ptr, value, bytes);
@@ -837,10 +940,13 @@ cudaError_t cudaEventDestroy(cudaEvent_t event) {
   return cudaSuccess;
 }
 cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t) {
-  reinterpret_cast<e::Event*>(event)->at = std::chrono::steady_clock::now();
+  auto* ev = reinterpret_cast<e::Event*>(event);
+  ev->at = std::chrono::steady_clock::now();
+  ev->mark = e::copy_queue().mark();
   return cudaSuccess;
 }
-cudaError_t cudaEventSynchronize(cudaEvent_t) {
+cudaError_t cudaEventSynchronize(cudaEvent_t event) {
+  e::copy_queue().finish(reinterpret_cast<e::Event*>(event)->mark);
   return e::last_error;
 }
 cudaError_t cudaEventElapsedTime(float* ms, cudaEvent_t start, cudaEvent_t end) {
