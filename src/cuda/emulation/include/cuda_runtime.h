@@ -3,10 +3,11 @@
 /// CUDA's device-side language, emulated on the CPU for the CUDA loop's code (compiled by the
 /// host compiler with -DHIVOX_CUDA_EMULATION; src/cuda/emulation/README.md): the qualifiers,
 /// the built-in indices, __syncthreads, the warp operations and the atomics the kernels use.
-/// A grid's blocks run on the host's threads; a block's threads run as fibers that switch only
-/// at __syncthreads and warp operations, so that these wait for the threads they name as on a
-/// GPU. A thread that waits for a thread that cannot come (one that has exited, a lane outside
-/// the block) stops the program with a message naming the kernel's block and thread.
+/// A grid's blocks run on the host's threads; a block's threads run as fibers that switch at
+/// __syncthreads and warp operations, so that these wait for the threads they name as on a GPU,
+/// and under HIVOX_EMULATION_SCHEDULE=reverse or random at atomics and fences too. A thread that
+/// waits for a thread that cannot come (one that has exited, a lane outside the block) stops the
+/// program with a message naming the kernel's block and thread.
 
 #include <atomic>
 #include <bit>
