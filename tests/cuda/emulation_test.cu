@@ -190,10 +190,7 @@ TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
 TEST(CudaEmulationDeathTest, NewMemoryHoldsTheFillAsked) {
   constexpr std::size_t kBytes = 1000;
   const auto filled = [&](const char* fill) {
-    if (fill != nullptr)
-      setenv("HIVOX_EMULATION_FILL", fill, 1);
-    else
-      unsetenv("HIVOX_EMULATION_FILL");
+    const ScopedEnv asked("HIVOX_EMULATION_FILL", fill);
     unsigned char* p = device_array<unsigned char>(kBytes);
     std::vector<unsigned char> host = download(p, kBytes);
     cudaFree(p);
@@ -212,7 +209,6 @@ TEST(CudaEmulationDeathTest, NewMemoryHoldsTheFillAsked) {
   for (const unsigned char x : a) seen[x] = true;
   EXPECT_GT(std::count(seen.begin(), seen.end(), true), 200);
   EXPECT_DEATH(filled("256"), "HIVOX_EMULATION_FILL=256 is neither a byte");
-  unsetenv("HIVOX_EMULATION_FILL");
 }
 
 /// Each thread takes the next slot for its index (the threads' order through the atomic), then

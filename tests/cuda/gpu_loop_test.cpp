@@ -58,7 +58,10 @@ using Key = std::tuple<int, int, int, int>;  // level, x, y, z
 std::size_t frames_to_run(std::size_t on_a_gpu, std::size_t emulated) {
 #if defined(HIVOX_CUDA_EMULATION)
   const char* asked = std::getenv("HIVOX_EMULATION_FRAMES");
-  return asked != nullptr && std::string_view(asked) == "gpu" ? on_a_gpu : emulated;
+  if (asked == nullptr || *asked == '\0') return emulated;
+  if (std::string_view(asked) == "gpu") return on_a_gpu;
+  std::fprintf(stderr, "HIVOX_EMULATION_FRAMES=%s: the only value is \"gpu\"\n", asked);
+  std::abort();
 #else
   static_cast<void>(emulated);
   return on_a_gpu;

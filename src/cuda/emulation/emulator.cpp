@@ -859,19 +859,19 @@ cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpy
 }
 cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
                             cudaStream_t) {
-  if (bytes == 0) return cudaSuccess;
+  // Copies with page-locked host memory are left to the queue and device-to-device ones run in
+  // the device's order; with pageable memory a GPU finishes the copy before returning.
+  const bool upload = kind == cudaMemcpyHostToDevice && e::pinned_memory().holds(src, bytes);
+  const bool download = kind == cudaMemcpyDeviceToHost && e::pinned_memory().holds(dst, bytes);
+  if (bytes == 0 || !(upload || download || kind == cudaMemcpyDeviceToDevice))
+    return cudaMemcpy(dst, src, bytes, kind);
   e::check_copy(dst, src, bytes, kind);
-  // Only copies with page-locked host memory are left to the queue; with pageable memory a GPU
-  // finishes them before returning.
-  if (kind == cudaMemcpyHostToDevice && e::pinned_memory().holds(src, bytes)) {
+  if (upload) {
     e::copy_queue().upload(dst, src, bytes);
-  } else if (kind == cudaMemcpyDeviceToHost && e::pinned_memory().holds(dst, bytes)) {
+  } else if (download) {
     e::copy_queue().download(dst, src, bytes);
-  } else if (kind == cudaMemcpyDeviceToDevice) {
-    e::copy_queue().run_uploads();
-    std::memcpy(dst, src, bytes);
   } else {
-    e::copy_queue().finish();
+    e::copy_queue().run_uploads();
     std::memcpy(dst, src, bytes);
   }
   return cudaSuccess;
