@@ -4,8 +4,8 @@
 # tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
 # alternated (the ray kernel's register caps, split marches, Gauss-Newton on the host, allocation
 # threads of several pixels, tracking as a graph, the coarse grid off, together; 3 levels and the
-# fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads), meshing on the
-# device against the host, ncu on the ray kernel (where ncu is installed), and last
+# fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads), meshing and a
+# render on the device against the host, ncu on the ray kernel (where ncu is installed), and last
 # compute-sanitizer's memcheck on the newest tests and its initcheck on the mesh tests.
 # With the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two
 # are alternated first: a change made without a GPU against what it changed.
@@ -124,7 +124,7 @@ for data in fr1 desk; do
   bench "${data}_l3_alloc4_graph" "$src" 3 --allocation-pixels 4 --tracking-graph
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
-bench desk_l3_mesh "$desk" 3 --poses gt --mesh
+bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # The ray kernel as ncu sees it, without and with a register cap: its registers, occupancy,
 # waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
 ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)

@@ -4,6 +4,7 @@
 //   hivox_gpu_loop synthetic:desk?frames=300 --levels 1            # fixed 2 mm, tracked
 //   hivox_gpu_loop data/tum_fr1_rpy --handover 50 --cpu           # 3 levels from a CPU-refined map
 //   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --mesh    # then mesh it, both ways
+//   hivox_gpu_loop synthetic:desk?frames=150 --poses gt --render  # then render it, both ways
 //   hivox_gpu_loop data/tum_fr1_rpy --read-threads 8              # frames decoded as it runs
 //
 // `--handover K` runs frames [0, K) through the CPU reconstruction, copies its map to the device
@@ -33,6 +34,7 @@
 #include "hivox/io/read_ahead.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
+#include "hivox/raycast/raycaster.h"
 
 namespace {
 
@@ -81,7 +83,8 @@ int main(int argc, char** argv) {
   int frames = 0, handover = 0, levels = 3, warmup = 5, read_threads = -1;
   float voxel_m = 0.002f;
   std::string poses = "track";
-  bool cpu = false, mesh = false, gn_on_host = false, no_coarse_grid = false, graph = false;
+  bool cpu = false, mesh = false, render = false, gn_on_host = false, no_coarse_grid = false,
+       graph = false;
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
@@ -118,6 +121,9 @@ int main(int argc, char** argv) {
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
+  app.add_flag("--render", render,
+               "after the loop, time a render from the last pose (the depth camera) on the "
+               "device and, the map downloaded, on the host");
   app.add_option("--read-threads", read_threads,
                  "read the device's frames from the dataset as the loop goes: 0 each in turn, N "
                  "ahead on N threads (default: from memory)");
@@ -257,6 +263,33 @@ int main(int argc, char** argv) {
           static_cast<long long>(on_host.triangle_count()));
     }
 
+    // A render of the final map from the last pose: on the device (its second call timed), and
+    // the map downloaded and raycast on the host (what a render did before it ran on the device).
+    double render_ms = 0, render_download_ms = 0, render_host_ms = 0;
+    if (render && !gpu->trajectory().empty()) {
+      const Pose T_wc = gpu->trajectory().back().T_wc;
+      const DepthRange& range = params.fusion.depth_range;
+      gpu->render(rig.depth_camera, T_wc, range);
+      Stopwatch watch;
+      const RaycastResult on_device = gpu->render(rig.depth_camera, T_wc, range);
+      render_ms = watch.lap_ms();
+      const std::unique_ptr<VoxelBlockMap> host_map = gpu->download_map();
+      render_download_ms = watch.lap_ms();
+      Raycaster raycaster(params.raycast);
+      const RaycastResult& on_host = raycaster.raycast(*host_map, rig.depth_camera, T_wc, range);
+      render_host_ms = watch.lap_ms();
+      auto hits = [](const RaycastResult& r) {
+        return std::count_if(r.depth_m.data(), r.depth_m.data() + r.depth_m.size(),
+                             [](float d) { return d > 0.0f; });
+      };
+      std::printf(
+          "render %dx%d: on the device in %.2f ms (%lld hits); the map downloaded in %.1f ms "
+          "and raycast on the host in %.1f ms (%lld hits)\n",
+          rig.depth_camera.width, rig.depth_camera.height, render_ms,
+          static_cast<long long>(hits(on_device)), render_download_ms, render_host_ms,
+          static_cast<long long>(hits(on_host)));
+    }
+
     double cpu_ms = 0;
     std::optional<double> cpu_ate;
     int64_t cpu_map_bytes = 0;
@@ -303,7 +336,9 @@ int main(int argc, char** argv) {
           << ", \"ate_m\": " << (gpu_ate ? std::to_string(*gpu_ate) : "null")
           << ", \"mesh_ms\": " << mesh_ms << ", \"mesh_download_ms\": " << mesh_download_ms
           << ", \"mesh_host_ms\": " << mesh_host_ms << ", \"mesh_triangles\": " << mesh_triangles
-          << ", \"cpu_ms\": " << cpu_ms << ", \"cpu_map_bytes\": " << cpu_map_bytes
+          << ", \"render_ms\": " << render_ms << ", \"render_download_ms\": " << render_download_ms
+          << ", \"render_host_ms\": " << render_host_ms << ", \"cpu_ms\": " << cpu_ms
+          << ", \"cpu_map_bytes\": " << cpu_map_bytes
           << ", \"cpu_ate_m\": " << (cpu_ate ? std::to_string(*cpu_ate) : "null") << "}\n";
     }
   } catch (const Error& e) {

@@ -511,14 +511,14 @@ PYBIND11_MODULE(hivox, m) {
                              })
       .def_property_readonly("stats",
                              [](const Reconstruction& r) {
-                               const VoxelBlockMap& map = r.map();
+                               // The counts on the device the frames run on (no copy of the map).
                                py::dict d;
                                d["frames"] = r.frame_stats().size();
-                               d["blocks_total"] = map.blocks_in_use();
-                               d["blocks_per_level"] = map.blocks_per_level();
+                               d["blocks_total"] = r.blocks_in_use();
+                               d["blocks_per_level"] = r.blocks_per_level();
                                d["peak_blocks"] = r.peak_blocks();
-                               d["dropped_blocks"] = map.dropped_blocks();
-                               d["memory_bytes"] = map.memory_bytes();
+                               d["dropped_blocks"] = r.dropped_blocks();
+                               d["memory_bytes"] = r.map_memory_bytes();
                                const TrackingCounts& t = r.tracking_counts();
                                d["tracking"] =
                                    py::dict(py::arg("good") = t.good, py::arg("poor") = t.poor,
@@ -528,7 +528,7 @@ PYBIND11_MODULE(hivox, m) {
       .def_property_readonly("params", &Reconstruction::params)
       .def("__repr__", [](const Reconstruction& r) {
         return fmt::format("hivox.Reconstruction({} frames, {} blocks)", r.frame_stats().size(),
-                           r.map().blocks_in_use());
+                           r.blocks_in_use());
       });
 
   m.def(

@@ -60,6 +60,56 @@ struct ImageLevel {
   Buffer<Vec3f> points, normals;
 };
 
+/// Device buffer `b` holding at least `n` elements (grown by half again when short); `*total`
+/// (when not null) counts its bytes.
+template <typename T>
+void grow(Buffer<T>& b, std::size_t n, int64_t* total) {
+  if (b.size() >= n) return;
+  if (total != nullptr) *total -= static_cast<int64_t>(b.size() * sizeof(T));  // the old one goes
+  b.reset(n + n / 2, total);
+}
+
+/// A raycast's images in device memory (`camera`'s pixels each), copied to the host.
+RaycastResult download_raycast(const PinholeCamera& camera, const Pose& T_wc, bool has_color,
+                               const kernels::RaycastOutputView& images) {
+  RaycastResult r;
+  r.camera = camera;
+  r.T_wc = T_wc;
+  const int w = camera.width, h = camera.height;
+  const auto n = static_cast<std::size_t>(w) * h;
+  r.depth_m.resize(w, h);
+  r.points_w.resize(w, h);
+  r.normals_w.resize(w, h);
+  r.colors.resize(w, h);
+  r.levels.resize(w, h);
+  copy_to_host(r.depth_m.data(), images.depth_m, n * sizeof(float), "raycast (depth)");
+  copy_to_host(r.points_w.data(), images.points_w, n * sizeof(Vec3f), "raycast (points)");
+  copy_to_host(r.normals_w.data(), images.normals_w, n * sizeof(Vec3f), "raycast (normals)");
+  copy_to_host(r.colors.data(), images.colors, n * sizeof(Rgb8), "raycast (colours)");
+  copy_to_host(r.levels.data(), images.levels, n * sizeof(int8_t), "raycast (levels)");
+  r.has_color = has_color;
+  return r;
+}
+
+/// The images of a raycast made for the host (a render), freed with it.
+struct RaycastImages {
+  Buffer<float> depth;
+  Buffer<Vec3f> points, normals;
+  Buffer<Rgb8> colors;
+  Buffer<int8_t> levels;
+
+  explicit RaycastImages(std::size_t pixels) {
+    depth.reset(pixels, nullptr);
+    points.reset(pixels, nullptr);
+    normals.reset(pixels, nullptr);
+    colors.reset(pixels, nullptr);
+    levels.reset(pixels, nullptr);
+  }
+  kernels::RaycastOutputView view() const {
+    return {depth.get(), points.get(), normals.get(), colors.get(), levels.get()};
+  }
+};
+
 }  // namespace
 
 namespace {
@@ -463,9 +513,48 @@ struct GpuReconstruction::Impl {
   /// Device buffer `b` holding at least `n` elements (grown by half again when short).
   template <typename T>
   void ensure(Buffer<T>& b, std::size_t n) {
-    if (b.size() >= n) return;
-    total_bytes -= static_cast<int64_t>(b.size() * sizeof(T));  // the old buffer goes
-    b.reset(n + n / 2, &total_bytes);
+    grow(b, n, &total_bytes);
+  }
+
+  /// The coarse occupancy grid over the super-blocks that hold blocks, as the CPU's raycaster
+  /// builds it (the raycast clears and marks it), its cells in `cells` (grown to fit, counted in
+  /// `*total` when not null), where asked for and not too large.
+  kernels::CoarseOccupancy coarse_occupancy(Buffer<int32_t>& cells, int64_t* total) const {
+    kernels::CoarseOccupancy occupancy;
+    if (!params.raycast.tuning.coarse_skipping) return occupancy;
+    occupancy = kernels::CoarseOccupancy::covering(
+        bounds, view.read.level[map_params.levels - 1].block_size_m);
+    const int64_t n = occupancy.cell_count();
+    if (n > 0 && n <= kernels::CoarseOccupancy::kMaxCells) {
+      grow(cells, static_cast<std::size_t>(n), total);
+      occupancy.cells = cells.get();
+    }
+    return occupancy;
+  }
+
+  /// The model seen through `camera` from `T_wc` (GpuReconstruction::render): every ray marches
+  /// over its range tile, as the CPU's Raycaster casts rays without hints.
+  RaycastResult render(const PinholeCamera& camera, const Pose& T_wc,
+                       const DepthRange& range) const {
+    kernels::RangeTiles tiles =
+        kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, camera);
+    Buffer<float> z_min, z_max;
+    z_min.reset(static_cast<std::size_t>(tiles.count()), nullptr);
+    z_max.reset(static_cast<std::size_t>(tiles.count()), nullptr);
+    tiles.z_min = z_min.get();
+    tiles.z_max = z_max.get();
+    Buffer<int32_t> cells;
+    const kernels::RayMarchConstants k =
+        kernels::march_constants(params.raycast, view.read, coarse_occupancy(cells, nullptr));
+    const auto n = static_cast<std::size_t>(camera.width) * camera.height;
+    RaycastImages images(n);
+    Buffer<AllocCounters> hits;
+    hits.reset(1, nullptr);
+    check_status(cudaMemset(hits.get(), 0, sizeof(AllocCounters)), "render");
+    // As the CPU's raycaster: rays start no nearer than 1 mm.
+    cuda::raycast(view.read, high_water, camera, to_rigid3f(T_wc), std::max(range.min_m, 1e-3f),
+                  range.max_m, tiles, k, RayHintImages{}, images.view(), hits.get(), ray_launch);
+    return download_raycast(camera, T_wc, view.color != nullptr, images.view());
   }
 
   /// Runs `check(device jobs, n)` on `jobs` and brings them back with the map's counters (into
@@ -729,20 +818,8 @@ struct GpuReconstruction::Impl {
         kernels::RangeTiles::covering(params.raycast.tuning.range_tile_px, m0.camera);
     tiles.z_min = tile_z_min.get();
     tiles.z_max = tile_z_max.get();
-    // The coarse occupancy grid over the super-blocks holding blocks (cleared and marked by the
-    // raycast, as the CPU's raycaster builds it), where it is asked for and not too large.
-    kernels::CoarseOccupancy occupancy;
-    if (params.raycast.tuning.coarse_skipping) {
-      occupancy = kernels::CoarseOccupancy::covering(
-          bounds, view.read.level[map_params.levels - 1].block_size_m);
-      const int64_t cells = occupancy.cell_count();
-      if (cells > 0 && cells <= kernels::CoarseOccupancy::kMaxCells) {
-        ensure(occupancy_cells, static_cast<std::size_t>(cells));
-        occupancy.cells = occupancy_cells.get();
-      }
-    }
-    const kernels::RayMarchConstants k =
-        kernels::march_constants(params.raycast, view.read, occupancy);
+    const kernels::RayMarchConstants k = kernels::march_constants(
+        params.raycast, view.read, coarse_occupancy(occupancy_cells, &total_bytes));
     const kernels::RaycastOutputView out{m0.depth.get(), m0.points.get(), m0.normals.get(),
                                          model_colors.get(), model_levels.get()};
     ray_start.record("timing the raycast");
@@ -1047,6 +1124,16 @@ void GpuReconstruction::download_map(VoxelBlockMap& host) const {
   if (h.color != nullptr && m.view.color != nullptr) m.color.download(h.color, used * kBlockVoxels);
 }
 
+std::vector<BlockRef> GpuReconstruction::allocated_blocks(int32_t* high_water) const {
+  const Impl& m = *impl_;
+  int32_t c[kCounters];
+  m.counters.download(c, kCounters);
+  std::vector<BlockMeta> meta(static_cast<std::size_t>(c[kHighWater]));
+  m.meta.download(meta.data(), meta.size());
+  if (high_water != nullptr) *high_water = c[kHighWater];
+  return hivox::allocated_blocks(meta.data(), c[kHighWater]);
+}
+
 TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
                                              RemovedPieces* removed) const {
   params.validate();
@@ -1065,13 +1152,11 @@ TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
   const Impl& m = *impl_;
   const float join_m = m.map_params.voxel_size_m;
   // The blocks to mesh, planned on the host from their metadata (24 bytes a block).
-  int32_t c[kCounters];
-  m.counters.download(c, kCounters);
-  const auto high_water = static_cast<std::size_t>(c[kHighWater]);
-  std::vector<BlockMeta> meta(high_water);
-  m.meta.download(meta.data(), high_water);
-  const detail::MeshBlocks plan = detail::plan_mesh_blocks(
-      allocated_blocks(meta.data(), c[kHighWater]), c[kHighWater], m.map_params, params.bounds);
+  int32_t high_water_mark = 0;
+  std::vector<BlockRef> allocated = allocated_blocks(&high_water_mark);
+  const auto high_water = static_cast<std::size_t>(high_water_mark);
+  const detail::MeshBlocks plan =
+      detail::plan_mesh_blocks(std::move(allocated), high_water_mark, m.map_params, params.bounds);
   const auto n = static_cast<int32_t>(plan.blocks.size());
   if (n == 0) return detail::finish_mesh({}, params, join_m, removed);
 
@@ -1177,24 +1262,25 @@ std::vector<int64_t> GpuReconstruction::blocks_per_level() const {
 
 RaycastResult GpuReconstruction::download_model() const {
   const Impl& m = *impl_;
-  RaycastResult r;
   const ImageLevel& m0 = m.model[0];
-  r.camera = m0.camera;
-  r.T_wc = m.model_T_wc;
-  const int w = m0.camera.width, h = m0.camera.height;
-  const auto n = static_cast<std::size_t>(w) * h;
-  r.depth_m.resize(w, h);
-  r.points_w.resize(w, h);
-  r.normals_w.resize(w, h);
-  r.colors.resize(w, h);
-  r.levels.resize(w, h);
-  m0.depth.download(r.depth_m.data(), n);
-  m0.points.download(r.points_w.data(), n);
-  m0.normals.download(r.normals_w.data(), n);
-  m.model_colors.download(r.colors.data(), n);
-  m.model_levels.download(r.levels.data(), n);
-  r.has_color = m.view.color != nullptr;
-  return r;
+  return download_raycast(m0.camera, m.model_T_wc, m.view.color != nullptr,
+                          {m0.depth.get(), m0.points.get(), m0.normals.get(), m.model_colors.get(),
+                           m.model_levels.get()});
+}
+
+RaycastResult GpuReconstruction::render(const PinholeCamera& camera, const Pose& T_wc,
+                                        const DepthRange& range) const {
+  camera.validate("render camera");
+  range.validate("render depth range");
+  try {
+    return impl_->render(camera, T_wc, range);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::OutOfCapacity) throw;
+    // The device is full (its map filled it): the same render from the map taken to the host.
+    log::warn("render: {}; raycasting on the host instead", e.what());
+    Raycaster raycaster(impl_->params.raycast);
+    return raycaster.raycast(*download_map(), camera, T_wc, range);
+  }
 }
 
 namespace {
@@ -1222,6 +1308,11 @@ class CudaLoop final : public DeviceLoop {
   int64_t map_memory_bytes() const override { return gpu_->map_memory_bytes(); }
   void download_map(VoxelBlockMap& map) const override { gpu_->download_map(map); }
   RaycastResult model() const override { return gpu_->download_model(); }
+  std::vector<BlockRef> allocated_blocks() const override { return gpu_->allocated_blocks(); }
+  RaycastResult render(const PinholeCamera& camera, const Pose& T_wc,
+                       const DepthRange& range) const override {
+    return gpu_->render(camera, T_wc, range);
+  }
   TriangleMesh extract_mesh(const MeshParams& params, RemovedPieces* removed) const override {
     return gpu_->extract_mesh(params, removed);
   }

@@ -120,6 +120,16 @@ TriangleMesh Reconstruction::extract_mesh(const MeshParams& params, RemovedPiece
   return hivox::extract_mesh(*map_, params, removed);
 }
 
+int64_t Reconstruction::blocks_in_use() const {
+  if (!loop_) return map_->blocks_in_use();
+  const std::vector<int64_t> per_level = loop_->blocks_per_level();
+  return std::accumulate(per_level.begin(), per_level.end(), int64_t{0});
+}
+
+std::vector<int64_t> Reconstruction::blocks_per_level() const {
+  return loop_ ? loop_->blocks_per_level() : map_->blocks_per_level();
+}
+
 int64_t Reconstruction::dropped_blocks() const {
   return loop_ ? loop_->dropped_blocks() : map_->dropped_blocks();
 }
@@ -199,10 +209,8 @@ const FrameStats& Reconstruction::record(const RgbdFrame& frame, const Pose& T_w
   s.index = frame.index;
   s.timestamp_s = frame.timestamp_s;
   // On a device, its counts: the host's copy of the map is refreshed only when read.
-  s.blocks_per_level = loop_ ? loop_->blocks_per_level() : map_->blocks_per_level();
-  s.blocks_total =
-      loop_ ? std::accumulate(s.blocks_per_level.begin(), s.blocks_per_level.end(), int64_t{0})
-            : map_->blocks_in_use();
+  s.blocks_per_level = blocks_per_level();
+  s.blocks_total = blocks_in_use();
   peak_blocks_ = std::max(peak_blocks_, s.blocks_total);
   s.total_ms = total.elapsed_ms();
   switch (s.tracking) {
@@ -263,8 +271,8 @@ PinholeCamera Reconstruction::model_camera() const {
 Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth_m) const {
   // Robust centre and extent of the model: the blocks' centres, trimmed of the farthest 5 %.
   std::vector<Eigen::Vector3d> centres;
-  for (const BlockRef& b : map().allocated_blocks()) {
-    const double s = map().params().block_size_at(b.level);
+  for (const BlockRef& b : loop_ ? loop_->allocated_blocks() : map_->allocated_blocks()) {
+    const double s = params_.map.block_size_at(b.level);
     centres.emplace_back((b.pos.x + 0.5) * s, (b.pos.y + 0.5) * s, (b.pos.z + 0.5) * s);
   }
   Eigen::Vector3d forward = Eigen::Vector3d::UnitZ(), up = -Eigen::Vector3d::UnitY();
@@ -296,15 +304,14 @@ Pose Reconstruction::overview_pose(const PinholeCamera& camera, float* max_depth
   return look_at(eye, target, up);
 }
 
-const RaycastResult& Reconstruction::render(const PinholeCamera& camera, const Pose& T_wc,
-                                            float max_depth_m) {
+RaycastResult Reconstruction::render(const PinholeCamera& camera, const Pose& T_wc,
+                                     float max_depth_m) const {
   DepthRange range = params_.fusion.depth_range;
   if (max_depth_m > 0.0f) range.max_m = max_depth_m;
+  if (loop_) return loop_->render(camera, T_wc, range);
+  // A raycaster of its own: the per-frame raycast stays as it is.
   Raycaster raycaster(params_.raycast);
-  raycaster.raycast(map(), camera, T_wc, range);
-  // Keep the per-frame raycast intact: copy the render out of the temporary raycaster.
-  render_result_ = raycaster.result();
-  return render_result_;
+  return raycaster.raycast(*map_, camera, T_wc, range);
 }
 
 StageTimes mean_stage_times(std::span<const FrameStats> frames) {

@@ -263,7 +263,7 @@ class Run {
       if (params_.render_every > 0 &&
           (i + 1) % static_cast<std::size_t>(params_.render_every) == 0 && folder_->writes())
         write(write_renders(rec_->render(info_.rig.depth_camera, rec_->trajectory().back().T_wc),
-                            rec_->map().params(), folder_->dir(), fmt::format("frame{:06d}_", i)));
+                            rec_->params().map, folder_->dir(), fmt::format("frame{:06d}_", i)));
       if (callbacks_.on_frame) callbacks_.on_frame(i, *s, *rec_, frame);
     }
     summary_.wall_s = wall.elapsed_ms() / 1e3;
@@ -353,14 +353,14 @@ class Run {
           fmt::format("hivox reconstruct {} (poses: {})", info_.source, params_.poses.to_string()));
       summary_.files.push_back(out / "trajectory.txt");
       const Pose last_pose = rec_->trajectory().back().T_wc;
-      write(write_renders(rec_->render(info_.rig.depth_camera, last_pose), rec_->map().params(),
-                          out));
+      write(
+          write_renders(rec_->render(info_.rig.depth_camera, last_pose), rec_->params().map, out));
       // The whole model from above and behind the trajectory, with its refinement levels.
       const PinholeCamera overview_camera{600.0f, 600.0f, 479.5f, 359.5f, 960, 720};
       float overview_depth = 0.0f;
       const Pose overview = rec_->overview_pose(overview_camera, &overview_depth);
       write(write_renders(rec_->render(overview_camera, overview, overview_depth),
-                          rec_->map().params(), out, "overview_"));
+                          rec_->params().map, out, "overview_"));
     }
     Stopwatch mesh_watch;
     const TriangleMesh mesh = rec_->extract_mesh(params_.mesh);

@@ -99,7 +99,6 @@ struct LiveView::State {
   std::shared_ptr<Snapshot> snapshot;
   Stopwatch clock;  ///< since start()
   // The run's thread only:
-  Raycaster raycaster;
   Stopwatch since_render;
   bool rendered = false;
   double loop_ms = 0;
@@ -111,11 +110,13 @@ struct LiveView::State {
   void render(const Reconstruction& rec, const Pose& T_wc, const DepthImage* depth,
               std::size_t frame, int width_px, bool reuse) {
     const RaycastResult* cast = &rec.last_raycast();
+    RaycastResult view;
     if (!reuse || cast->depth_m.empty() || !cast->T_wc.isApprox(T_wc)) {
       const PinholeCamera& full = rec.rig().depth_camera;
       const PinholeCamera camera =
           full.scaled(static_cast<float>(width_px) / static_cast<float>(full.width));
-      cast = &raycaster.raycast(rec.map(), camera, T_wc, rec.params().fusion.depth_range);
+      view = rec.render(camera, T_wc);  // on the device the frames run on
+      cast = &view;
     }
     const RaycastResult& r = *cast;
     auto snap = std::make_shared<Snapshot>();
@@ -246,13 +247,12 @@ LiveView::~LiveView() {
 
 void LiveView::start(std::string_view source, const Reconstruction& rec, std::size_t frames_total) {
   State& st = *state_;
-  st.raycaster = Raycaster(rec.params().raycast);
   const std::lock_guard lock(st.mutex);
   st.source = source;
   st.settings = rec.describe();
   st.frames_total = frames_total;
-  st.levels = rec.map().params().levels;
-  st.voxel_size_m = rec.map().params().voxel_size_m;
+  st.levels = rec.params().map.levels;
+  st.voxel_size_m = rec.params().map.voxel_size_m;
   st.state = LiveState::Running;
   st.clock.restart();
 }

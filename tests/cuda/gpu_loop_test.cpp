@@ -720,6 +720,97 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
   EXPECT_TRUE(empty.extract_mesh().empty());
 }
 
+/// Bytes the device has copied to the host so far: counted by the CPU emulation of CUDA; -1 on a
+/// GPU (not counted there).
+int64_t bytes_to_host() {
+#if defined(HIVOX_CUDA_EMULATION)
+  return static_cast<int64_t>(hivoxEmulationBytesToHost());
+#else
+  return -1;
+#endif
+}
+
+/// What a raycast's images take on the host, `pixels` of each.
+int64_t raycast_bytes(int64_t pixels) {
+  return pixels * static_cast<int64_t>(sizeof(float) + 2 * sizeof(Vec3f) + sizeof(Rgb8) + 1);
+}
+
+/// Renders on the device: the CPU's raycast of the same map (every ray marching, no hints) from
+/// the last frame's pose and from a pose pulled back with another camera; only the images cross
+/// the bus, and the frame's own raycast stays as it was.
+TEST(GpuLoop, RendersOnTheDeviceAsTheCpuDoes) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  cuda::GpuReconstruction gpu(p, rig);
+  Pose last = Pose::Identity();
+  for (std::size_t i = 0; i < frames_to_run(30, 10); ++i) {
+    const RgbdFrame f = data.read(i);
+    gpu.integrate(f, *f.T_wc_gt);
+    last = *f.T_wc_gt;
+  }
+  const RaycastResult model = gpu.download_model();
+  const std::unique_ptr<VoxelBlockMap> map = gpu.download_map();
+  Raycaster raycaster(p.raycast);
+  // Pulled back 0.6 m and raised 0.2 m (image up is -y), with a camera of half the size.
+  Pose back = last;
+  back.translate(Eigen::Vector3d(0.0, -0.2, -0.6));
+  DepthRange far = p.fusion.depth_range;
+  far.max_m = 4.0f;
+  const std::array views{
+      std::tuple{"the last frame's pose", rig.depth_camera, last, p.fusion.depth_range},
+      std::tuple{"pulled back", rig.depth_camera.scaled(0.5f), back, far}};
+  for (const auto& [name, camera, T_wc, range] : views) {
+    SCOPED_TRACE(name);
+    const int64_t before = bytes_to_host();
+    const RaycastResult render = gpu.render(camera, T_wc, range);
+    const int64_t pixels = static_cast<int64_t>(camera.width) * camera.height;
+    if (before >= 0) {
+      // The images, not the map (the map itself is larger than several renders).
+      EXPECT_LE(bytes_to_host() - before, raycast_bytes(pixels) + 4096);
+      EXPECT_GT(static_cast<int64_t>(map->memory_bytes()), 4 * raycast_bytes(pixels));
+    }
+    ASSERT_EQ(render.camera.width, camera.width);
+    EXPECT_TRUE(render.T_wc.isApprox(T_wc));
+    EXPECT_EQ(render.has_color, p.map.store_color);
+    const RaycastResult& cpu = raycaster.raycast(*map, camera, T_wc, range);
+    expect_same_raycast(cpu, render);
+    // The levels hit and the colours there, pixel for pixel (where both hit at the same depth).
+    int64_t same_depth = 0, level_differs = 0, color_differs = 0;
+    for (int y = 0; y < camera.height; ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        if (!cpu.hit(x, y) || !render.hit(x, y) ||
+            std::abs(cpu.depth_m(x, y) - render.depth_m(x, y)) > 1e-4f)
+          continue;
+        ++same_depth;
+        level_differs += cpu.levels(x, y) != render.levels(x, y);
+        const Rgb8 a = cpu.colors(x, y), b = render.colors(x, y);
+        color_differs +=
+            std::abs(a.r - b.r) > 1 || std::abs(a.g - b.g) > 1 || std::abs(a.b - b.b) > 1;
+      }
+    }
+    std::printf(
+        "[ render   ] %s: %dx%d, %lld pixels at the same depth, %lld levels and %lld "
+        "colours differ there\n",
+        name, camera.width, camera.height, static_cast<long long>(same_depth),
+        static_cast<long long>(level_differs), static_cast<long long>(color_differs));
+    EXPECT_GT(same_depth, pixels / 10);
+    EXPECT_LE(level_differs, same_depth / 1000);
+    EXPECT_LE(color_differs, same_depth / 1000);
+  }
+  // The frame's raycast (the next frame tracks against it) is as it was.
+  const RaycastResult after = gpu.download_model();
+  ASSERT_EQ(after.depth_m.size(), model.depth_m.size());
+  EXPECT_TRUE(std::equal(model.depth_m.data(), model.depth_m.data() + model.depth_m.size(),
+                         after.depth_m.data()));
+  // Bad input: one line naming it.
+  PinholeCamera bad = rig.depth_camera;
+  bad.fx = -1.0f;
+  EXPECT_THROW(gpu.render(bad, last, p.fusion.depth_range), Error);
+  EXPECT_THROW(gpu.render(rig.depth_camera, last, DepthRange{2.0f, 1.0f}), Error);
+}
+
 /// The CLI's and the bindings' way onto the GPU: a Reconstruction on `cuda` (its frames on the
 /// device, its map the host's copy) and a whole run with its result files.
 TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
@@ -750,10 +841,6 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
                 10.0 + 0.02 * cpu.map().blocks_per_level()[l])
         << "level " << l;
   EXPECT_GT(gpu->last_raycast().depth_m.width(), 0);
-  const RaycastResult& render = gpu->render(rig.depth_camera, gpu->trajectory().back().T_wc);
-  int64_t hits = 0;
-  for (std::size_t i = 0; i < render.depth_m.size(); ++i) hits += render.depth_m.data()[i] > 0;
-  EXPECT_GT(hits, 200000);
   {
     SCOPED_TRACE("the device's tracked map");
     test::expect_hierarchy_consistent(gpu->map());
@@ -780,6 +867,26 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
   EXPECT_LT(test::mesh_differences(on_device, on_host).farthest_m, 1e-6f)
       << test::describe_mesh_difference(on_device, on_host)
       << test::describe_first_difference_in_map(on_device, on_host, gpu->map());
+
+  {
+    // A render after a frame the host's copy of the map has not seen (the last fused again): made
+    // on the device, only the images cross the bus; the CPU's raycast of the map gives it.
+    SCOPED_TRACE("render");
+    const Pose T_wc = gpu->trajectory().back().T_wc;
+    gpu->integrate(data.read(frames_to_run(data.size(), 20) - 1), T_wc);  // fused once more
+    const int64_t before = bytes_to_host();
+    const RaycastResult render = gpu->render(rig.depth_camera, T_wc);
+    if (before >= 0) {
+      EXPECT_LE(bytes_to_host() - before,
+                raycast_bytes(static_cast<int64_t>(render.depth_m.size())) + 4096);
+    }
+    int64_t hits = 0;
+    for (std::size_t i = 0; i < render.depth_m.size(); ++i) hits += render.depth_m.data()[i] > 0;
+    EXPECT_GT(hits, 200000);
+    Raycaster raycaster(p.raycast);
+    expect_same_raycast(raycaster.raycast(gpu->map(), rig.depth_camera, T_wc, p.fusion.depth_range),
+                        render);
+  }
 
   // A whole run, as `hivox reconstruct --device cuda` makes it (meshed on the device).
   TempDir dir;

@@ -6,8 +6,8 @@
 /// the last raycast come back to the host only when asked for (meshing, saving, comparing).
 /// Built with -DHIVOX_WITH_CUDA=ON (this header has no CUDA types).
 ///
-/// Refinement (the CPU Refiner's decisions, split and merge) and meshing (extract_mesh) run on
-/// the device too; saving and renders take the map back to the host (download_map).
+/// Refinement (the CPU Refiner's decisions, split and merge), meshing (extract_mesh) and renders
+/// (render) run on the device too; saving takes the map back to the host (download_map).
 
 #include <cstdint>
 #include <memory>
@@ -112,6 +112,10 @@ class GpuReconstruction {
   const TrackResult& last_track() const;
   const MapParams& map_params() const;
 
+  /// The allocated blocks (all levels, in pool order) from the device's block metadata (24 bytes
+  /// a block cross the bus, not the voxels); `*high_water` (when not null) receives the pool's
+  /// high-water mark.
+  std::vector<BlockRef> allocated_blocks(int32_t* high_water = nullptr) const;
   /// A host copy of the device map (same parameters, same tables and pool indices).
   std::unique_ptr<VoxelBlockMap> download_map() const;
   /// Copies the device map into `map`, a host map of the same parameters (map_params()).
@@ -129,6 +133,13 @@ class GpuReconstruction {
   /// The last model raycast (the depth camera subsampled by the tracking's model_subsample),
   /// copied to the host.
   RaycastResult download_model() const;
+  /// The model seen through `camera` from `T_wc` over the depths of `range`, raycast on the
+  /// device as the CPU's Raycaster casts it without hints (every ray marches its range tile,
+  /// the same shared march): only the images cross the bus, not the map. The frame's raycast is
+  /// left as it is. Where the device has no memory left for the images, the map is raycast on the
+  /// host (the same render), with a warning. `Error(InvalidArgument)` for a bad camera or range.
+  RaycastResult render(const PinholeCamera& camera, const Pose& T_wc,
+                       const DepthRange& range) const;
   /// Blocks allocated on the device (all levels).
   int64_t blocks_in_use() const;
   /// Blocks dropped so far because a capacity ran out (the continued map's included).

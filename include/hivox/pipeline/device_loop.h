@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// The per-frame loop on another device than the CPU, behind a Reconstruction: frames go in,
-/// stats come out, and the map and the model raycast come back to the host when read. The CUDA
+/// stats come out, renders and meshes are made there, and the map and the model raycast come
+/// back to the host when read. The CUDA
 /// loop implements it (hivox::cuda::make_reconstruction, in builds with -DHIVOX_WITH_CUDA=ON).
 
 #include <cstdint>
@@ -34,10 +35,16 @@ class DeviceLoop {
   virtual int64_t dropped_blocks() const = 0;
   /// Device memory the map holds, in bytes.
   virtual int64_t map_memory_bytes() const = 0;
+  /// The allocated blocks (all levels), without copying the voxels.
+  virtual std::vector<BlockRef> allocated_blocks() const = 0;
   /// Copies the device's map into `map` (a map of the same parameters on the host).
   virtual void download_map(VoxelBlockMap& map) const = 0;
   /// The last model raycast, copied to the host.
   virtual RaycastResult model() const = 0;
+  /// The model seen through `camera` from `T_wc` over `range`, raycast there as the CPU's
+  /// Raycaster casts it without hints; only the images come back.
+  virtual RaycastResult render(const PinholeCamera& camera, const Pose& T_wc,
+                               const DepthRange& range) const = 0;
   /// The map's mesh, made on the device: what hivox::extract_mesh gives for the downloaded map.
   virtual TriangleMesh extract_mesh(const MeshParams& params, RemovedPieces* removed) const = 0;
 };

@@ -155,9 +155,11 @@ class Reconstruction {
   /// The map's mesh (hivox::extract_mesh); on another device, made there, without copying the
   /// map to the host.
   TriangleMesh extract_mesh(const MeshParams& params = {}, RemovedPieces* removed = nullptr) const;
-  /// Raycasts the model from any pose with any camera (renders, overviews).
-  const RaycastResult& render(const PinholeCamera& camera, const Pose& T_wc,
-                              float max_depth_m = 0.0f);
+  /// Raycasts the model from any pose with any camera (renders, overviews), out to
+  /// `max_depth_m` (0: the fusion's depth range). On another device, cast there: only the images
+  /// come back, not the map.
+  RaycastResult render(const PinholeCamera& camera, const Pose& T_wc,
+                       float max_depth_m = 0.0f) const;
 
   /// A viewpoint that shows the whole model: behind and above the trajectory (along the cameras'
   /// mean viewing direction and image "up"), looking at the centre of the allocated blocks, far
@@ -167,8 +169,11 @@ class Reconstruction {
   const std::vector<FrameStats>& frame_stats() const { return frames_; }
   const std::vector<StampedPose>& trajectory() const { return trajectory_; }
   int64_t peak_blocks() const { return peak_blocks_; }
-  /// Blocks dropped so far because a capacity ran out, and the map's memory in bytes (cheap on
-  /// every device: the host's copy of a device map is not refreshed for them).
+  /// Allocated blocks, all levels and per level (finest first); blocks dropped so far because a
+  /// capacity ran out; the map's memory in bytes. Cheap on every device: the host's copy of a
+  /// device map is not refreshed for them.
+  int64_t blocks_in_use() const;
+  std::vector<int64_t> blocks_per_level() const;
   int64_t dropped_blocks() const;
   int64_t map_memory_bytes() const;
   /// Where the reconstruction stands, the map's earlier frames included: what a map file keeps
@@ -182,7 +187,6 @@ class Reconstruction {
   TsdfIntegrator integrator_;
   Refiner refiner_;
   Raycaster raycaster_;
-  RaycastResult render_result_;
   /// Allocate, integrate, refine and raycast `frame` at `T_wc`, filling the stage statistics.
   void fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& s);
   /// Completes `s` (frame, block counts, total time since `total` started), appends it and the

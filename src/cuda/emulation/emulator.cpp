@@ -417,8 +417,13 @@ std::size_t stack_limit = 1024;
 constexpr int kMultiprocessors = 16;
 constexpr std::size_t kGranularity = std::size_t{2} << 20;
 
+/// Bytes copied from the device to the host so far (hivoxEmulationBytesToHost).
+std::atomic<std::size_t> bytes_to_host{0};
+
+/// Checks a copy's sides (and counts what it brings to the host).
 void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
   const char* what = "cudaMemcpy";
+  if (kind == cudaMemcpyDeviceToHost) bytes_to_host += bytes;
   DeviceMemory& memory = device_memory();
   const bool dst_device = kind == cudaMemcpyHostToDevice || kind == cudaMemcpyDeviceToDevice;
   const bool src_device = kind == cudaMemcpyDeviceToHost || kind == cudaMemcpyDeviceToDevice;
@@ -834,6 +839,9 @@ cudaError_t hivoxEmulationSetDeviceMemory(std::size_t bytes) {
   std::lock_guard<std::mutex> lock(memory.mutex);
   memory.size = bytes;
   return cudaSuccess;
+}
+std::size_t hivoxEmulationBytesToHost() {
+  return e::bytes_to_host.load();
 }
 cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {
   const std::size_t size = std::max<std::size_t>(bytes, 1);

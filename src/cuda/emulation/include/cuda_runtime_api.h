@@ -93,6 +93,9 @@ cudaError_t cudaMemGetInfo(std::size_t* free, std::size_t* total);
 /// The emulation's own: the device's memory size (80 GiB unless set). Allocations (cudaMalloc, the
 /// driver's cuMemCreate) beyond it fail as out of memory; the tests lower it to fill the device.
 cudaError_t hivoxEmulationSetDeviceMemory(std::size_t bytes);
+/// The emulation's own: the bytes copied from the device to the host so far (cudaMemcpy and
+/// cudaMemcpyAsync), so that a test can check what crosses the bus.
+std::size_t hivoxEmulationBytesToHost();
 template <typename T>
 cudaError_t cudaMalloc(T** ptr, std::size_t bytes) {
   return cudaMalloc(reinterpret_cast<void**>(ptr), bytes);
