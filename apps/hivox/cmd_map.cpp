@@ -28,12 +28,20 @@
 #include "hivox/output/renders.h"
 #include "hivox/raycast/raycaster.h"
 #include "hivox/raycast/render.h"
+#include "hivox/run/devices.h"
+#include "hivox/run/runner.h"
 
 namespace hivox::cli {
 
 namespace {
 
 namespace fs = std::filesystem;
+
+/// The camera renders take when neither --camera nor the map names one (a Kinect's).
+constexpr PinholeCamera kDefaultCamera{525.0f, 525.0f, 319.5f, 239.5f, 640, 480};
+constexpr const char* kDeviceHelp =
+    "where the map is meshed and rendered: cpu, or cuda / cuda:N (builds with the CUDA loop; "
+    "the map is copied there once)";
 
 /// Numbers separated by commas or spaces, exactly `n` of them; errors name `option`.
 std::vector<double> parse_numbers(const std::string& text, std::size_t n, const char* option,
@@ -70,6 +78,25 @@ std::vector<double> parse_numbers(const std::string& text, std::size_t n, const 
 
 std::string mib(int64_t bytes) {
   return fmt::format("{:.1f} MiB", static_cast<double>(bytes) / (1 << 20));
+}
+
+/// `loaded`'s map on `device` (parsed from `name`) behind a Reconstruction seen through `camera`:
+/// its meshes and renders are made there, and the map crosses the bus once.
+std::unique_ptr<Reconstruction> on_device(LoadedMap loaded, const std::string& name,
+                                          const PinholeCamera& camera, bool quiet) {
+  ReconstructionParams p;
+  p.device = Device::parse(name);
+  p.map = loaded.map->params();
+  p.fusion = loaded.info.fusion;
+  Stopwatch watch;
+  std::unique_ptr<Reconstruction> rec = make_reconstruction(
+      p, CameraRig::registered(camera), std::move(loaded.map), loaded.info.session);
+  if (!quiet) {
+    const std::optional<DeviceInfo> d = describe_device(p.device);
+    fmt::print("on {} ({}) in {:.2f} s\n", p.device.to_string(), d ? d->to_string() : "",
+               watch.elapsed_ms() / 1e3);
+  }
+  return rec;
 }
 
 LoadedMap load(const std::string& path, bool quiet, double* seconds = nullptr) {
@@ -136,6 +163,7 @@ void print_map_info(const std::string& path) {
 struct MapMeshOptions {
   std::string map;
   std::string out;
+  std::string device = "cpu";
   MeshParams mesh;
   std::string bounds;
   bool level_colors = false;
@@ -158,10 +186,16 @@ void run_mesh(const MapMeshOptions& o) {
               {static_cast<float>(v[3]), static_cast<float>(v[4]), static_cast<float>(v[5])}};
   }
   params.validate();
-  const LoadedMap loaded = load(o.map, o.quiet);
+  const Device device = Device::parse(o.device);
+  LoadedMap loaded = load(o.map, o.quiet);
+  // Elsewhere than the CPU, the map goes there and the mesh is made there.
+  const PinholeCamera camera = loaded.info.session.camera.value_or(kDefaultCamera);
+  const std::unique_ptr<Reconstruction> rec =
+      device.is_cpu() ? nullptr : on_device(std::move(loaded), o.device, camera, o.quiet);
   Stopwatch watch;
   RemovedPieces removed;
-  TriangleMesh mesh = extract_mesh(*loaded.map, params, &removed);
+  TriangleMesh mesh =
+      rec ? rec->extract_mesh(params, &removed) : extract_mesh(*loaded.map, params, &removed);
   const std::string pieces =
       params.min_piece_triangles > 0
           ? fmt::format("; removed {} pieces of fewer than {} triangles ({} triangles)",
@@ -198,6 +232,7 @@ struct RenderOptions {
   std::string out;
   float max_depth_m = 0.0f;  ///< 0: the depth range the map was fused with
   int every = 1;
+  std::string device = "cpu";
   bool quiet = false;
 };
 
@@ -218,8 +253,9 @@ void run_render(const RenderOptions& o) {
       poses.push_back(all[i]);
     if (poses.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", o.trajectory);
   }
-  const LoadedMap loaded = load(o.map, o.quiet);
-  PinholeCamera camera{525.0f, 525.0f, 319.5f, 239.5f, 640, 480};
+  const Device device = Device::parse(o.device);
+  LoadedMap loaded = load(o.map, o.quiet);
+  PinholeCamera camera = kDefaultCamera;
   if (!o.camera.empty()) {
     const std::vector<double> c =
         parse_numbers(o.camera, 6, "--camera", "fx,fy,cx,cy,width,height");
@@ -234,11 +270,18 @@ void run_render(const RenderOptions& o) {
   if (ec) fail(ErrorCode::Io, "{}: cannot create the folder ({})", o.out, ec.message());
   DepthRange range = loaded.info.fusion.depth_range;
   if (o.max_depth_m > 0.0f) range.max_m = std::max(o.max_depth_m, range.min_m);
+  const MapParams map_params = loaded.map->params();
+  // Elsewhere than the CPU, the map goes there once and every view is raycast there.
+  const std::unique_ptr<Reconstruction> rec =
+      device.is_cpu() ? nullptr : on_device(std::move(loaded), o.device, camera, o.quiet);
   Raycaster raycaster;
   Stopwatch watch;
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    const RaycastResult& r = raycaster.raycast(*loaded.map, camera, poses[i].T_wc, range);
-    write_renders(r, loaded.map->params(), o.out,
+    RaycastResult on_device;
+    if (rec) on_device = rec->render(camera, poses[i].T_wc, range.max_m);
+    const RaycastResult& r =
+        rec ? on_device : raycaster.raycast(*loaded.map, camera, poses[i].T_wc, range);
+    write_renders(r, map_params, o.out,
                   poses.size() > 1 ? fmt::format("frame{:06d}_", i) : std::string());
     if (!o.quiet && (poses.size() < 20 || (i + 1) % 50 == 0 || i + 1 == poses.size()))
       fmt::print("rendered {}/{}\n", i + 1, poses.size());
@@ -309,6 +352,7 @@ void add_map_commands(CLI::App& app) {
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
     cmd->add_flag("--no-normals", o->no_normals, "write no vertex normals");
+    cmd->add_option("--device", o->device, kDeviceHelp)->capture_default_str();
     cmd->add_flag("--quiet", o->quiet, "print nothing but warnings and errors");
     add_threads(cmd, *threads);
     cmd->footer(
@@ -343,6 +387,7 @@ void add_map_commands(CLI::App& app) {
                     "render surfaces up to this far, metres (default: the depth range the map was "
                     "fused with, as the run's renders)");
     cmd->add_option("--out", o->out, "output folder")->required()->type_name("DIR");
+    cmd->add_option("--device", o->device, kDeviceHelp)->capture_default_str();
     cmd->add_flag("--quiet", o->quiet, "print nothing but warnings and errors");
     cmd->footer(
         "Examples:\n"

@@ -3,6 +3,7 @@
 // tracked poses within tolerance. Built with -DHIVOX_WITH_CUDA=ON; skipped without a CUDA device.
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -19,6 +20,7 @@
 #include <tuple>
 #include <vector>
 
+#include "apps/cli_util.h"
 #include "cuda/device_memory.h"
 #include "cuda/loop_kernels.h"
 #include "hivox/core/error.h"
@@ -28,6 +30,9 @@
 #include "hivox/fusion/integrator.h"
 #include "hivox/io/atomic_file.h"
 #include "hivox/io/dataset.h"
+#include "hivox/io/image_io.h"
+#include "hivox/io/map_file.h"
+#include "hivox/io/ply.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
@@ -809,6 +814,69 @@ TEST(GpuLoop, RendersOnTheDeviceAsTheCpuDoes) {
   bad.fx = -1.0f;
   EXPECT_THROW(gpu.render(bad, last, p.fusion.depth_range), Error);
   EXPECT_THROW(gpu.render(rig.depth_camera, last, DepthRange{2.0f, 1.0f}), Error);
+}
+
+/// `hivox render` and `hivox mesh` with `--device cuda` on a saved map: the map goes to the
+/// device once and the views and the mesh are made there, as on the CPU; a missing device is
+/// refused with one line naming it.
+TEST(GpuLoop, TheMapCommandsRenderAndMeshOnTheDevice) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  p.device = Device::cpu();
+  Reconstruction cpu(p, data.info().rig);
+  const std::size_t frames = frames_to_run(12, 6);
+  for (std::size_t i = 0; i < frames; ++i) {
+    const RgbdFrame f = data.read(i);
+    cpu.integrate(f, *f.T_wc_gt);
+  }
+  TempDir dir;
+  const std::filesystem::path map = dir.path() / "desk.hvx";
+  write_map_file(map, cpu.map(), p.fusion, cpu.session());
+  const std::string pose =
+      fmt::format("{:.6f}", fmt::join(to_tum(cpu.trajectory().back().T_wc), " "));
+  for (const char* device : {"cpu", "cuda"}) {
+    SCOPED_TRACE(device);
+    const CliRun render =
+        run_hivox(fmt::format("render {} --pose '{}' --out {} --device {}", map.string(), pose,
+                              (dir.path() / device).string(), device));
+    EXPECT_EQ(render.exit_code, 0) << render.output;
+    const CliRun mesh = run_hivox(fmt::format("mesh {} --out {} --device {} --quiet", map.string(),
+                                              (dir.path() / device / "mesh.ply").string(), device));
+    EXPECT_EQ(mesh.exit_code, 0) << mesh.output;
+    if (std::string_view(device) == "cuda") {
+      EXPECT_NE(render.output.find("on cuda:0"), std::string::npos) << render.output;
+    }
+  }
+  // The same pictures (shaded and levels; a pixel may differ where a ray grazes a surface) and
+  // the same mesh.
+  for (const char* picture : {"shaded.png", "levels.png"}) {
+    const ColorImage a = read_color(dir.path() / "cpu" / picture);
+    const ColorImage b = read_color(dir.path() / "cuda" / picture);
+    ASSERT_EQ(a.width(), b.width());
+    ASSERT_EQ(a.height(), b.height());
+    int64_t differ = 0, lit = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const Rgb8 x = a.data()[i], y = b.data()[i];
+      lit += x.r + x.g + x.b > 0;
+      differ += std::abs(x.r - y.r) > 20 || std::abs(x.g - y.g) > 20 || std::abs(x.b - y.b) > 20;
+    }
+    std::printf("[ cli      ] %s: %lld of %lld lit pixels differ\n", picture,
+                static_cast<long long>(differ), static_cast<long long>(lit));
+    EXPECT_GT(lit, static_cast<int64_t>(a.size()) / 2) << picture;
+    EXPECT_LE(differ, lit / 200) << picture;
+  }
+  const TriangleMesh a = read_ply(dir.path() / "cpu" / "mesh.ply");
+  const TriangleMesh b = read_ply(dir.path() / "cuda" / "mesh.ply");
+  ASSERT_GT(a.triangle_count(), 10000);
+  EXPECT_NEAR(static_cast<double>(b.triangle_count()), static_cast<double>(a.triangle_count()),
+              0.001 * static_cast<double>(a.triangle_count()));
+  // A device that is not there: one line naming it, no files.
+  const CliRun missing = run_hivox(fmt::format("mesh {} --out {} --device cuda:7 --quiet",
+                                               map.string(), (dir.path() / "none.ply").string()));
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.output.find("cuda:7"), std::string::npos) << missing.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "none.ply"));
 }
 
 /// The CLI's and the bindings' way onto the GPU: a Reconstruction on `cuda` (its frames on the

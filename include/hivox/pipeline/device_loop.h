@@ -2,8 +2,8 @@
 /// @file
 /// The per-frame loop on another device than the CPU, behind a Reconstruction: frames go in,
 /// stats come out, renders and meshes are made there, and the map and the model raycast come
-/// back to the host when read. The CUDA
-/// loop implements it (hivox::cuda::make_reconstruction, in builds with -DHIVOX_WITH_CUDA=ON).
+/// back to the host when read. The CUDA loop implements it (hivox::cuda::make_reconstruction, in
+/// builds with -DHIVOX_WITH_CUDA=ON).
 
 #include <cstdint>
 #include <vector>
