@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Packs what bench/gpu_check.sh needs into one folder that a GPU machine without the toolchain or
-# the packages can run: BUILD's CUDA tests and loop benchmark (stripped, in BUILD's layout), the
-# shared libraries they load (all but the C library, the loader and the driver), and the first
-# FRAMES frames of fr1/rpy from DATA (the real-data tests and the fr1/rpy benchmarks use them).
+# the packages can run: BUILD's CUDA tests, loop benchmark and `hivox` (the map commands' gpu
+# test runs it), stripped, in BUILD's layout; the shared libraries they load (all but the C
+# library, the loader and the driver); and the first FRAMES frames of fr1/rpy from DATA (the
+# real-data tests and the fr1/rpy benchmarks use them).
 #
 #   bench/gpu_bundle.sh BUILD DEST [DATA] [FRAMES]   # DATA: ../shared/data, FRAMES: 120
 #
@@ -24,7 +25,7 @@ build=$1
 dest=$2
 data=${3:-$(dirname "$0")/../../shared/data}
 frames=${4:-120}
-binaries="tests/test_cuda_loop tests/test_cuda_kernels bench/hivox_gpu_loop"
+binaries="tests/test_cuda_loop tests/test_cuda_kernels bench/hivox_gpu_loop hivox"
 for binary in $binaries; do
   if [ ! -x "$build/$binary" ]; then
     echo "$0: $build/$binary is missing (build with -DHIVOX_WITH_CUDA=ON)" >&2

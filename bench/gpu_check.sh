@@ -48,13 +48,15 @@ step() {
   fi
 }
 
-for binary in tests/test_cuda_loop tests/test_cuda_kernels bench/hivox_gpu_loop; do
+for binary in tests/test_cuda_loop tests/test_cuda_kernels bench/hivox_gpu_loop hivox; do
   if [ ! -x "$build/$binary" ]; then
     echo "$0: $build/$binary is missing (build with -DHIVOX_WITH_CUDA=ON)" >&2
     exit 2
   fi
 done
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$out/gpu.txt" 2>&1
+# The map commands' gpu test runs the CLI: this build's, wherever the build now lies.
+export HIVOX_BIN=$build/hivox
 
 step test_cuda_loop "$build/tests/test_cuda_loop"
 step test_cuda_kernels "$build/tests/test_cuda_kernels"
