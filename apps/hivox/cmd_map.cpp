@@ -187,6 +187,7 @@ void run_mesh(const MapMeshOptions& o) {
   }
   params.validate();
   const Device device = Device::parse(o.device);
+  check_device(device);  // before the map is read
   LoadedMap loaded = load(o.map, o.quiet);
   // Elsewhere than the CPU, the map goes there and the mesh is made there.
   const PinholeCamera camera = loaded.info.session.camera.value_or(kDefaultCamera);
@@ -254,6 +255,7 @@ void run_render(const RenderOptions& o) {
     if (poses.empty()) fail(ErrorCode::InvalidData, "{}: no poses in the file", o.trajectory);
   }
   const Device device = Device::parse(o.device);
+  check_device(device);  // before the map is read
   LoadedMap loaded = load(o.map, o.quiet);
   PinholeCamera camera = kDefaultCamera;
   if (!o.camera.empty()) {

@@ -60,22 +60,6 @@ BadFramePolicy parse_bad_frame_policy(std::string_view name) {
 }
 
 namespace {
-/// Throws `Error(Unsupported)` when `device` cannot run a reconstruction here.
-void check_device(const Device& device) {
-  if (device.is_cpu()) return;
-#if defined(HIVOX_WITH_CUDA)
-  if (cuda::device_name(device.index).empty())
-    fail(ErrorCode::Unsupported,
-         "device {}: no such CUDA device here (no driver or no GPU); use "
-         "--device cpu",
-         device.to_string());
-#else
-  fail(ErrorCode::Unsupported,
-       "device {}: this build of hivox has no CUDA loop (build it with -DHIVOX_WITH_CUDA=ON, "
-       "docs/cuda.md); use --device cpu",
-       device.to_string());
-#endif
-}
 
 /// The frames a run of `params` goes through on `reader` (none when the first is beyond it).
 std::size_t frames_to_run(const RunParams& params, const DatasetReader& reader) {

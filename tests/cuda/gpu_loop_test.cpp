@@ -871,11 +871,15 @@ TEST(GpuLoop, TheMapCommandsRenderAndMeshOnTheDevice) {
   ASSERT_GT(a.triangle_count(), 10000);
   EXPECT_NEAR(static_cast<double>(b.triangle_count()), static_cast<double>(a.triangle_count()),
               0.001 * static_cast<double>(a.triangle_count()));
-  // A device that is not there: one line naming it, no files.
-  const CliRun missing = run_hivox(fmt::format("mesh {} --out {} --device cuda:7 --quiet",
+  // A device that is not there: one line naming it and what there is, before the map is read;
+  // no files.
+  const CliRun missing = run_hivox(fmt::format("mesh {} --out {} --device cuda:63 --quiet",
                                                map.string(), (dir.path() / "none.ply").string()));
   EXPECT_NE(missing.exit_code, 0);
-  EXPECT_NE(missing.output.find("cuda:7"), std::string::npos) << missing.output;
+  EXPECT_NE(missing.output.find("device cuda:63: no such CUDA device here ("), std::string::npos)
+      << missing.output;
+  EXPECT_NE(missing.output.find(" found: cuda:0"), std::string::npos) << missing.output;
+  EXPECT_EQ(missing.output.find("loaded"), std::string::npos) << missing.output;
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "none.ply"));
 }
 

@@ -22,6 +22,10 @@ struct DeviceList {
 /// memory): a fraction of a second each.
 DeviceList list_devices();
 
+/// Throws `Error(Unsupported)`, one line naming `device` and what this build or machine has
+/// instead, unless runs can use it here.
+void check_device(const Device& device);
+
 /// `device` described as list_devices() lists it; nullopt for a CUDA device this build or machine
 /// does not have.
 std::optional<DeviceInfo> describe_device(const Device& device);
