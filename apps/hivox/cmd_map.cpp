@@ -26,7 +26,6 @@
 #include "hivox/io/trajectory_io.h"
 #include "hivox/mesh/extract_mesh.h"
 #include "hivox/output/renders.h"
-#include "hivox/raycast/raycaster.h"
 #include "hivox/raycast/render.h"
 #include "hivox/run/devices.h"
 #include "hivox/run/runner.h"
@@ -80,20 +79,21 @@ std::string mib(int64_t bytes) {
   return fmt::format("{:.1f} MiB", static_cast<double>(bytes) / (1 << 20));
 }
 
-/// `loaded`'s map on `device` (parsed from `name`) behind a Reconstruction seen through `camera`:
-/// its meshes and renders are made there, and the map crosses the bus once.
-std::unique_ptr<Reconstruction> on_device(LoadedMap loaded, const std::string& name,
+/// `loaded`'s map behind a Reconstruction on `device`, seen through `camera`: its meshes and
+/// renders are made there (elsewhere than the CPU the map crosses the bus once, said unless
+/// `quiet`).
+std::unique_ptr<Reconstruction> on_device(LoadedMap loaded, const Device& device,
                                           const PinholeCamera& camera, bool quiet) {
   ReconstructionParams p;
-  p.device = Device::parse(name);
+  p.device = device;
   p.map = loaded.map->params();
   p.fusion = loaded.info.fusion;
   Stopwatch watch;
   std::unique_ptr<Reconstruction> rec = make_reconstruction(
       p, CameraRig::registered(camera), std::move(loaded.map), loaded.info.session);
-  if (!quiet) {
-    const std::optional<DeviceInfo> d = describe_device(p.device);
-    fmt::print("on {} ({}) in {:.2f} s\n", p.device.to_string(), d ? d->to_string() : "",
+  if (!quiet && !device.is_cpu()) {
+    const std::optional<DeviceInfo> d = describe_device(device);
+    fmt::print("on {} ({}) in {:.2f} s\n", device.to_string(), d ? d->to_string() : "",
                watch.elapsed_ms() / 1e3);
   }
   return rec;
@@ -189,14 +189,11 @@ void run_mesh(const MapMeshOptions& o) {
   const Device device = Device::parse(o.device);
   check_device(device);  // before the map is read
   LoadedMap loaded = load(o.map, o.quiet);
-  // Elsewhere than the CPU, the map goes there and the mesh is made there.
   const PinholeCamera camera = loaded.info.session.camera.value_or(kDefaultCamera);
-  const std::unique_ptr<Reconstruction> rec =
-      device.is_cpu() ? nullptr : on_device(std::move(loaded), o.device, camera, o.quiet);
+  const std::unique_ptr<Reconstruction> rec = on_device(std::move(loaded), device, camera, o.quiet);
   Stopwatch watch;
   RemovedPieces removed;
-  TriangleMesh mesh =
-      rec ? rec->extract_mesh(params, &removed) : extract_mesh(*loaded.map, params, &removed);
+  TriangleMesh mesh = rec->extract_mesh(params, &removed);
   const std::string pieces =
       params.min_piece_triangles > 0
           ? fmt::format("; removed {} pieces of fewer than {} triangles ({} triangles)",
@@ -270,20 +267,13 @@ void run_render(const RenderOptions& o) {
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec) fail(ErrorCode::Io, "{}: cannot create the folder ({})", o.out, ec.message());
-  DepthRange range = loaded.info.fusion.depth_range;
-  if (o.max_depth_m > 0.0f) range.max_m = std::max(o.max_depth_m, range.min_m);
-  const MapParams map_params = loaded.map->params();
-  // Elsewhere than the CPU, the map goes there once and every view is raycast there.
-  const std::unique_ptr<Reconstruction> rec =
-      device.is_cpu() ? nullptr : on_device(std::move(loaded), o.device, camera, o.quiet);
-  Raycaster raycaster;
+  // 0: the depth range the map was fused with.
+  const float max_depth_m =
+      o.max_depth_m > 0.0f ? std::max(o.max_depth_m, loaded.info.fusion.depth_range.min_m) : 0.0f;
+  const std::unique_ptr<Reconstruction> rec = on_device(std::move(loaded), device, camera, o.quiet);
   Stopwatch watch;
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    RaycastResult on_device;
-    if (rec) on_device = rec->render(camera, poses[i].T_wc, range.max_m);
-    const RaycastResult& r =
-        rec ? on_device : raycaster.raycast(*loaded.map, camera, poses[i].T_wc, range);
-    write_renders(r, map_params, o.out,
+    write_renders(rec->render(camera, poses[i].T_wc, max_depth_m), rec->params().map, o.out,
                   poses.size() > 1 ? fmt::format("frame{:06d}_", i) : std::string());
     if (!o.quiet && (poses.size() < 20 || (i + 1) % 50 == 0 || i + 1 == poses.size()))
       fmt::print("rendered {}/{}\n", i + 1, poses.size());

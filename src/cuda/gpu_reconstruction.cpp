@@ -69,6 +69,19 @@ void grow(Buffer<T>& b, std::size_t n, int64_t* total) {
   b.reset(n + n / 2, total);
 }
 
+/// `on_device()`; where the device has no memory left for it (its map filled it), the same made
+/// by `on_host()` from the map taken to the host, with a warning naming `what`.
+template <typename OnDevice, typename OnHost>
+auto on_device_else_host(const char* what, OnDevice&& on_device, OnHost&& on_host) {
+  try {
+    return on_device();
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::OutOfCapacity) throw;
+    log::warn("{}: {}; made on the host instead", what, e.what());
+    return on_host();
+  }
+}
+
 /// A raycast's images in device memory (`camera`'s pixels each), copied to the host.
 RaycastResult download_raycast(const PinholeCamera& camera, const Pose& T_wc, bool has_color,
                                const kernels::RaycastOutputView& images) {
@@ -125,6 +138,20 @@ std::optional<cudaDeviceProp> properties_of(int index) {
   return prop;
 }
 }  // namespace
+
+void require_cuda_device(const Device& device) {
+  if (!device_name(device.index).empty()) return;
+  int found = 0;
+  while (!device_name(found).empty()) ++found;
+  if (found == 0)
+    fail(ErrorCode::Unsupported,
+         "device {}: no CUDA device here (no driver or no GPU); use --device cpu",
+         device.to_string());
+  fail(ErrorCode::Unsupported,
+       "device {}: no such CUDA device here ({} found: cuda:0{}); use one of them or --device "
+       "cpu",
+       device.to_string(), found, found > 1 ? fmt::format(" to cuda:{}", found - 1) : "");
+}
 
 std::string device_name(int index) {
   const std::optional<cudaDeviceProp> prop = properties_of(index);
@@ -276,10 +303,7 @@ struct GpuReconstruction::Impl {
     if (params.device.is_cpu())
       fail(ErrorCode::InvalidArgument, "the CUDA loop needs a CUDA device, got {}",
            params.device.to_string());
-    const std::string name = device_name(params.device.index);
-    if (name.empty())
-      fail(ErrorCode::Unsupported, "device {}: no such CUDA device here (no driver or no GPU)",
-           params.device.to_string());
+    require_cuda_device(params.device);
     check_status(cudaSetDevice(params.device.index), "selecting the device");
     // The walk through the levels recurses (kernels::walk_segment_in): its depth grows with the
     // levels, so the compiler cannot size the stack; 1 KB a thread (the default) is too little
@@ -551,9 +575,8 @@ struct GpuReconstruction::Impl {
     Buffer<AllocCounters> hits;
     hits.reset(1, nullptr);
     check_status(cudaMemset(hits.get(), 0, sizeof(AllocCounters)), "render");
-    // As the CPU's raycaster: rays start no nearer than 1 mm.
-    cuda::raycast(view.read, high_water, camera, to_rigid3f(T_wc), std::max(range.min_m, 1e-3f),
-                  range.max_m, tiles, k, RayHintImages{}, images.view(), hits.get(), ray_launch);
+    cuda::raycast(view.read, high_water, camera, to_rigid3f(T_wc), range.min_m, range.max_m, tiles,
+                  k, RayHintImages{}, images.view(), hits.get(), ray_launch);
     return download_raycast(camera, T_wc, view.color != nullptr, images.view());
   }
 
@@ -1137,14 +1160,9 @@ std::vector<BlockRef> GpuReconstruction::allocated_blocks(int32_t* high_water) c
 TriangleMesh GpuReconstruction::extract_mesh(const MeshParams& params,
                                              RemovedPieces* removed) const {
   params.validate();
-  try {
-    return mesh_on_device(params, removed);
-  } catch (const Error& e) {
-    if (e.code() != ErrorCode::OutOfCapacity) throw;
-    // The device is full (its map filled it): the same mesh from the map taken to the host.
-    log::warn("mesh: {}; meshing on the host instead", e.what());
-    return hivox::extract_mesh(*download_map(), params, removed);
-  }
+  return on_device_else_host(
+      "mesh", [&] { return mesh_on_device(params, removed); },
+      [&] { return hivox::extract_mesh(*download_map(), params, removed); });
 }
 
 TriangleMesh GpuReconstruction::mesh_on_device(const MeshParams& params,
@@ -1272,15 +1290,12 @@ RaycastResult GpuReconstruction::render(const PinholeCamera& camera, const Pose&
                                         const DepthRange& range) const {
   camera.validate("render camera");
   range.validate("render depth range");
-  try {
-    return impl_->render(camera, T_wc, range);
-  } catch (const Error& e) {
-    if (e.code() != ErrorCode::OutOfCapacity) throw;
-    // The device is full (its map filled it): the same render from the map taken to the host.
-    log::warn("render: {}; raycasting on the host instead", e.what());
-    Raycaster raycaster(impl_->params.raycast);
-    return raycaster.raycast(*download_map(), camera, T_wc, range);
-  }
+  return on_device_else_host(
+      "render", [&] { return impl_->render(camera, T_wc, range); },
+      [&] {
+        Raycaster raycaster(impl_->params.raycast);
+        return RaycastResult(raycaster.raycast(*download_map(), camera, T_wc, range));
+      });
 }
 
 namespace {

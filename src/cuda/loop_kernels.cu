@@ -689,6 +689,7 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
              const kernels::RayMarchConstants& k, const RayHintImages& hint,
              const kernels::RaycastOutputView& out, AllocCounters* counters,
              const RaycastLaunch& how) {
+  min_depth_m = kernels::nearest_ray_start(min_depth_m);  // as the CPU's raycaster
   launch(fill_tiles, grid_for(tiles.count()), kThreads, tiles);
   if (k.occupancy.cells != nullptr)
     check_status(

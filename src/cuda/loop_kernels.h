@@ -100,7 +100,9 @@ inline constexpr int kRaycastRegisterCaps[] = {128, 96, 80, 64};
 /// them (0 in the CPU emulation of CUDA).
 int raycast_kernel_registers(const RaycastLaunch& how);
 
-/// Raycasts the map: range tiles from the blocks below `high_water` (an upper bound will do),
+/// Raycasts the map over the depths [min_depth_m, max_depth_m] (no nearer than
+/// kernels::nearest_ray_start, as the CPU's raycaster): range tiles from the blocks below
+/// `high_water` (an upper bound will do),
 /// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
 /// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
 /// (Queuing the rays whose hints fail for a second, marching pass was slower: a warp of marching

@@ -16,6 +16,13 @@
 
 namespace hivox::kernels {
 
+/// Where a raycast's rays start at the nearest: `min_depth_m`, but no nearer than 1 mm (blocks
+/// at the camera's centre project without bound).
+HIVOX_HD inline float nearest_ray_start(float min_depth_m) {
+  constexpr float kNearest_m = 1e-3f;
+  return min_depth_m > kNearest_m ? min_depth_m : kNearest_m;
+}
+
 /// Ray parameter where ray o + z d leaves the axis-aligned block `b` of side `block_m`.
 HIVOX_HD inline float block_exit(const Vec3f& o, const Vec3f& d, const Vec3i& b, float block_m) {
   float t = FLT_MAX;

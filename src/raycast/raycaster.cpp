@@ -66,9 +66,7 @@ void Raycaster::raycast_cpu(const VoxelBlockMap& map, const DepthRange& range,
   RaycastResult& r = result_;
   const PinholeCamera& camera = r.camera;
   const MapView view = map.view();
-  // Rays start no nearer than this: blocks at the camera's centre project without bound.
-  constexpr float kNearestStart_m = 1e-3f;
-  const float min_depth_m = std::max(range.min_m, kNearestStart_m);
+  const float min_depth_m = kernels::nearest_ray_start(range.min_m);
   const float max_depth_m = range.max_m;
 
   // Range image: every allocated block's bounding box, projected.

@@ -26,17 +26,7 @@ std::optional<DeviceInfo> describe_device(const Device& device) {
 void check_device(const Device& device) {
   if (device.is_cpu()) return;
 #if defined(HIVOX_WITH_CUDA)
-  if (!cuda::device_name(device.index).empty()) return;
-  int found = 0;
-  while (!cuda::device_name(found).empty()) ++found;
-  if (found == 0)
-    fail(ErrorCode::Unsupported,
-         "device {}: no CUDA device here (no driver or no GPU); use --device cpu",
-         device.to_string());
-  fail(ErrorCode::Unsupported,
-       "device {}: no such CUDA device here ({} found: cuda:0{}); use one of them or --device "
-       "cpu",
-       device.to_string(), found, found > 1 ? fmt::format(" to cuda:{}", found - 1) : "");
+  cuda::require_cuda_device(device);
 #else
   fail(ErrorCode::Unsupported,
        "device {}: this build of hivox has no CUDA loop (build it with -DHIVOX_WITH_CUDA=ON, "

@@ -28,6 +28,9 @@ namespace hivox::cuda {
 
 /// The name of CUDA device `index`, or empty when there is none (no driver, no such device).
 std::string device_name(int index = 0);
+/// Throws `Error(Unsupported)` unless CUDA device `device` is here: one line naming it and the
+/// devices there are (or none: no driver or no GPU).
+void require_cuda_device(const Device& device);
 
 /// The CUDA devices present, described (none without a driver or a GPU). Asking for each one's free
 /// memory starts the runtime on it.
