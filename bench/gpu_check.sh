@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
-# tests, then bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default,
-# alternated (the ray kernel's register caps, split marches, Gauss-Newton on the host, allocation
-# threads of several pixels, tracking as a graph, the coarse grid off, together; 3 levels and the
-# fixed grid), frames decoded as the loop goes (in turn and ahead on 8 threads), meshing and a
-# render on the device against the host, ncu on the ray kernel (where ncu is installed), and last
-# compute-sanitizer's memcheck on the newest tests and its initcheck on the mesh tests.
-# With the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two
-# are alternated first: a change made without a GPU against what it changed.
+# tests; with the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE),
+# the two alternated (a change made without a GPU against what it changed); meshing and a render
+# on the device against the host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against
+# the default, alternated (the ray kernel's register caps, split marches, Gauss-Newton on the
+# host, allocation threads of several pixels, tracking as a graph), one round on both before the
+# second; compute-sanitizer's initcheck on the mesh tests; the rest (more register caps, the
+# coarse grid off, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the
+# ray kernel (where ncu is installed); and last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. A device machine that returns only a few files: give an OUT outside the
@@ -19,8 +19,12 @@
 # BUILD may be a bundle made by bench/gpu_bundle.sh (binaries, libraries and a cut of fr1/rpy in
 # one folder for a machine without the toolchain).
 #
-# Environment: HIVOX_CHECK_STEP_S (default 300) bounds each step, HIVOX_CHECK_SKIP_MEMCHECK=1
-# leaves the compute-sanitizer runs (memcheck, initcheck) out.
+# Environment: HIVOX_CHECK_STEP_S (default 300) bounds each step; HIVOX_CHECK_BUDGET_S (default:
+# none) bounds the whole check: a step starts only while the budget lasts and gets no more than
+# what is left, the steps it leaves are listed as skipped, and times.txt is still written, so a
+# lease's single call ends with its numbers (give the lent machines' calls a budget well inside
+# their limit); HIVOX_CHECK_SKIP_MEMCHECK=1 leaves the compute-sanitizer runs (memcheck,
+# initcheck) out.
 set -u
 if [ $# -lt 2 ]; then
   echo "usage: $0 BUILD OUT [FR1_RPY_FOLDER]" >&2
@@ -34,12 +38,25 @@ mkdir -p "$out"
 summary="$out/summary.txt"
 : > "$summary"
 
-# step NAME COMMAND...: runs COMMAND with its output in OUT/NAME.log, bounded by $limit seconds.
+budget=${HIVOX_CHECK_BUDGET_S:-0}
+skipped=0
+# step NAME COMMAND...: runs COMMAND with its output in OUT/NAME.log, bounded by $limit seconds
+# and by what is left of the budget (none left: listed as skipped, not run).
 step() {
   local name=$1
   shift
+  local bound=$limit
+  if [ "$budget" -gt 0 ]; then
+    local left=$((budget - SECONDS))
+    if [ "$left" -lt 5 ]; then
+      printf '%-28s skipped (budget of %d s spent)  %s\n' "$name" "$budget" "$*" >> "$summary"
+      skipped=$((skipped + 1))
+      return
+    fi
+    [ "$left" -lt "$bound" ] && bound=$left
+  fi
   local start=$SECONDS
-  timeout "$limit" "$@" > "$out/$name.log" 2>&1
+  timeout -k 5 "$bound" "$@" > "$out/$name.log" 2>&1
   local status=$?
   printf '%-28s exit %3d  %4d s  %s\n' "$name" "$status" $((SECONDS - start)) "$*" | tee -a "$summary"
   # A failed step's failures on the terminal too (a device session may bring back few files).
@@ -88,34 +105,45 @@ if [ -x "$before" ]; then
     done
   done
 fi
+# A mesh and a render on the device against the host's way (the map downloaded), the desk.
+bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
 # the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
-# the host, allocation threads of 2x1 and 2x2 pixels, tracking's passes as one CUDA graph, the
-# coarse occupancy grid off; then split marches without the grid, on the fixed grid too (the
-# hierarchy's target is 1.2x the fixed grid's time).
+# the host, allocation threads of 2x1 and 2x2 pixels, tracking's passes as one CUDA graph. A
+# first round on both, then the second, so that a short budget still compares each once.
+optins() {
+  local data=$1 round=$2 src
+  src=$(data_of "$data")
+  bench "${data}_l3_default_$round" "$src" 3
+  bench "${data}_l3_regs96_$round" "$src" 3 --raycast-registers 96
+  bench "${data}_l3_regs64_$round" "$src" 3 --raycast-registers 64
+  bench "${data}_l3_split1_$round" "$src" 3 --split-marches 1
+  bench "${data}_l3_gn_host_$round" "$src" 3 --gn-on-host
+  bench "${data}_l3_alloc2_$round" "$src" 3 --allocation-pixels 2
+  bench "${data}_l3_alloc4_$round" "$src" 3 --allocation-pixels 4
+  bench "${data}_l3_graph_$round" "$src" 3 --tracking-graph
+}
+optins fr1 a
+optins desk a
+# The two mesh tests whose results moved under memcheck (a race or a read of memory never
+# written would explain it): initcheck names reads of device memory never written.
+sanitize=0
+if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
+  sanitize=1
+  step initcheck_mesh_tests compute-sanitizer --tool initcheck --error-exitcode 3 \
+    "$build/tests/test_cuda_loop" --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*'
+fi
+optins fr1 b
+optins desk b
+# The rest, on each: more register caps, the coarse occupancy grid off, the loop with its frames
+# decoded as it goes (in turn and ahead: wall_fps in the json), opt-ins together, and the fixed
+# grid (the hierarchy's target is 1.2x the fixed grid's time).
 for data in fr1 desk; do
   src=$(data_of $data)
-  bench "${data}_l3_default_a" "$src" 3
-  bench "${data}_l3_regs96_a" "$src" 3 --raycast-registers 96
-  bench "${data}_l3_regs64_a" "$src" 3 --raycast-registers 64
-  bench "${data}_l3_split1_a" "$src" 3 --split-marches 1
-  bench "${data}_l3_gn_host_a" "$src" 3 --gn-on-host
-  bench "${data}_l3_alloc2_a" "$src" 3 --allocation-pixels 2
-  bench "${data}_l3_alloc4_a" "$src" 3 --allocation-pixels 4
-  bench "${data}_l3_graph_a" "$src" 3 --tracking-graph
-  bench "${data}_l3_default_b" "$src" 3
-  bench "${data}_l3_regs96_b" "$src" 3 --raycast-registers 96
-  bench "${data}_l3_regs64_b" "$src" 3 --raycast-registers 64
-  bench "${data}_l3_split1_b" "$src" 3 --split-marches 1
-  bench "${data}_l3_gn_host_b" "$src" 3 --gn-on-host
-  bench "${data}_l3_alloc2_b" "$src" 3 --allocation-pixels 2
-  bench "${data}_l3_alloc4_b" "$src" 3 --allocation-pixels 4
-  bench "${data}_l3_graph_b" "$src" 3 --tracking-graph
   bench "${data}_l3_regs80" "$src" 3 --raycast-registers 80
   bench "${data}_l3_regs128" "$src" 3 --raycast-registers 128
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
-  # The loop with its frames decoded as it goes, in turn and ahead (wall_fps in the json).
   bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
@@ -126,7 +154,6 @@ for data in fr1 desk; do
   bench "${data}_l3_alloc4_graph" "$src" 3 --allocation-pixels 4 --tracking-graph
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
-bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # The ray kernel as ncu sees it, without and with a register cap: its registers, occupancy,
 # waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
 ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
@@ -137,14 +164,10 @@ if [ -n "$ncu" ] && [ -n "$fr1" ]; then
       --section WarpStateStats "$loop" "$fr1" --levels 3 --frames 50 --raycast-registers "$regs"
   done
 fi
-if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > /dev/null; then
+if [ "$sanitize" = 1 ]; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
-    --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RegistersCapped*:*SplitMarches*:*SeveralPixels*:*GaussNewtonOnTheDevice*'
-  # The two mesh tests whose results moved under memcheck (a race or a read of memory never
-  # written would explain it): initcheck names reads of device memory never written.
-  step initcheck_mesh_tests compute-sanitizer --tool initcheck --error-exitcode 3 \
-    "$build/tests/test_cuda_loop" --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*'
+    --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RendersOnTheDevice*:*RegistersCapped*:*SplitMarches*:*SeveralPixels*:*GaussNewtonOnTheDevice*'
 fi
 # Every run's frame time, allocation and raycast (mean ms), wall-clock fps and blocks in one list,
 # OUT/times.txt, and on the terminal: a device call that brings back only its output's tail still
@@ -156,4 +179,5 @@ for json in "$out"/*.json; do
     "$(basename "$json" .json)" "$(field total "$json")" "$(field allocate "$json")" \
     "$(field raycast "$json")" "$(field wall_fps "$json")" "$(field blocks "$json")"
 done | tee "$out/times.txt"
+[ "$skipped" -gt 0 ] && echo "$skipped steps skipped: the budget of $budget s was spent (summary.txt)"
 echo "logs and numbers in $out"
