@@ -608,7 +608,8 @@ class DeviceMemoryLeft {
 
 /// A device that fills while the map grows: the pool stops where the memory ends, new blocks
 /// beyond it are dropped and counted, splits wait, and the run goes on (tracked frames, the map
-/// and its mesh intact). With no memory left for the mesher, the mesh is made on the host.
+/// and its mesh intact). With no memory left for the mesher or a render's images, the mesh and
+/// the render are made on the host.
 TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
@@ -661,6 +662,18 @@ TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
     const TriangleMesh mesh = gpu.extract_mesh();  // on the host: the device has no room for it
     EXPECT_EQ(mesh.positions_w, host.positions_w);
     EXPECT_EQ(mesh.triangles, host.triangles);
+    // A render likewise: the host's raycast of the map, as the CPU makes it.
+    const Pose& T_wc = gpu.trajectory().back().T_wc;
+    const RaycastResult render = gpu.render(rig.depth_camera, T_wc, p.fusion.depth_range);
+    Raycaster raycaster(p.raycast);
+    const RaycastResult& cpu =
+        raycaster.raycast(*map, rig.depth_camera, T_wc, p.fusion.depth_range);
+    ASSERT_EQ(render.depth_m.size(), cpu.depth_m.size());
+    EXPECT_TRUE(std::equal(cpu.depth_m.data(), cpu.depth_m.data() + cpu.depth_m.size(),
+                           render.depth_m.data()));
+    EXPECT_GT(std::count_if(render.depth_m.data(), render.depth_m.data() + render.depth_m.size(),
+                            [](float z) { return z > 0.0f; }),
+              static_cast<std::ptrdiff_t>(render.depth_m.size() / 10));
   }
   // With the memory back, the map grows again.
   left.reset();
