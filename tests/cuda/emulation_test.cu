@@ -277,8 +277,9 @@ __global__ void copy_one(const int* in, int* out) {
 
 /// Copies with page-locked host memory are left to the device's queue, as on a GPU: a download
 /// reaches the host only at a synchronisation that waits for it (until then its host side holds
-/// the fill), with the device's bytes of when it was queued; an upload reads its host side when
-/// the device gets to it. Copies with pageable memory are done when they return.
+/// the fill), with the device's bytes of when it was queued (on a stream: at that stream's
+/// synchronisation); an upload reads its host side when the device gets to it. Copies with
+/// pageable memory are done when they return.
 TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
   const ScopedEnv fill("HIVOX_EMULATION_FILL", nullptr);  // 0xA5 bytes
   constexpr int kFill = static_cast<int>(0xA5A5A5A5u);
@@ -310,6 +311,18 @@ TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
   int pageable = 0;
   ASSERT_EQ(cudaMemcpy(&pageable, dev + 1, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
   EXPECT_EQ(host[0], 8);
+
+  // A download on a stream reaches the host when that stream is synchronised, not another.
+  cudaStream_t side = nullptr;
+  ASSERT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
+  launch(store, 1, 1, dev, 9);
+  ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
+  ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
+  EXPECT_EQ(host[0], kFill);
+  ASSERT_EQ(cudaStreamWaitEvent(side, after), cudaSuccess);
+  ASSERT_EQ(cudaStreamSynchronize(side), cudaSuccess);
+  EXPECT_EQ(host[0], 9);
+  ASSERT_EQ(cudaStreamDestroy(side), cudaSuccess);
 
   // An upload reads the host when the next kernel comes: a host write before that is uploaded.
   host[1] = 1;

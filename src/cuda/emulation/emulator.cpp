@@ -450,11 +450,11 @@ class CopyQueue {
     std::lock_guard<std::mutex> lock(mutex_);
     uploads_.push_back({dst, src, bytes});
   }
-  void download(void* dst, const void* src, std::size_t bytes) {
+  void download(void* dst, const void* src, std::size_t bytes, const void* stream) {
     run_uploads();
     std::lock_guard<std::mutex> lock(mutex_);
     const auto* from = static_cast<const unsigned char*>(src);
-    downloads_.push_back({dst, std::vector<unsigned char>(from, from + bytes), queued_++});
+    downloads_.push_back({dst, std::vector<unsigned char>(from, from + bytes), queued_++, stream});
     fill_new(dst, bytes, false);
   }
   /// Before the device does anything: the uploads queued, in order.
@@ -469,6 +469,16 @@ class CopyQueue {
     std::lock_guard<std::mutex> lock(mutex_);
     std::erase_if(downloads_, [&](const Download& d) {
       if (d.mark >= before) return false;
+      std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
+      return true;
+    });
+  }
+  /// The downloads queued on `stream` handed to the host.
+  void finish_stream(const void* stream) {
+    run_uploads();
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::erase_if(downloads_, [&](const Download& d) {
+      if (d.stream != stream) return false;
       std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
       return true;
     });
@@ -489,6 +499,7 @@ class CopyQueue {
     void* dst;
     std::vector<unsigned char> bytes;
     uint64_t mark;
+    const void* stream;  ///< queued on (null: the default stream)
   };
   std::mutex mutex_;
   std::vector<Upload> uploads_;
@@ -866,7 +877,7 @@ cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpy
   return cudaSuccess;
 }
 cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
-                            cudaStream_t) {
+                            cudaStream_t stream) {
   // Copies with page-locked host memory are left to the queue and device-to-device ones run in
   // the device's order; with pageable memory a GPU finishes the copy before returning.
   const bool upload = kind == cudaMemcpyHostToDevice && e::pinned_memory().holds(src, bytes);
@@ -877,7 +888,7 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
   if (upload) {
     e::copy_queue().upload(dst, src, bytes);
   } else if (download) {
-    e::copy_queue().download(dst, src, bytes);
+    e::copy_queue().download(dst, src, bytes, stream);
   } else {
     e::copy_queue().run_uploads();
     std::memcpy(dst, src, bytes);
@@ -900,11 +911,27 @@ cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned) {
   *stream = reinterpret_cast<cudaStream_t>(new e::Stream{});
   return cudaSuccess;
 }
+cudaError_t cudaStreamCreateWithPriority(cudaStream_t* stream, unsigned flags, int) {
+  return cudaStreamCreateWithFlags(stream, flags);  // one queue: priorities change no order
+}
+cudaError_t cudaDeviceGetStreamPriorityRange(int* least, int* greatest) {
+  *least = 0;
+  *greatest = -5;  // as a GPU's: lower numbers go first
+  return cudaSuccess;
+}
 cudaError_t cudaStreamDestroy(cudaStream_t stream) {
   auto* s = reinterpret_cast<e::Stream*>(stream);
   if (s != nullptr && s->capture != nullptr) e::die("a stream destroyed while it captures");
   delete s;
   return cudaSuccess;
+}
+cudaError_t cudaStreamSynchronize(cudaStream_t stream) {
+  e::copy_queue().finish_stream(stream);
+  return e::last_error;
+}
+cudaError_t cudaStreamWaitEvent(cudaStream_t, cudaEvent_t event, unsigned) {
+  if (event == nullptr) e::die("a stream told to wait for no event");
+  return cudaSuccess;  // the launches already run in the order they are made
 }
 cudaError_t cudaStreamBeginCapture(cudaStream_t stream, cudaStreamCaptureMode) {
   auto* s = reinterpret_cast<e::Stream*>(stream);

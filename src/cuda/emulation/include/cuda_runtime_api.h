@@ -111,11 +111,17 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes);
 cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t stream = nullptr);
 
-// Streams only as far as graphs need them: a stream's launches run when they are made (as on
-// the default stream), unless the stream is capturing; then they are recorded into its graph,
-// and a launch of the graph runs them in order.
+// Streams as far as graphs and a second queue need them: a stream's launches run when they are
+// made (as on the default stream), unless the stream is capturing; then they are recorded into
+// its graph, and a launch of the graph runs them in order. A download queued on a stream reaches
+// the host at a synchronisation of that stream (or of the device, or an event after it); waits
+// of a stream on an event keep the order the launches already have.
 cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned flags);
+cudaError_t cudaStreamCreateWithPriority(cudaStream_t* stream, unsigned flags, int priority);
+cudaError_t cudaDeviceGetStreamPriorityRange(int* least, int* greatest);
 cudaError_t cudaStreamDestroy(cudaStream_t stream);
+cudaError_t cudaStreamSynchronize(cudaStream_t stream);
+cudaError_t cudaStreamWaitEvent(cudaStream_t stream, cudaEvent_t event, unsigned flags = 0);
 cudaError_t cudaStreamBeginCapture(cudaStream_t stream, cudaStreamCaptureMode mode);
 cudaError_t cudaStreamEndCapture(cudaStream_t stream, cudaGraph_t* graph);
 cudaError_t cudaGraphInstantiate(cudaGraphExec_t* exec, cudaGraph_t graph,
