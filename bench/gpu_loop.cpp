@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, render = false, gn_on_host = false, no_coarse_grid = false,
-       graph = false;
+       graph = false, refine_after = false;
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
@@ -119,6 +119,9 @@ int main(int argc, char** argv) {
                  "look-ups of blocks it has seen (GpuReconstruction::set_allocation_pixels)");
   app.add_flag("--no-coarse-grid", no_coarse_grid,
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
+  app.add_flag("--refine-after-raycast", refine_after,
+               "refine after each frame's model raycast, on a stream of its own beside it "
+               "(ReconstructionParams::refine_after_raycast; --cpu does the same)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
   app.add_flag("--render", render,
@@ -152,6 +155,7 @@ int main(int argc, char** argv) {
     params.map.voxel_size_m = voxel_m;
     params.map.max_blocks = max_blocks;
     params.raycast.tuning.coarse_skipping = !no_coarse_grid;
+    params.refine_after_raycast = refine_after;
     const std::size_t k =
         static_cast<std::size_t>(std::clamp<int>(handover, 0, static_cast<int>(n)));
 
@@ -191,10 +195,11 @@ int main(int argc, char** argv) {
     gpu->set_tracking_graph(graph);
     const int registers = gpu->raycast_registers();
     std::printf(
-        "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; the "
-        "raycast's kernel takes %d registers a thread (at most %s)\n",
+        "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; "
+        "refinement %s the raycast; the raycast's kernel takes %d registers a thread (at most "
+        "%s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
-        split_marches, registers,
+        split_marches, refine_after ? "after (beside)" : "before", registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
     std::vector<StampedPose> gt;
@@ -323,9 +328,11 @@ int main(int argc, char** argv) {
           << ", \"raycast_registers_at_most\": " << raycast_registers
           << ", \"raycast_registers\": " << registers
           << ", \"allocation_pixels\": " << allocation_pixels
-          << ", \"tracking_graph\": " << (graph ? "true" : "false") << ", \"handover\": " << k
-          << ", \"frames_timed\": " << g.frames << ", \"read_threads\": " << read_threads
-          << ", \"wall_fps\": " << wall_fps << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
+          << ", \"tracking_graph\": " << (graph ? "true" : "false")
+          << ", \"refine_after_raycast\": " << (refine_after ? "true" : "false")
+          << ", \"handover\": " << k << ", \"frames_timed\": " << g.frames
+          << ", \"read_threads\": " << read_threads << ", \"wall_fps\": " << wall_fps
+          << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms
           << ", \"track\": " << g.mean.track_ms << ", \"allocate\": " << g.mean.allocate_ms
           << ", \"integrate\": " << g.mean.integrate_ms << ", \"refine\": " << g.mean.refine_ms
           << ", \"raycast\": " << g.mean.raycast_ms << ", \"total\": " << g.mean.total_ms

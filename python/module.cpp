@@ -279,6 +279,7 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("fusion", &ReconstructionParams::fusion)
       .def_readwrite("refine", &ReconstructionParams::refine)
       .def_readwrite("raycast_every_frame", &ReconstructionParams::raycast_every_frame)
+      .def_readwrite("refine_after_raycast", &ReconstructionParams::refine_after_raycast)
       .def_property(
           "device", [](const ReconstructionParams& p) { return p.device.to_string(); },
           [](ReconstructionParams& p, const std::string& name) { p.device = Device::parse(name); },

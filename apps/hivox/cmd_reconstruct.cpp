@@ -390,6 +390,10 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
                                     "do not store or fuse colour (4 instead of 8 B/voxel)");
   cmd->add_flag("!--no-raycast", p.raycast_every_frame,
                 "skip the per-frame raycast (renders are still made at the end)");
+  cmd->add_flag("--refine-after-raycast", p.refine_after_raycast,
+                "refine the hierarchy after each frame's model raycast, not before (on a device "
+                "the refinement then overlaps the raycast; the next frame tracks against the map "
+                "before the splits and merges)");
   cmd->add_option("--on-bad-frame", o.on_bad_frame,
                   "a frame that cannot be read (missing or corrupt file): 'stop' the run there "
                   "(the frames before it are written, exit status 4) or 'skip' it with a "

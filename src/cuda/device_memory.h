@@ -38,19 +38,54 @@ inline void copy_to_host(void* host, const void* device, std::size_t bytes,
   if (bytes > 0) check_status(cudaMemcpy(host, device, bytes, cudaMemcpyDeviceToHost), what);
 }
 
-/// Queued copies of `n` elements between page-locked host memory and the device: the host does
-/// not wait (the next synchronisation, or a blocking copy, ends them). `what` names the copy in
-/// errors.
+/// Queued copies of `n` elements between page-locked host memory and the device, on `stream`
+/// (null: the default stream): the host does not wait (the next synchronisation of the stream
+/// or the device, or a blocking copy, ends them). `what` names the copy in errors.
 template <typename T>
-void upload_async(T* device, const T* host, std::size_t n, const char* what) {
+void upload_async(T* device, const T* host, std::size_t n, const char* what,
+                  cudaStream_t stream = nullptr) {
   if (n > 0)
-    check_status(cudaMemcpyAsync(device, host, n * sizeof(T), cudaMemcpyHostToDevice), what);
+    check_status(cudaMemcpyAsync(device, host, n * sizeof(T), cudaMemcpyHostToDevice, stream),
+                 what);
 }
 template <typename T>
-void download_async(T* host, const T* device, std::size_t n, const char* what) {
+void download_async(T* host, const T* device, std::size_t n, const char* what,
+                    cudaStream_t stream = nullptr) {
   if (n > 0)
-    check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost), what);
+    check_status(cudaMemcpyAsync(host, device, n * sizeof(T), cudaMemcpyDeviceToHost, stream),
+                 what);
 }
+
+/// Waits until `stream` has done what was queued on it; null: until the whole device has.
+inline void wait_for_queue(cudaStream_t stream, const char* what) {
+  check_status(stream != nullptr ? cudaStreamSynchronize(stream) : cudaDeviceSynchronize(), what);
+}
+
+/// A queue of the device's own, beside the default stream: what goes on it does not wait for
+/// the default stream's work, nor that for it, except where a QueueMark orders them. Its kernels
+/// go first where both have blocks waiting for a multiprocessor (the highest priority): short
+/// work whose results the host waits for, beside long work it does not.
+class Stream {
+ public:
+  Stream() = default;
+  ~Stream() {
+    if (stream_ != nullptr) cudaStreamDestroy(stream_);
+  }
+  Stream(const Stream&) = delete;
+  Stream& operator=(const Stream&) = delete;
+  /// The stream, made on the current device at the first call.
+  cudaStream_t get(const char* what) {
+    if (stream_ == nullptr) {
+      int least = 0, greatest = 0;
+      check_status(cudaDeviceGetStreamPriorityRange(&least, &greatest), what);
+      check_status(cudaStreamCreateWithPriority(&stream_, cudaStreamNonBlocking, greatest), what);
+    }
+    return stream_;
+  }
+
+ private:
+  cudaStream_t stream_ = nullptr;
+};
 
 /// A mark in the device's queue. The time between two marks is the device's own, and reading it
 /// costs no wait once a later synchronisation has passed both: stages timed without waiting
@@ -70,6 +105,12 @@ class QueueMark {
   }
   /// Waits until the device has passed this mark (recorded).
   void wait(const char* what) const { check_status(cudaEventSynchronize(event_), what); }
+  /// What is queued on `stream` from now on starts after the device has passed this mark (the
+  /// last recorded; none: no wait).
+  void order_before(cudaStream_t stream, const char* what) const {
+    if (event_ != nullptr && stream != nullptr)
+      check_status(cudaStreamWaitEvent(stream, event_, 0), what);
+  }
   /// Milliseconds on the device from `earlier` to this mark (both recorded, both passed).
   double ms_since(const QueueMark& earlier, const char* what) const {
     float ms = 0;

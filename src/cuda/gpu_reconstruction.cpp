@@ -285,6 +285,8 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<MergeJob> host_merge_jobs;
   PinnedBuffer<SplitJob> host_split_jobs;
   int64_t refine_calls = 0;
+  Stream refine_stream;                 ///< refinement after the raycast (refine_and_raycast)
+  cudaStream_t refine_queue = nullptr;  ///< where refinement queues now (null: the default stream)
 
   std::vector<StampedPose> trajectory;
   std::vector<FrameStats> frames;
@@ -589,32 +591,53 @@ struct GpuReconstruction::Impl {
     send_jobs(jobs, device, host, what);
     check(device.get(), static_cast<int32_t>(jobs.size()));
     Job* staged = host.reserve(jobs.size());
-    download_async(staged, device.get(), jobs.size(), what);
-    download_async(c, counters.get(), kCounters, what);
-    wait_for_device(what);
+    download_async(staged, device.get(), jobs.size(), what, refine_queue);
+    download_async(c, counters.get(), kCounters, what, refine_queue);
+    wait_for_queue(refine_queue, what);
     jobs.assign(staged, staged + jobs.size());
     std::erase_if(jobs, [](const Job& j) { return j.ok == 0; });
   }
   /// Sends `jobs` to the device (it holds as many) through page-locked `host` memory: no wait.
   template <typename Job>
-  static void send_jobs(const std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host,
-                        const char* what) {
+  void send_jobs(const std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host,
+                 const char* what) {
     Job* staged = host.reserve(jobs.size());
     std::copy(jobs.begin(), jobs.end(), staged);
-    upload_async(device.get(), staged, jobs.size(), what);
+    upload_async(device.get(), staged, jobs.size(), what, refine_queue);
   }
 
-  /// The pool's counters from the device (a round trip).
-  void read_pool_counters() {
-    int32_t c[kCounters];
-    counters.download(c, kCounters);
-    set_pool_counters(c);
+  /// Refines (see refine) and raycasts the model at `T_wc`, the frame just fused, in the order
+  /// the parameters ask for. Refinement after the raycast goes on a stream of its own: its waits
+  /// for the host's decisions overlap the raycast, and its passes that write the map wait for
+  /// the raycast's end (ray_end).
+  void refine_and_raycast(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
+    if (!params.refine_after_raycast) {
+      refine(T_wc, visible_count, s);
+      raycast_model(T_wc, true);
+      return;
+    }
+    raycast_model(T_wc, true);
+    if (!refine_due()) return;
+    const LaunchesOn on(refine_stream.get("refinement's stream"));
+    refine_queue = refine_stream.get("refinement's stream");
+    try {
+      refine(T_wc, visible_count, s);
+    } catch (...) {
+      refine_queue = nullptr;
+      throw;
+    }
+    refine_queue = nullptr;
+  }
+
+  /// Whether this frame refines (every `every_n_frames`-th call counts).
+  bool refine_due() {
+    return map_params.levels >= 2 && (refine_calls++ % params.refine.every_n_frames) == 0;
   }
 
   /// The CPU Refiner's refinement of the blocks this frame touched (the first `visible` of the
   /// visible list), on the device: decisions per block, then merges, then splits.
   void refine(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
-    if (map_params.levels < 2 || (refine_calls++ % params.refine.every_n_frames) != 0) return;
+    if (refine_queue == nullptr && !refine_due()) return;  // on its stream: refine_due was asked
     Stopwatch stage;
     const RefineParams& rp = params.refine;
     RefineConstants k;
@@ -628,8 +651,10 @@ struct GpuReconstruction::Impl {
     k.unmeshable_min_weight = rp.unmeshable_min_weight;
     k.noise = rp.noise.value_or(rig.depth_noise);
     k.T_cw = to_rigid3f(T_wc.inverse());
-    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t)), "clearing counters");
-    check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t)),
+    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t), refine_queue),
+                 "clearing counters");
+    check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t),
+                                 refine_queue),
                  "clearing the parent set");
     const auto capacity = static_cast<int32_t>(split_list.size());
     const RefineLists lists{
@@ -645,10 +670,13 @@ struct GpuReconstruction::Impl {
     int32_t* counts = host_refine_counts.reserve(3);
     BlockRef* split_head = host_splits.reserve(head);
     BlockKey* merge_head = host_merges.reserve(head);
-    download_async(counts, refine_counts.get(), 3, "refinement (counts)");
-    download_async(split_head, split_list.get(), head, "refinement (split list)");
-    download_async(merge_head, merge_list.get(), head, "refinement (merge list)");
-    wait_for_device("refinement (candidates)");
+    download_async(counts, refine_counts.get(), 3, "refinement (counts)", refine_queue);
+    download_async(split_head, split_list.get(), head, "refinement (split list)", refine_queue);
+    download_async(merge_head, merge_list.get(), head, "refinement (merge list)", refine_queue);
+    wait_for_queue(refine_queue, "refinement (candidates)");
+    // The passes that write the map start after the model raycast (when it runs beside them);
+    // the look-ups and checks before them only read it.
+    const auto after_raycast = [&] { ray_end.order_before(refine_queue, "refinement"); };
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
     std::copy_n(split_head, std::min(head, splits.size()), splits.data());
@@ -672,6 +700,7 @@ struct GpuReconstruction::Impl {
         mj.resize(static_cast<std::size_t>(room));
       }
       send_jobs(mj, merge_jobs, host_merge_jobs, "merging (the jobs)");
+      after_raycast();
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
     }
@@ -716,6 +745,7 @@ struct GpuReconstruction::Impl {
       });
       if (!go.empty()) {
         send_jobs(go, split_jobs, host_split_jobs, "splitting (the jobs)");
+        after_raycast();
         std::size_t begin = 0;
         while (begin < go.size()) {
           std::size_t end = begin;
@@ -728,7 +758,10 @@ struct GpuReconstruction::Impl {
       }
       s.splits = static_cast<int64_t>(go.size());
     }
-    read_pool_counters();
+    // The pool's counters after the edits (a round trip).
+    download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", refine_queue);
+    wait_for_queue(refine_queue, "refinement (the pool's counters)");
+    set_pool_counters(c);
     s.refine_ms = stage.lap_ms();
   }
 
@@ -774,7 +807,9 @@ struct GpuReconstruction::Impl {
     return frame;
   }
 
-  void fuse(const IntegrationFrame& f, const Pose& T_wc, FrameStats& s) {
+  /// Allocates and integrates the frame; returns how many blocks it saw (the first of the
+  /// visible list: the blocks refinement looks at).
+  int32_t fuse(const IntegrationFrame& f, const Pose& T_wc, FrameStats& s) {
     fuse_start.record("timing the allocation");
     if (++frame == INT32_MAX) {
       check_status(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)),
@@ -824,13 +859,12 @@ struct GpuReconstruction::Impl {
     s.new_blocks = c->inserted;
     s.dropped_blocks = c->hash_full + c->pool_full + beyond;
     dropped += s.dropped_blocks;
-    const int32_t visible_count = c->visible;
-    refine(T_wc, visible_count, s);
     if (s.dropped_blocks > can_insert - to_insert)  // more than the device's memory dropped
       log::warn_once("cuda.dropped",
                      "device map: {} blocks dropped this frame (pool or hash table full); raise "
                      "--max-blocks, --hash-buckets or --hash-excess",
                      s.dropped_blocks);
+    return c->visible;
   }
 
   /// Raycasts the model at `T_wc`; `frame_hint`: the frame on the device was taken there, its
@@ -1008,8 +1042,8 @@ const FrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pos
   const IntegrationFrame f = m.upload_frame(frame, T_wc);
   s.upload_ms = total.elapsed_ms();
   m.take_raycast(s);  // the frame before's, which the upload overlapped
-  m.fuse(f, T_wc, s);
-  m.raycast_model(T_wc, true);
+  const int32_t visible = m.fuse(f, T_wc, s);
+  m.refine_and_raycast(T_wc, visible, s);
   return m.record(frame, T_wc, total, s);
 }
 
@@ -1044,8 +1078,8 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   // The integration constants at the tracked pose (the images are already on the device).
   IntegrationFrame f = f0;
   f.constants.T_cw = to_rigid3f(T_wc.inverse());
-  m.fuse(f, T_wc, s);
-  m.raycast_model(T_wc, true);
+  const int32_t visible = m.fuse(f, T_wc, s);
+  m.refine_and_raycast(T_wc, visible, s);
   return m.record(frame, T_wc, total, s);
 }
 

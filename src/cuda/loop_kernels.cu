@@ -803,6 +803,13 @@ void icp_pass_on_device(const kernels::IcpPass& pass, const Vec3f* points_c, con
   check_last("ICP pass");
 }
 
+LaunchesOn::LaunchesOn(void* stream) : previous_(hivox::detail::launch_stream()) {
+  hivox::detail::launch_stream() = static_cast<cudaStream_t>(stream);
+}
+LaunchesOn::~LaunchesOn() {
+  hivox::detail::launch_stream() = static_cast<cudaStream_t>(previous_);
+}
+
 LaunchGraph::~LaunchGraph() {
   if (exec_ != nullptr) cudaGraphExecDestroy(static_cast<cudaGraphExec_t>(exec_));
   if (graph_ != nullptr) cudaGraphDestroy(static_cast<cudaGraph_t>(graph_));

@@ -174,6 +174,19 @@ class LaunchGraph {
   void* exec_ = nullptr;
 };
 
+/// While it lives, the calling thread's launches go to `stream` (a cudaStream_t; null: the
+/// default stream), and back to where they went before when it ends.
+class LaunchesOn {
+ public:
+  explicit LaunchesOn(void* stream);
+  ~LaunchesOn();
+  LaunchesOn(const LaunchesOn&) = delete;
+  LaunchesOn& operator=(const LaunchesOn&) = delete;
+
+ private:
+  void* previous_;
+};
+
 // ---- refinement (refine_kernels.cu): the CPU Refiner's decisions and the map's split and merge
 // edits, per block on the device ----------------------------------------------------------------
 

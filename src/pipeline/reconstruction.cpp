@@ -34,7 +34,9 @@ std::string ReconstructionParams::to_string(const CameraRig* rig) const {
       rig != nullptr ? std::optional<SensorNoise>(rig->depth_noise) : std::nullopt;
   return fmt::format("device: {}\nmap: {}\nfusion: {}\n{}raycast: {}{}\ntrack: {}",
                      device.to_string(), map.to_string(), fusion.to_string(),
-                     map.levels > 1 ? "refine: " + refine.to_string(sensor) + "\n" : std::string(),
+                     map.levels > 1 ? "refine: " + refine.to_string(sensor) +
+                                          (refine_after_raycast ? ", after the raycast" : "") + "\n"
+                                    : std::string(),
                      raycast.to_string(),
                      raycast_every_frame ? " (every frame)" : " (renders only)", track.to_string());
 }
@@ -242,15 +244,16 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
   s.new_blocks = a.stats.new_blocks;
   s.dropped_blocks = a.stats.dropped_blocks;
 
-  if (map_->levels() > 1) {
+  const auto refine = [&] {
+    if (map_->levels() < 2) return;
     stage.restart();
     const RefineStats r = refiner_.refine(*map_, a.visible_blocks, T_wc);
     s.refine_ms = stage.lap_ms();
     s.splits = r.splits;
     s.merges = r.merges;
     s.refine_waiting = r.waiting;
-  }
-
+  };
+  if (!params_.refine_after_raycast) refine();
   if (params_.raycast_every_frame) {
     stage.restart();
     RaycastStats rs;
@@ -262,6 +265,7 @@ void Reconstruction::fuse(const RgbdFrame& frame, const Pose& T_wc, FrameStats& 
     s.raycast_hits = rs.hits;
     s.raycast_hits_at_hint = rs.found_at_hint;
   }
+  if (params_.refine_after_raycast) refine();
 }
 
 PinholeCamera Reconstruction::model_camera() const {

@@ -485,6 +485,24 @@ TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
   EXPECT_LE(differ, with_depth / 1000);
 }
 
+/// The same splits and merges on the CPU and the device but where rounding tips a decision at a
+/// threshold, so the same blocks per level within a little; the device's map keeps the
+/// hierarchy's invariants.
+void expect_same_refinement(int64_t cpu_splits, int64_t gpu_splits, int64_t cpu_merges,
+                            int64_t gpu_merges, const VoxelBlockMap& cpu,
+                            const VoxelBlockMap& gpu) {
+  ASSERT_GT(cpu_splits, 100);
+  EXPECT_NEAR(static_cast<double>(gpu_splits), static_cast<double>(cpu_splits), 0.02 * cpu_splits);
+  EXPECT_NEAR(static_cast<double>(gpu_merges), static_cast<double>(cpu_merges),
+              2.0 + 0.05 * cpu_merges);
+  const std::vector<int64_t> a = cpu.blocks_per_level(), b = gpu.blocks_per_level();
+  for (int l = 0; l < 3; ++l)
+    EXPECT_NEAR(static_cast<double>(b[l]), static_cast<double>(a[l]), 10.0 + 0.02 * a[l])
+        << "level " << l;
+  SCOPED_TRACE("the device's map after splits and merges");
+  test::expect_hierarchy_consistent(gpu);
+}
+
 /// Fusing at the true poses with refinement on both: the same splits and merges but where
 /// rounding tips a decision at a threshold, so the same blocks per level within a little.
 TEST(GpuLoop, RefinesAsTheCpuDoes) {
@@ -509,28 +527,85 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
     gpu_merges += g.merges;
   }
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
-  const std::vector<int64_t> a = cpu.map().blocks_per_level(), b = downloaded->blocks_per_level();
   std::printf(
       "[ refine   ] splits %lld / %lld, merges %lld / %lld (CPU / GPU); blocks per level "
       "%s / %s\n",
       static_cast<long long>(cpu_splits), static_cast<long long>(gpu_splits),
       static_cast<long long>(cpu_merges), static_cast<long long>(gpu_merges),
       fmt_levels(cpu.map()).c_str(), fmt_levels(*downloaded).c_str());
-  ASSERT_GT(cpu_splits, 100);
-  EXPECT_NEAR(static_cast<double>(gpu_splits), static_cast<double>(cpu_splits), 0.02 * cpu_splits);
-  EXPECT_NEAR(static_cast<double>(gpu_merges), static_cast<double>(cpu_merges),
-              2.0 + 0.05 * cpu_merges);
-  for (int l = 0; l < 3; ++l)
-    EXPECT_NEAR(static_cast<double>(b[l]), static_cast<double>(a[l]), 10.0 + 0.02 * a[l])
-        << "level " << l;
+  expect_same_refinement(cpu_splits, gpu_splits, cpu_merges, gpu_merges, cpu.map(), *downloaded);
   EXPECT_EQ(downloaded->blocks_in_use(), gpu.blocks_in_use());
-  {
-    SCOPED_TRACE("the device's map after splits and merges");
-    test::expect_hierarchy_consistent(*downloaded);
-  }
   expect_same_mesh(cpu.map(), *downloaded);
   const RgbdFrame last = data.read(frames - 1);
   expect_same_model(cpu.map(), gpu.download_model(), previous, last, *last.T_wc_gt, p, rig);
+}
+
+/// Refinement after the model raycast (ReconstructionParams::refine_after_raycast): the device
+/// refines on a stream of its own while the raycast runs, its passes that write the map waiting
+/// for the raycast's end. Tracked, against the CPU refining after its raycast too: the same
+/// poses, splits and merges and blocks per level within the bounds of the tests above, and the
+/// model the last frame leaves (raycast before its splits and merges; the frame count makes it
+/// a refining frame) as the CPU's.
+TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  p.refine_after_raycast = true;
+  cuda::GpuReconstruction gpu(p, rig);
+  p.device = Device::cpu();
+  Reconstruction cpu(p, rig);
+  const Pose first = *data.read(0).T_wc_gt;
+  const std::size_t frames = frames_to_run(39, 17);  // the last (index 38 or 16) refines
+  int64_t cpu_splits = 0, cpu_merges = 0, gpu_splits = 0, gpu_merges = 0;
+  double max_dt = 0, max_dr = 0;
+  for (std::size_t i = 0; i < frames; ++i) {
+    const RgbdFrame f = data.read(i);
+    const FrameStats& c = cpu.track_and_integrate(f, 0.0, first);
+    const FrameStats& g = gpu.track_and_integrate(f, first);
+    EXPECT_TRUE(g.fused) << "frame " << i;
+    cpu_splits += c.splits;
+    cpu_merges += c.merges;
+    gpu_splits += g.splits;
+    gpu_merges += g.merges;
+    const Pose d = cpu.trajectory().back().T_wc.inverse() * gpu.trajectory().back().T_wc;
+    max_dt = std::max(max_dt, d.translation().norm());
+    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+  }
+  const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
+  std::printf(
+      "[ refine   ] after the raycast, %zu tracked frames: poses at most %.3f mm and %.4f deg "
+      "apart; splits %lld / %lld, merges %lld / %lld (CPU / GPU); blocks per level %s / %s; "
+      "the last frame %lld splits, %lld merges\n",
+      frames, 1e3 * max_dt, max_dr, static_cast<long long>(cpu_splits),
+      static_cast<long long>(gpu_splits), static_cast<long long>(cpu_merges),
+      static_cast<long long>(gpu_merges), fmt_levels(cpu.map()).c_str(),
+      fmt_levels(*downloaded).c_str(), static_cast<long long>(gpu.frames().back().splits),
+      static_cast<long long>(gpu.frames().back().merges));
+  EXPECT_LT(max_dt, 1e-3);
+  EXPECT_LT(max_dr, 0.1);
+  EXPECT_GT(gpu.frames().back().splits + gpu.frames().back().merges, 0);
+  expect_same_refinement(cpu_splits, gpu_splits, cpu_merges, gpu_merges, cpu.map(), *downloaded);
+  // The device's model shows the levels before the last frame's splits and merges, as the CPU's
+  // does, not those after them (the map's now).
+  const RaycastResult model = gpu.download_model();
+  expect_same_raycast(cpu.last_raycast(), model);
+  Raycaster raycaster(p.raycast);
+  const RaycastResult& now =
+      raycaster.raycast(cpu.map(), model.camera, model.T_wc, p.fusion.depth_range);
+  const auto levels_apart = [&](const RaycastResult& x) {
+    int64_t n = 0;
+    for (int y = 0; y < model.depth_m.height(); ++y)
+      for (int x0 = 0; x0 < model.depth_m.width(); ++x0)
+        n += model.hit(x0, y) && x.hit(x0, y) && model.levels(x0, y) != x.levels(x0, y);
+    return n;
+  };
+  const int64_t before = levels_apart(cpu.last_raycast()), after = levels_apart(now);
+  std::printf(
+      "[ refine   ] the model's levels: %lld pixels apart from the CPU's model, %lld from "
+      "the map's after the edits\n",
+      static_cast<long long>(before), static_cast<long long>(after));
+  EXPECT_LT(10 * before, after);
 }
 
 /// With the default capacities (2^20 pool blocks) the device holds no more memory for a map

@@ -7,11 +7,16 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 #include "hivox/core/error.h"
+#include "hivox/io/map_file.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/synth/synthetic_dataset.h"
+#include "test_util.h"
 
 namespace hivox {
 namespace {
@@ -138,6 +143,72 @@ TEST(ModelRaycast, FrameHintsAreTheDepthJustFusedAndThePreviousRaycastWarped) {
             &frame.depth_m)
       << "at full resolution the frame's own depth is the start hint";
   EXPECT_THROW(helper.build(frame.depth_m, camera, n, *frame.T_wc_gt, nullptr, 0.02f), Error);
+}
+
+/// The bytes of a file.
+std::string file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// ReconstructionParams::refine_after_raycast: a frame's model (what the next frame tracks
+/// against) is raycast from the map before that frame's splits and merges, which show from the
+/// next raycast on; the map itself is the same as when refining first. The map before the
+/// refinement is rebuilt from a saved copy of the map a frame earlier, the frame fused into it
+/// without refining.
+TEST(ModelRaycast, RefiningAfterTheRaycastLeavesTheModelBeforeTheEdits) {
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=30&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  ReconstructionParams params;            // 3 levels from 2 mm
+  params.previous_raycast_hints = false;  // every raycast's hints from its frame alone
+  Reconstruction first(params, rig);
+  params.refine_after_raycast = true;
+  Reconstruction after(params, rig);
+  test::TempDir dir;
+  constexpr std::size_t kFrame = 12;  // refined (every 2nd frame from the first)
+  for (std::size_t i = 0; i <= kFrame; ++i) {
+    const RgbdFrame f = data.read(i);
+    if (i == kFrame)
+      write_map_file(dir.path() / "before.hvx", after.map(), params.fusion, after.session());
+    const FrameStats& a = first.integrate(f, *f.T_wc_gt);
+    const FrameStats& b = after.integrate(f, *f.T_wc_gt);
+    EXPECT_EQ(a.splits, b.splits) << "frame " << i;
+    EXPECT_EQ(a.merges, b.merges) << "frame " << i;
+  }
+  const FrameStats& last = after.frame_stats().back();
+  ASSERT_GT(last.splits + last.merges, 0) << "frame " << kFrame << " refines";
+  // The same map (the files hold the blocks in a canonical order).
+  write_map_file(dir.path() / "first.hvx", first.map(), params.fusion, first.session());
+  write_map_file(dir.path() / "after.hvx", after.map(), params.fusion, after.session());
+  EXPECT_EQ(file_bytes(dir.path() / "first.hvx"), file_bytes(dir.path() / "after.hvx"));
+
+  // The frame fused into the map before it, not refined (the next refinement a call away).
+  LoadedMap before = read_map_file(dir.path() / "before.hvx", params.map);
+  ReconstructionParams no_refine = params;
+  no_refine.refine.every_n_frames = 1000;
+  Reconstruction fused(no_refine, rig, std::move(before.map), after.session());
+  const RgbdFrame f = data.read(kFrame);
+  fused.integrate(f, *f.T_wc_gt);
+  ASSERT_EQ(fused.frame_stats().back().splits + fused.frame_stats().back().merges, 0);
+  const RaycastResult& model = after.last_raycast();
+  const RaycastResult& expected = fused.last_raycast();
+  const RaycastResult& refined = first.last_raycast();
+  ASSERT_EQ(model.depth_m.size(), expected.depth_m.size());
+  int64_t differ = 0, differ_refined = 0, hits = 0;
+  for (std::size_t k = 0; k < model.depth_m.size(); ++k) {
+    hits += model.depth_m.data()[k] > 0.0f;
+    differ += model.depth_m.data()[k] != expected.depth_m.data()[k];
+    differ_refined += model.depth_m.data()[k] != refined.depth_m.data()[k];
+  }
+  std::printf(
+      "[ model    ] frame %zu: %lld splits, %lld merges; %lld hits, %lld pixels apart "
+      "from the raycast of the map before them, %lld from the one after\n",
+      kFrame, static_cast<long long>(last.splits), static_cast<long long>(last.merges),
+      static_cast<long long>(hits), static_cast<long long>(differ),
+      static_cast<long long>(differ_refined));
+  EXPECT_GT(hits, static_cast<int64_t>(model.depth_m.size() / 2));
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(differ_refined, 0) << "the edits change the model a little";
 }
 
 }  // namespace

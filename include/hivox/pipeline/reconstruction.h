@@ -46,6 +46,11 @@ struct ReconstructionParams {
   /// depth, at the depth of the previous frame's raycast warped into this view (such rays
   /// otherwise search their whole depth range). false: those rays search the whole range.
   bool previous_raycast_hints = true;
+  /// Refine the hierarchy after the frame's model raycast instead of before it: the model the
+  /// next frame tracks against is then the map before this frame's splits and merges (they
+  /// show in the next raycast). On a device the refinement, whose decisions wait for the host,
+  /// then runs while the raycast does instead of before it.
+  bool refine_after_raycast = false;
 
   /// Validates every part (a device other than the CPU is checked where the loop is made).
   void validate() const;
