@@ -5,11 +5,11 @@
 # the two alternated (a change made without a GPU against what it changed); meshing and a render
 # on the device against the host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against
 # the default, alternated (the ray kernel's register caps, split marches, Gauss-Newton on the
-# host, allocation threads of several pixels, tracking as a graph, refinement after the raycast),
-# one round on both before the second; compute-sanitizer's initcheck on the mesh tests; the rest
-# (more register caps, the coarse grid off, frames decoded as the loop goes, opt-ins together,
-# the fixed grid); ncu on the ray kernel (where ncu is installed); and last compute-sanitizer's
-# memcheck on the newest tests.
+# host, allocation threads of several pixels, tracking as a graph, refinement after the raycast,
+# frames up beside it), one round on both before the second; compute-sanitizer's initcheck on
+# the mesh tests; the rest (more register caps, the coarse grid off, frames decoded as the loop
+# goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu is installed); and
+# last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. A device machine that returns only a few files: give an OUT outside the
@@ -112,8 +112,9 @@ bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
 # split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
 # the host, allocation threads of 2x1 and 2x2 pixels, tracking's passes as one CUDA graph,
-# refinement after the raycast (beside it, on a stream of its own). A first round on both, then
-# the second, so that a short budget still compares each once.
+# refinement after the raycast (beside it, on a stream of its own), frames up beside the
+# raycast, the two together. A first round on both, then the second, so that a short budget
+# still compares each once.
 optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
@@ -126,6 +127,8 @@ optins() {
   bench "${data}_l3_alloc4_$round" "$src" 3 --allocation-pixels 4
   bench "${data}_l3_graph_$round" "$src" 3 --tracking-graph
   bench "${data}_l3_refine_after_$round" "$src" 3 --refine-after-raycast
+  bench "${data}_l3_upload_beside_$round" "$src" 3 --upload-beside
+  bench "${data}_l3_both_beside_$round" "$src" 3 --refine-after-raycast --upload-beside
 }
 optins fr1 a
 optins desk a
@@ -154,6 +157,7 @@ for data in fr1 desk; do
   bench "${data}_l1_regs96" "$src" 1 --raycast-registers 96
   bench "${data}_l1_alloc4" "$src" 1 --allocation-pixels 4
   bench "${data}_l1_graph" "$src" 1 --tracking-graph
+  bench "${data}_l1_upload_beside" "$src" 1 --upload-beside
   bench "${data}_l3_alloc4_graph" "$src" 3 --allocation-pixels 4 --tracking-graph
   bench "${data}_l3_alloc4_graph_refine_after" "$src" 3 --allocation-pixels 4 --tracking-graph \
     --refine-after-raycast
@@ -172,7 +176,7 @@ fi
 if [ "$sanitize" = 1 ]; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" \
-    --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RendersOnTheDevice*:*RefinesBeside*:*RegistersCapped*:*SplitMarches*:*SeveralPixels*:*GaussNewtonOnTheDevice*'
+    --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*:*RendersOnTheDevice*:*RefinesBeside*:*UploadsBeside*:*RegistersCapped*:*SplitMarches*:*SeveralPixels*:*GaussNewtonOnTheDevice*'
 fi
 # Every run's frame time, allocation and raycast (mean ms), wall-clock fps and blocks in one list,
 # OUT/times.txt, and on the terminal: a device call that brings back only its output's tail still

@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, render = false, gn_on_host = false, no_coarse_grid = false,
-       graph = false, refine_after = false;
+       graph = false, refine_after = false, upload_beside = false;
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
@@ -122,6 +122,9 @@ int main(int argc, char** argv) {
   app.add_flag("--refine-after-raycast", refine_after,
                "refine after each frame's model raycast, on a stream of its own beside it "
                "(ReconstructionParams::refine_after_raycast; --cpu does the same)");
+  app.add_flag("--upload-beside", upload_beside,
+               "frames go up and their tracking pyramids are made on a stream of their own, "
+               "beside the raycast (GpuReconstruction::set_upload_beside_raycast)");
   app.add_flag("--mesh", mesh,
                "after the loop, time meshing the map on the device and, downloaded, on the host");
   app.add_flag("--render", render,
@@ -193,13 +196,15 @@ int main(int argc, char** argv) {
     gpu->set_raycast_registers(raycast_registers);
     gpu->set_allocation_pixels(allocation_pixels);
     gpu->set_tracking_graph(graph);
+    gpu->set_upload_beside_raycast(upload_beside);
     const int registers = gpu->raycast_registers();
     std::printf(
         "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; "
-        "refinement %s the raycast; the raycast's kernel takes %d registers a thread (at most "
-        "%s)\n",
+        "refinement %s the raycast; frames up %s; the raycast's kernel takes %d registers a "
+        "thread (at most %s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
-        split_marches, refine_after ? "after (beside)" : "before", registers,
+        split_marches, refine_after ? "after (beside)" : "before",
+        upload_beside ? "beside the raycast" : "after the raycast", registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
     std::vector<StampedPose> gt;
@@ -330,6 +335,7 @@ int main(int argc, char** argv) {
           << ", \"allocation_pixels\": " << allocation_pixels
           << ", \"tracking_graph\": " << (graph ? "true" : "false")
           << ", \"refine_after_raycast\": " << (refine_after ? "true" : "false")
+          << ", \"upload_beside_raycast\": " << (upload_beside ? "true" : "false")
           << ", \"handover\": " << k << ", \"frames_timed\": " << g.frames
           << ", \"read_threads\": " << read_threads << ", \"wall_fps\": " << wall_fps
           << ", \"mean_ms\": {\"upload\": " << g.mean.upload_ms

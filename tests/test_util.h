@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 
@@ -29,6 +30,12 @@ Error error_of(F&& f) {
 template <typename F>
 std::string message_of(F&& f) {
   return error_of(std::forward<F>(f)).what();
+}
+
+/// The bytes of the file at `path` (empty where it cannot be read).
+inline std::string file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 inline bool contains(const std::string& s, const std::string& part) {

@@ -98,18 +98,18 @@ class QueueMark {
   }
   QueueMark(const QueueMark&) = delete;
   QueueMark& operator=(const QueueMark&) = delete;
-  /// Marks the queue here (the first mark makes the event, on the current device).
-  void record(const char* what) {
+  /// Marks the queue of `stream` (null: the default stream) here (the first mark makes the
+  /// event, on the current device).
+  void record(const char* what, cudaStream_t stream = nullptr) {
     if (event_ == nullptr) check_status(cudaEventCreate(&event_), what);
-    check_status(cudaEventRecord(event_), what);
+    check_status(cudaEventRecord(event_, stream), what);
   }
   /// Waits until the device has passed this mark (recorded).
   void wait(const char* what) const { check_status(cudaEventSynchronize(event_), what); }
-  /// What is queued on `stream` from now on starts after the device has passed this mark (the
-  /// last recorded; none: no wait).
+  /// What is queued on `stream` (null: the default stream) from now on starts after the device
+  /// has passed this mark (the last recorded; none: no wait).
   void order_before(cudaStream_t stream, const char* what) const {
-    if (event_ != nullptr && stream != nullptr)
-      check_status(cudaStreamWaitEvent(stream, event_, 0), what);
+    if (event_ != nullptr) check_status(cudaStreamWaitEvent(stream, event_, 0), what);
   }
   /// Milliseconds on the device from `earlier` to this mark (both recorded, both passed).
   double ms_since(const QueueMark& earlier, const char* what) const {

@@ -241,9 +241,15 @@ struct GpuReconstruction::Impl {
   // The frame.
   PinnedBuffer<float> staged_depth;
   PinnedBuffer<Rgb8> staged_color;
-  Buffer<float> depth;
+  /// The frame's depth: one image, or two taken in turn where frames go up beside the raycast
+  /// (the raycast after a frame starts its rays at that frame's depth while the next comes up).
+  std::array<Buffer<float>, 2> depth_images;
+  int depth_now = 0;  ///< the image holding the frame now
   Buffer<Rgb8> color_image;
   Buffer<uint32_t> packed_color;
+  bool upload_beside = false;  ///< see set_upload_beside_raycast
+  Stream frame_stream;         ///< the frames' uploads and pyramids, with upload_beside
+  QueueMark frame_ready;       ///< the frame up and its pyramid made, on frame_stream
 
   // The model raycast and its pyramid; the frame's pyramid.
   Buffer<float> tile_z_min, tile_z_max;
@@ -483,7 +489,7 @@ struct GpuReconstruction::Impl {
     host_counters.reserve(1);
     host_hits.reserve(1);
     host_pool_counters.reserve(kCounters);
-    depth.reset(pixels, &total_bytes);
+    depth_images[0].reset(pixels, &total_bytes);
     if (map_params.store_color && params.fusion.integrate_color) {
       color_image.reset(static_cast<std::size_t>(rig.color_camera.width) * rig.color_camera.height,
                         &total_bytes);
@@ -676,7 +682,9 @@ struct GpuReconstruction::Impl {
     wait_for_queue(refine_queue, "refinement (candidates)");
     // The passes that write the map start after the model raycast (when it runs beside them);
     // the look-ups and checks before them only read it.
-    const auto after_raycast = [&] { ray_end.order_before(refine_queue, "refinement"); };
+    const auto after_raycast = [&] {
+      if (refine_queue != nullptr) ray_end.order_before(refine_queue, "refinement");
+    };
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
     std::copy_n(split_head, std::min(head, splits.size()), splits.data());
@@ -765,8 +773,10 @@ struct GpuReconstruction::Impl {
     s.refine_ms = stage.lap_ms();
   }
 
-  /// The frame's depth (and colour) on the device; returns the fusion's input views.
-  IntegrationFrame upload_frame(const RgbdFrame& f, const Pose& T_wc) {
+  /// The frame's depth (and colour) on the device; returns the fusion's input views. Beside
+  /// the raycast (upload_beside), the frame goes up on the frames' stream, and with `tracked` its
+  /// pyramid is made there too; frame_ready marks the end.
+  IntegrationFrame upload_frame(const RgbdFrame& f, const Pose& T_wc, bool tracked) {
     const PinholeCamera& cam = rig.depth_camera;
     if (f.depth_m.width() != cam.width || f.depth_m.height() != cam.height)
       fail(ErrorCode::InvalidArgument, "frame {}: the depth image is {}x{} but the camera is {}x{}",
@@ -780,20 +790,29 @@ struct GpuReconstruction::Impl {
     std::vector<uint32_t> unused;
     IntegrationFrame frame = integration_frame(depth_only, params.fusion, map_params, &unused);
     const std::size_t pixels = f.depth_m.size();
+    const bool with_color = color_image.size() > 0 && in.color != nullptr;
+    const PinholeCamera& cc = rig.color_camera;
+    if (with_color && (f.color.width() != cc.width || f.color.height() != cc.height))
+      fail(ErrorCode::InvalidArgument,
+           "frame {}: the colour image is {}x{} but the colour camera is {}x{}", f.index,
+           f.color.width(), f.color.height(), cc.width, cc.height);
+    // Beside the raycast: into the other depth image (the raycast in flight reads this one), on
+    // the frames' stream (pack_color's launch and the pyramid's too).
+    cudaStream_t q = nullptr;
+    if (upload_beside) {
+      depth_now ^= 1;
+      q = frame_stream.get("the frames' stream");
+    }
+    const LaunchesOn on(q);
     float* staged = staged_depth.reserve(pixels);
     parallel_copy(staged, f.depth_m.data(), pixels * sizeof(float));
-    upload_async(depth.get(), staged, pixels, "uploading the depth");
-    frame.depth.depth_m.data = depth.get();
-    if (color_image.size() > 0 && in.color != nullptr) {
-      const PinholeCamera& cc = rig.color_camera;
-      if (f.color.width() != cc.width || f.color.height() != cc.height)
-        fail(ErrorCode::InvalidArgument,
-             "frame {}: the colour image is {}x{} but the colour camera is {}x{}", f.index,
-             f.color.width(), f.color.height(), cc.width, cc.height);
+    upload_async(frame_depth(), staged, pixels, "uploading the depth", q);
+    frame.depth.depth_m.data = frame_depth();
+    if (with_color) {
       const std::size_t n = f.color.size();
       Rgb8* staged_c = staged_color.reserve(n);
       parallel_copy(staged_c, f.color.data(), n * sizeof(Rgb8));
-      upload_async(color_image.get(), staged_c, n, "uploading the colour");
+      upload_async(color_image.get(), staged_c, n, "uploading the colour", q);
       kernels::ColorFrameView& color = frame.color;
       color.image = {color_image.get(), cc.width, cc.height};
       color.camera = cc;
@@ -804,12 +823,45 @@ struct GpuReconstruction::Impl {
         color.packed = packed_color.get();
       }
     }
+    if (upload_beside) {
+      if (tracked) make_pyramid(q);
+      frame_ready.record("the frame's upload", q);
+    }
     return frame;
+  }
+
+  /// The depth image holding the frame now.
+  float* frame_depth() const { return depth_images[static_cast<std::size_t>(depth_now)].get(); }
+
+  /// The frame's pyramid for tracking (bilateral filter, downsampling, points and normals) and
+  /// its count of valid pixels, which comes back with tracking's results, queued on `q` (null:
+  /// the default stream).
+  void make_pyramid(cudaStream_t q) {
+    const TrackParams& tp = params.track;
+    const DepthRange& range = params.fusion.depth_range;
+    const float lo = std::max(range.min_m, std::numeric_limits<float>::min());
+    const float inv_px = 1.0f / (2.0f * tp.bilateral_sigma_px * tp.bilateral_sigma_px);
+    const float inv_d = 1.0f / (2.0f * tp.bilateral_sigma_depth_m * tp.bilateral_sigma_depth_m);
+    const PinholeCamera& cam = pyramid[0].camera;
+    filter_depth(frame_depth(), pyramid[0].depth.get(), cam.width, cam.height,
+                 tp.bilateral_radius_px, inv_px, inv_d, lo, range.max_m);
+    int32_t* valid = &alloc_counters.get()->icp_valid_pixels;
+    check_status(cudaMemsetAsync(valid, 0, sizeof(int32_t), q), "clearing counters");
+    for (std::size_t l = 0; l < pyramid.size(); ++l) {
+      ImageLevel& P = pyramid[l];
+      if (l > 0)
+        downsample_depth(pyramid[l - 1].depth.get(), P.depth.get(), P.camera.width, P.camera.height,
+                         tp.max_depth_jump_ratio);
+      points_and_normals(P.depth.get(), P.camera, tp.max_depth_jump_ratio, P.points.get(),
+                         P.normals.get(), l == 0 ? valid : nullptr);
+    }
+    download_async(host_valid_pixels.reserve(1), valid, 1, "tracking (preprocessing)", q);
   }
 
   /// Allocates and integrates the frame; returns how many blocks it saw (the first of the
   /// visible list: the blocks refinement looks at).
   int32_t fuse(const IntegrationFrame& f, const Pose& T_wc, FrameStats& s) {
+    if (upload_beside) frame_ready.order_before(nullptr, "fusion (the frame's upload)");
     fuse_start.record("timing the allocation");
     if (++frame == INT32_MAX) {
       check_status(cudaMemset(stamps.get(), 0xFF, stamps.size() * sizeof(int32_t)),
@@ -884,7 +936,7 @@ struct GpuReconstruction::Impl {
                  "clearing counters");
     const DepthRange& range = params.fusion.depth_range;
     RayHintImages hint;
-    if (frame_hint) hint = {depth.get(), rig.depth_camera.width, params.track.model_subsample};
+    if (frame_hint) hint = {frame_depth(), rig.depth_camera.width, params.track.model_subsample};
     if (has_model && params.previous_raycast_hints) {
       // The previous raycast (still in the model's images) seen from here: where the frame has
       // no depth, or the search at it fails, the surface is usually where the last raycast saw it.
@@ -918,33 +970,21 @@ struct GpuReconstruction::Impl {
     TrackResult result;
     Stopwatch watch;
     const TrackParams& tp = params.track;
-    const DepthRange& range = params.fusion.depth_range;
-    const float lo = std::max(range.min_m, std::numeric_limits<float>::min());
-    const float inv_px = 1.0f / (2.0f * tp.bilateral_sigma_px * tp.bilateral_sigma_px);
-    const float inv_d = 1.0f / (2.0f * tp.bilateral_sigma_depth_m * tp.bilateral_sigma_depth_m);
-    const PinholeCamera& cam = pyramid[0].camera;
-    filter_depth(depth.get(), pyramid[0].depth.get(), cam.width, cam.height, tp.bilateral_radius_px,
-                 inv_px, inv_d, lo, range.max_m);
-    int32_t* valid = &alloc_counters.get()->icp_valid_pixels;
-    check_status(cudaMemsetAsync(valid, 0, sizeof(int32_t)), "clearing counters");
-    for (std::size_t l = 0; l < pyramid.size(); ++l) {
-      ImageLevel& P = pyramid[l];
-      if (l > 0)
-        downsample_depth(pyramid[l - 1].depth.get(), P.depth.get(), P.camera.width, P.camera.height,
-                         tp.max_depth_jump_ratio);
-      points_and_normals(P.depth.get(), P.camera, tp.max_depth_jump_ratio, P.points.get(),
-                         P.normals.get(), l == 0 ? valid : nullptr);
-      if (l > 0) {
-        const ImageLevel& in = model[l - 1];
-        ImageLevel& out = model[l];
-        downsample_model(in.points.get(), in.normals.get(), in.depth.get(), in.camera.width,
-                         out.points.get(), out.normals.get(), out.depth.get(), out.camera.width,
-                         out.camera.height, tp.max_depth_jump_ratio);
-      }
+    // The frame's pyramid: made now, or (upload_beside) already on the frames' stream, which the
+    // passes then wait for.
+    if (upload_beside)
+      frame_ready.order_before(nullptr, "tracking (the frame's pyramid)");
+    else
+      make_pyramid(nullptr);
+    for (std::size_t l = 1; l < model.size(); ++l) {
+      const ImageLevel& in = model[l - 1];
+      ImageLevel& out = model[l];
+      downsample_model(in.points.get(), in.normals.get(), in.depth.get(), in.camera.width,
+                       out.points.get(), out.normals.get(), out.depth.get(), out.camera.width,
+                       out.camera.height, tp.max_depth_jump_ratio);
     }
     // The valid pixels come back with the first pass's sums (or the state): no round trip here.
     int32_t* valid_pixels = host_valid_pixels.reserve(1);
-    download_async(valid_pixels, valid, 1, "tracking (preprocessing)");
     result.preprocess_ms = watch.lap_ms();
     const Rigid3f T_model_cw = to_rigid3f(model_T_wc.inverse());
     // A pass's constants at pyramid level `level` (the pose: `T_wc`, unless the device's state
@@ -1002,6 +1042,8 @@ struct GpuReconstruction::Impl {
     else
       passes();
     copy_to_host(state, icp_state.get(), sizeof(kernels::IcpState), "tracking (Gauss-Newton)");
+    // A blocking copy waits for the default stream alone: the valid pixels came on the frames'.
+    if (upload_beside) frame_ready.wait("tracking (the valid pixels)");
     icp::judge_alignment(tp, icp::alignment_of(*state), reduce, *valid_pixels, T_init, &result);
     result.icp_ms = watch.lap_ms();
     return result;
@@ -1039,7 +1081,7 @@ const FrameStats& GpuReconstruction::integrate(const RgbdFrame& frame, const Pos
   m.last_track.quality = TrackingQuality::Good;  // a given pose
   m.last_track.T_wc = T_wc;
   Stopwatch total;
-  const IntegrationFrame f = m.upload_frame(frame, T_wc);
+  const IntegrationFrame f = m.upload_frame(frame, T_wc, false);
   s.upload_ms = total.elapsed_ms();
   m.take_raycast(s);  // the frame before's, which the upload overlapped
   const int32_t visible = m.fuse(f, T_wc, s);
@@ -1057,7 +1099,7 @@ const FrameStats& GpuReconstruction::track_and_integrate(const RgbdFrame& frame,
   FrameStats s;
   Stopwatch total;
   const Pose T_prev = m.trajectory.empty() ? *m.resume_pose : m.trajectory.back().T_wc;
-  const IntegrationFrame f0 = m.upload_frame(frame, T_prev);
+  const IntegrationFrame f0 = m.upload_frame(frame, T_prev, true);
   s.upload_ms = total.elapsed_ms();
   m.take_raycast(s);  // the model tracked against, made after the frame before
   Stopwatch stage;
@@ -1115,6 +1157,12 @@ void GpuReconstruction::set_raycast_registers(int at_most) {
 }
 void GpuReconstruction::set_tracking_graph(bool on) {
   impl_->icp_graph_on = on;
+}
+void GpuReconstruction::set_upload_beside_raycast(bool on) {
+  Impl& m = *impl_;
+  if (on && m.depth_images[1].size() == 0)
+    m.depth_images[1].reset(m.depth_images[0].size(), &m.total_bytes);
+  m.upload_beside = on;
 }
 void GpuReconstruction::set_allocation_pixels(int per_thread) {
   if (per_thread != 1 && per_thread != 2 && per_thread != 4)

@@ -44,8 +44,7 @@ void write(const fs::path& p, const std::string& text) {
 }
 
 std::string read(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  return test::file_bytes(p);
 }
 
 /// Replaces the first `from` in file `p` by `to`.

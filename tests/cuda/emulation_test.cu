@@ -319,6 +319,8 @@ TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
   ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
   ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
   EXPECT_EQ(host[0], kFill);
+  ASSERT_EQ(cudaMemcpy(&pageable, dev + 1, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+  EXPECT_EQ(host[0], kFill);  // a blocking copy waits for the default stream alone
   ASSERT_EQ(cudaStreamWaitEvent(side, after), cudaSuccess);
   ASSERT_EQ(cudaStreamSynchronize(side), cudaSuccess);
   EXPECT_EQ(host[0], 9);

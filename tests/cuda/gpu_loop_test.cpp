@@ -608,6 +608,51 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
   EXPECT_LT(10 * before, after);
 }
 
+/// Frames uploaded and their pyramids made beside the raycast (set_upload_beside_raycast): a
+/// matter of scheduling, so the default's poses, iterations, map and model to the bit, tracked
+/// with colour, refining before the raycast and after it (then three streams at once), and a
+/// frame at a given pose last.
+TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  const Pose first = *data.read(0).T_wc_gt;
+  const std::size_t frames = frames_to_run(30, 8);
+  test::TempDir dir;
+  for (const bool refine_after : {false, true}) {
+    SCOPED_TRACE(refine_after ? "refining after the raycast" : "refining before it");
+    ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+    p.refine_after_raycast = refine_after;
+    cuda::GpuReconstruction plain(p, rig), beside(p, rig);
+    beside.set_upload_beside_raycast(true);
+    for (std::size_t i = 0; i < frames; ++i) {
+      const RgbdFrame f = data.read(i);
+      const FrameStats& a = plain.track_and_integrate(f, first);
+      const FrameStats& b = beside.track_and_integrate(f, first);
+      EXPECT_TRUE(b.fused) << "frame " << i;
+      EXPECT_EQ(a.valid_pixels, b.valid_pixels) << "frame " << i;
+      EXPECT_EQ(a.track_iterations, b.track_iterations) << "frame " << i;
+      EXPECT_EQ(a.splits, b.splits) << "frame " << i;
+      EXPECT_TRUE(plain.trajectory().back().T_wc.matrix() ==
+                  beside.trajectory().back().T_wc.matrix())
+          << "frame " << i;
+    }
+    const RgbdFrame last = data.read(frames);
+    plain.integrate(last, *last.T_wc_gt);
+    beside.integrate(last, *last.T_wc_gt);
+    write_map_file(dir.path() / "plain.hvx", *plain.download_map(), p.fusion, MapSession{});
+    write_map_file(dir.path() / "beside.hvx", *beside.download_map(), p.fusion, MapSession{});
+    EXPECT_EQ(test::file_bytes(dir.path() / "plain.hvx"),
+              test::file_bytes(dir.path() / "beside.hvx"))
+        << "the maps (their files hold the blocks in a canonical order)";
+    const RaycastResult ma = plain.download_model(), mb = beside.download_model();
+    ASSERT_EQ(ma.depth_m.size(), mb.depth_m.size());
+    EXPECT_TRUE(
+        std::equal(ma.depth_m.data(), ma.depth_m.data() + ma.depth_m.size(), mb.depth_m.data()));
+    EXPECT_GT(beside.blocks_in_use(), 1000);
+  }
+}
+
 /// With the default capacities (2^20 pool blocks) the device holds no more memory for a map
 /// than the CPU counts for the same map, on a fixed grid and in a hierarchy that merges: the
 /// pool's voxels and metadata are committed up to its high-water mark, the CPU's metadata is

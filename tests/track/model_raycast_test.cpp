@@ -7,8 +7,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
 #include <string>
 
 #include "hivox/core/error.h"
@@ -145,12 +143,6 @@ TEST(ModelRaycast, FrameHintsAreTheDepthJustFusedAndThePreviousRaycastWarped) {
   EXPECT_THROW(helper.build(frame.depth_m, camera, n, *frame.T_wc_gt, nullptr, 0.02f), Error);
 }
 
-/// The bytes of a file.
-std::string file_bytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 /// ReconstructionParams::refine_after_raycast: a frame's model (what the next frame tracks
 /// against) is raycast from the map before that frame's splits and merges, which show from the
 /// next raycast on; the map itself is the same as when refining first. The map before the
@@ -180,7 +172,7 @@ TEST(ModelRaycast, RefiningAfterTheRaycastLeavesTheModelBeforeTheEdits) {
   // The same map (the files hold the blocks in a canonical order).
   write_map_file(dir.path() / "first.hvx", first.map(), params.fusion, first.session());
   write_map_file(dir.path() / "after.hvx", after.map(), params.fusion, after.session());
-  EXPECT_EQ(file_bytes(dir.path() / "first.hvx"), file_bytes(dir.path() / "after.hvx"));
+  EXPECT_EQ(test::file_bytes(dir.path() / "first.hvx"), test::file_bytes(dir.path() / "after.hvx"));
 
   // The frame fused into the map before it, not refined (the next refinement a call away).
   LoadedMap before = read_map_file(dir.path() / "before.hvx", params.map);

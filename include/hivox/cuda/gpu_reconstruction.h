@@ -83,6 +83,14 @@ class GpuReconstruction {
   /// kernels with the same arguments (the poses are read from device memory), so the same poses.
   /// Off by default: not yet timed on a GPU.
   void set_tracking_graph(bool on);
+  /// Whether a frame goes up to the device, and its tracking pyramid is made there (bilateral
+  /// filter, downsampling, points and normals), on a stream of its own beside the raycast the
+  /// frame before ends with, instead of after it: the host copies the frame, queues it and
+  /// launches the pyramid before it waits for that raycast, and the device does them while it
+  /// raycasts. The frames' depth then takes two device images in turn (the raycast starts its
+  /// rays at its own frame's depth), 1.2 MB more at 640x480. Scheduling only: the same poses and
+  /// map. Off by default: not yet timed on a GPU.
+  void set_upload_beside_raycast(bool on);
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
   /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of

@@ -441,9 +441,10 @@ void check_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind ki
 /// still be doing when cudaMemcpyAsync returns. An upload reads its host side when the device
 /// gets to it: just before the next kernel, copy or memset. A download reads the device at once
 /// (nothing queued after it has run yet) but hands its bytes to the host only at a
-/// synchronisation that waits for it: cudaDeviceSynchronize, a blocking copy, a free, or an
-/// event recorded after it. Until then its host side holds what new device memory holds
-/// (fill_new), so a host that reads it without waiting reads nonsense, as it may on a GPU.
+/// synchronisation that waits for it: cudaDeviceSynchronize, a free, an event recorded after it,
+/// a synchronisation of its stream, or (on the default stream) a blocking copy. Until then its host
+/// side holds what new device memory holds (fill_new), so a host that reads it without waiting
+/// reads nonsense, as it may on a GPU.
 class CopyQueue {
  public:
   void upload(void* dst, const void* src, std::size_t bytes) {
@@ -872,7 +873,9 @@ cudaError_t cudaFreeHost(void* ptr) {
 cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
   if (bytes == 0) return cudaSuccess;
   e::check_copy(dst, src, bytes, kind);
-  e::copy_queue().finish();  // a blocking copy waits for everything queued before it
+  // A blocking copy waits for what the default stream queued before it (not for a stream of
+  // its own: the loop's are non-blocking).
+  e::copy_queue().finish_stream(nullptr);
   std::memcpy(dst, src, bytes);
   return cudaSuccess;
 }
