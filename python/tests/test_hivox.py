@@ -166,11 +166,16 @@ def test_maps_save_load_and_continue(tmp_path):
         hivox.load_map(tmp_path / "x.hvx")
 
 
-def test_tracking_follows_the_camera():
+@pytest.mark.parametrize("refine_after_raycast", [False, True])
+def test_tracking_follows_the_camera(refine_after_raycast):
     # 300 frames along the scene's path, the first 8 of them (max_frames=8 would spread the path
-    # over 8 frames: a synthetic scene's frame count sets its path's steps).
+    # over 8 frames: a synthetic scene's frame count sets its path's steps). Refining before the
+    # model raycast or after it.
     data = hivox.open_dataset("synthetic:desk?frames=300&width=160&height=120&noise=none")
-    p = hivox.ReconstructionParams(map=hivox.MapParams(voxel_size_m=0.008, truncation_m=0.064))
+    p = hivox.ReconstructionParams(map=hivox.MapParams(voxel_size_m=0.008, truncation_m=0.064),
+                                   refine_after_raycast=refine_after_raycast)
+    assert p.refine_after_raycast == refine_after_raycast
+    assert ("after the raycast" in repr(p)) == refine_after_raycast
     rec = hivox.Reconstruction(p, data.camera, noise_free=True)
     first = data.read(0)
     rec.track_and_integrate(first["depth"], first["color"], first["T_wc_gt"])
