@@ -12,7 +12,8 @@
 # last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
-# printed as well. A device machine that returns only a few files: give an OUT outside the
+# printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
+# frame time against the default's (after against before). A device machine that returns only a few files: give an OUT outside the
 # returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf $OUT/check.tgz -C /tmp check`.
 #
 #   bench/gpu_check.sh BUILD OUT [FR1_RPY_FOLDER]    # BUILD: a -DHIVOX_WITH_CUDA=ON build
@@ -188,5 +189,32 @@ for json in "$out"/*.json; do
     "$(basename "$json" .json)" "$(field total "$json")" "$(field allocate "$json")" \
     "$(field raycast "$json")" "$(field wall_fps "$json")" "$(field blocks "$json")"
 done | tee "$out/times.txt"
+# Each variant's mean frame time against the default's on the same data and levels (the
+# before-and-after runs: after against before), OUT/ratios.txt, also on the terminal.
+awk '$1 !~ /mesh/ && $3 ~ /^[0-9.]+$/ {
+  n = split($1, p, "_"); key = p[1] "_" p[2]; v = ""
+  for (i = 3; i <= n; ++i) {
+    if (i == n && p[i] ~ /^[abc]$/) break
+    v = v (v == "" ? "" : "_") p[i]
+  }
+  sum[key, v] += $3; count[key, v]++
+} END {
+  for (kv in count) {
+    split(kv, q, SUBSEP); base = q[2] == "after" ? "before" : "default"
+    if (q[2] == base || q[2] == "before" || !((q[1], base) in count)) continue
+    m = sum[kv] / count[kv]; b = sum[q[1], base] / count[q[1], base]
+    printf "%-8s %-24s %.3f ms (%d runs) against %s %.3f ms (%d): %.3fx\n", q[1], q[2], m,
+           count[kv], base, b, count[q[1], base], m / b
+  }
+  # The hierarchy against the fixed grid (the target: at most 1.2x), by the same variant.
+  for (kv in count) {
+    split(kv, q, SUBSEP)
+    if (q[1] !~ /_l3$/) continue
+    d = q[1]; sub(/_l3$/, "", d)
+    if (!((d "_l1", q[2]) in count)) continue
+    printf "%-8s %-24s 3 levels against the fixed grid: %.3fx\n", d, q[2],
+           (sum[kv] / count[kv]) / (sum[d "_l1", q[2]] / count[d "_l1", q[2]])
+  }
+}' "$out/times.txt" | sort | tee "$out/ratios.txt"
 [ "$skipped" -gt 0 ] && echo "$skipped steps skipped: the budget of $budget s was spent (summary.txt)"
 echo "logs and numbers in $out"
