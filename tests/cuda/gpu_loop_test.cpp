@@ -605,7 +605,7 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
       "[ refine   ] the model's levels: %lld pixels apart from the CPU's model, %lld from "
       "the map's after the edits\n",
       static_cast<long long>(before), static_cast<long long>(after));
-  EXPECT_LT(10 * before, after);
+  EXPECT_LT(3 * before, after);
 }
 
 /// Frames uploaded and their pyramids made beside the raycast (set_upload_beside_raycast): a
