@@ -353,6 +353,61 @@ TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
   cudaFree(dev);
 }
 
+/// HIVOX_EMULATION_STREAMS=late: what a stream of the program's own is given (kernels, clears,
+/// copies, event marks) waits until something waits for it, as a GPU may leave it; the default
+/// stream's work runs when it is given. Early (the default), it runs at once.
+TEST(CudaEmulation, LateStreamsHoldTheirWorkUntilWaitedFor) {
+  int* dev = device_array<int>(2);
+  int* host = nullptr;
+  ASSERT_EQ(cudaMallocHost(reinterpret_cast<void**>(&host), sizeof(int)), cudaSuccess);
+  cudaStream_t side = nullptr;
+  ASSERT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
+  cudaEvent_t done = nullptr;
+  ASSERT_EQ(cudaEventCreate(&done), cudaSuccess);
+  const auto read = [&] {
+    int v = 0;
+    EXPECT_EQ(cudaMemcpy(&v, dev, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+    return v;
+  };
+  launch(store, 1, 1, dev, 1);
+  {
+    const ScopedEnv late("HIVOX_EMULATION_STREAMS", "late");
+    // A kernel and a mark on the side stream: held until the default stream waits for the mark.
+    struct Launches {
+      explicit Launches(cudaStream_t s) { detail::launch_stream() = s; }
+      ~Launches() { detail::launch_stream() = nullptr; }
+    } on(side);
+    launch(store, 1, 1, dev, 2);
+    ASSERT_EQ(cudaEventRecord(done, side), cudaSuccess);
+    EXPECT_EQ(read(), 1) << "a blocking copy waits for the default stream alone";
+    ASSERT_EQ(cudaStreamWaitEvent(nullptr, done), cudaSuccess);
+    EXPECT_EQ(read(), 2);
+    // A clear and a download: held until the stream is synchronised.
+    ASSERT_EQ(cudaMemsetAsync(dev, 0, sizeof(int), side), cudaSuccess);
+    ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
+    EXPECT_EQ(read(), 2);
+    ASSERT_EQ(cudaStreamSynchronize(side), cudaSuccess);
+    EXPECT_EQ(read(), 0);
+    EXPECT_EQ(host[0], 0);
+    // The device's synchronisation runs what every stream holds.
+    launch(store, 1, 1, dev, 3);
+    EXPECT_EQ(read(), 0);
+    ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+    EXPECT_EQ(read(), 3);
+  }
+  {
+    const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
+    detail::launch_stream() = side;
+    launch(store, 1, 1, dev, 4);
+    detail::launch_stream() = nullptr;
+    EXPECT_EQ(read(), 4);
+  }
+  cudaEventDestroy(done);
+  EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
+  EXPECT_EQ(cudaFreeHost(host), cudaSuccess);
+  cudaFree(dev);
+}
+
 /// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).
 template <typename F>
 F entry(const char* name) {

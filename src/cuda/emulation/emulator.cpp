@@ -513,9 +513,12 @@ CopyQueue& copy_queue() {
   return queue;
 }
 
+struct Stream;
+
 struct Event {
   std::chrono::steady_clock::time_point at;
-  uint64_t mark = 0;  // the copy queue's when recorded
+  uint64_t mark = 0;       // the copy queue's when recorded
+  Stream* held = nullptr;  // recorded last on a stream that holds its work (late), else null
 };
 
 /// A recorded launch: its configuration and its threads' function (the arguments held).
@@ -528,7 +531,49 @@ struct Graph {
 };
 struct Stream {
   Graph* capture = nullptr;  ///< the graph being recorded, or null
+  /// With HIVOX_EMULATION_STREAMS=late: the work it was given and has not done yet, in order.
+  std::vector<std::function<void()>> held;
 };
+
+/// HIVOX_EMULATION_STREAMS (read at each use): `early` (the default) runs the work given to a
+/// stream of the program's own when it is given, as the default stream's; `late` holds it back
+/// until something waits for it: a synchronisation of the stream, of an event recorded on it, or
+/// of the device, a wait of another stream for such an event (cudaStreamWaitEvent), a free, or the
+/// stream's end. On a GPU such work may run any time in between, so a result that changes from
+/// early to late depends on an order the program did not ask for: work of the default stream
+/// that reads what a stream of its own makes without waiting for it.
+bool streams_late() {
+  const char* v = std::getenv("HIVOX_EMULATION_STREAMS");
+  if (v == nullptr || *v == '\0' || std::string_view(v) == "early") return false;
+  if (std::string_view(v) == "late") return true;
+  die("HIVOX_EMULATION_STREAMS=%s is neither early nor late", v);
+}
+
+/// Every stream made and not yet destroyed (the device's synchronisation runs all they hold).
+std::vector<Stream*>& streams() {
+  static std::vector<Stream*> all;
+  return all;
+}
+
+/// The stream whose work is held back now, or null (the default stream, a capturing one, or
+/// streams early).
+Stream* holding(cudaStream_t stream) {
+  if (stream == nullptr || !streams_late()) return nullptr;
+  auto* s = reinterpret_cast<Stream*>(stream);
+  return s->capture != nullptr ? nullptr : s;
+}
+
+/// Does the work `s` holds, in order.
+void run_held(Stream* s) {
+  while (!s->held.empty()) {
+    std::vector<std::function<void()>> work;
+    work.swap(s->held);
+    for (const std::function<void()>& w : work) w();
+  }
+}
+void run_all_held() {
+  for (Stream* s : streams()) run_held(s);
+}
 
 // ---- the driver's virtual memory ---------------------------------------------------------------
 
@@ -653,6 +698,10 @@ void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()>
       g->launches.push_back({grid, block, std::move(thread)});
       return;
     }
+  }
+  if (Stream* s = holding(stream)) {
+    s->held.push_back([grid, block, thread = std::move(thread)] { run_grid(grid, block, thread); });
+    return;
   }
   run_grid(grid, block, thread);
 }
@@ -784,6 +833,7 @@ cudaError_t cudaDeviceSetLimit(cudaLimit limit, std::size_t value) {
   return cudaSuccess;
 }
 cudaError_t cudaDeviceSynchronize() {
+  e::run_all_held();
   e::copy_queue().finish();
   return e::last_error;
 }
@@ -833,7 +883,8 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
 }
 cudaError_t cudaFree(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
-  e::copy_queue().finish();  // a free waits for the device
+  e::run_all_held();  // a free waits for the device
+  e::copy_queue().finish();
   const std::size_t bytes = e::device_memory().remove(ptr);
   if (bytes == 0) return e::record(cudaErrorInvalidValue);
   e::device_memory().give_back(bytes);
@@ -864,7 +915,8 @@ cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {
 }
 cudaError_t cudaFreeHost(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
-  e::copy_queue().finish();  // a free waits for the device
+  e::run_all_held();  // a free waits for the device
+  e::copy_queue().finish();
   if (e::pinned_memory().remove(ptr) == 0) return e::record(cudaErrorInvalidValue);
   std::free(ptr);
   return cudaSuccess;
@@ -888,14 +940,21 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
   if (bytes == 0 || !(upload || download || kind == cudaMemcpyDeviceToDevice))
     return cudaMemcpy(dst, src, bytes, kind);
   e::check_copy(dst, src, bytes, kind);
-  if (upload) {
-    e::copy_queue().upload(dst, src, bytes);
-  } else if (download) {
-    e::copy_queue().download(dst, src, bytes, stream);
-  } else {
-    e::copy_queue().run_uploads();
-    std::memcpy(dst, src, bytes);
-  }
+  const auto copy = [=] {
+    if (upload) {
+      e::copy_queue().upload(dst, src, bytes);
+    } else if (download) {
+      e::copy_queue().download(dst, src, bytes, stream);
+    } else {
+      e::copy_queue().run_uploads();
+      std::memcpy(dst, src, bytes);
+    }
+  };
+  // Held back with the stream's work: the copy reads its source when the stream gets to it.
+  if (e::Stream* s = e::holding(stream))
+    s->held.push_back(copy);
+  else
+    copy();
   return cudaSuccess;
 }
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
@@ -906,12 +965,18 @@ cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
   std::memset(ptr, value, bytes);
   return cudaSuccess;
 }
-cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t) {
+cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t stream) {
+  if (e::Stream* s = e::holding(stream)) {
+    s->held.push_back([=] { cudaMemset(ptr, value, bytes); });
+    return cudaSuccess;
+  }
   return cudaMemset(ptr, value, bytes);
 }
 
 cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned) {
-  *stream = reinterpret_cast<cudaStream_t>(new e::Stream{});
+  auto* s = new e::Stream{};
+  e::streams().push_back(s);
+  *stream = reinterpret_cast<cudaStream_t>(s);
   return cudaSuccess;
 }
 cudaError_t cudaStreamCreateWithPriority(cudaStream_t* stream, unsigned flags, int) {
@@ -925,16 +990,24 @@ cudaError_t cudaDeviceGetStreamPriorityRange(int* least, int* greatest) {
 cudaError_t cudaStreamDestroy(cudaStream_t stream) {
   auto* s = reinterpret_cast<e::Stream*>(stream);
   if (s != nullptr && s->capture != nullptr) e::die("a stream destroyed while it captures");
+  if (s != nullptr) {
+    e::run_held(s);  // its work is done, as a GPU does it
+    std::erase(e::streams(), s);
+  }
   delete s;
   return cudaSuccess;
 }
 cudaError_t cudaStreamSynchronize(cudaStream_t stream) {
+  if (stream != nullptr) e::run_held(reinterpret_cast<e::Stream*>(stream));
   e::copy_queue().finish_stream(stream);
   return e::last_error;
 }
 cudaError_t cudaStreamWaitEvent(cudaStream_t, cudaEvent_t event, unsigned) {
   if (event == nullptr) e::die("a stream told to wait for no event");
-  return cudaSuccess;  // the launches already run in the order they are made
+  // The work before the event is done now, before whatever the waiting stream is given next
+  // (its own work held back runs after it anyway).
+  if (e::Stream* s = reinterpret_cast<e::Event*>(event)->held) e::run_held(s);
+  return cudaSuccess;
 }
 cudaError_t cudaStreamBeginCapture(cudaStream_t stream, cudaStreamCaptureMode) {
   auto* s = reinterpret_cast<e::Stream*>(stream);
@@ -977,14 +1050,23 @@ cudaError_t cudaEventDestroy(cudaEvent_t event) {
   delete reinterpret_cast<e::Event*>(event);
   return cudaSuccess;
 }
-cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t) {
+cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t stream) {
   auto* ev = reinterpret_cast<e::Event*>(event);
-  ev->at = std::chrono::steady_clock::now();
-  ev->mark = e::copy_queue().mark();
+  const auto mark = [ev] {
+    ev->at = std::chrono::steady_clock::now();
+    ev->mark = e::copy_queue().mark();
+  };
+  ev->held = e::holding(stream);
+  if (ev->held != nullptr)
+    ev->held->held.push_back(mark);
+  else
+    mark();
   return cudaSuccess;
 }
 cudaError_t cudaEventSynchronize(cudaEvent_t event) {
-  e::copy_queue().finish(reinterpret_cast<e::Event*>(event)->mark);
+  auto* ev = reinterpret_cast<e::Event*>(event);
+  if (ev->held != nullptr) e::run_held(ev->held);
+  e::copy_queue().finish(ev->mark);
   return e::last_error;
 }
 cudaError_t cudaEventElapsedTime(float* ms, cudaEvent_t start, cudaEvent_t end) {
