@@ -291,8 +291,7 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<MergeJob> host_merge_jobs;
   PinnedBuffer<SplitJob> host_split_jobs;
   int64_t refine_calls = 0;
-  Stream refine_stream;                 ///< refinement after the raycast (refine_and_raycast)
-  cudaStream_t refine_queue = nullptr;  ///< where refinement queues now (null: the default stream)
+  Stream refine_stream;  ///< refinement after the raycast (refine_and_raycast)
 
   std::vector<StampedPose> trajectory;
   std::vector<FrameStats> frames;
@@ -589,27 +588,29 @@ struct GpuReconstruction::Impl {
   }
 
   /// Runs `check(device jobs, n)` on `jobs` and brings them back with the map's counters (into
-  /// `c`) in one round trip; keeps the jobs the check left `ok`.
+  /// `c`) in one round trip on queue `q` (null: the default stream); keeps the jobs the check
+  /// left `ok`.
   template <typename Job, typename Check>
   void check_jobs(std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host, int32_t* c,
-                  const char* what, Check&& check) {
+                  cudaStream_t q, const char* what, Check&& check) {
     ensure(device, jobs.size());
-    send_jobs(jobs, device, host, what);
+    send_jobs(jobs, device, host, q, what);
     check(device.get(), static_cast<int32_t>(jobs.size()));
     Job* staged = host.reserve(jobs.size());
-    download_async(staged, device.get(), jobs.size(), what, refine_queue);
-    download_async(c, counters.get(), kCounters, what, refine_queue);
-    wait_for_queue(refine_queue, what);
+    download_async(staged, device.get(), jobs.size(), what, q);
+    download_async(c, counters.get(), kCounters, what, q);
+    wait_for_queue(q, what);
     jobs.assign(staged, staged + jobs.size());
     std::erase_if(jobs, [](const Job& j) { return j.ok == 0; });
   }
-  /// Sends `jobs` to the device (it holds as many) through page-locked `host` memory: no wait.
+  /// Sends `jobs` to the device (it holds as many) through page-locked `host` memory, on queue
+  /// `q`: no wait.
   template <typename Job>
-  void send_jobs(const std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host,
-                 const char* what) {
+  static void send_jobs(const std::vector<Job>& jobs, Buffer<Job>& device, PinnedBuffer<Job>& host,
+                        cudaStream_t q, const char* what) {
     Job* staged = host.reserve(jobs.size());
     std::copy(jobs.begin(), jobs.end(), staged);
-    upload_async(device.get(), staged, jobs.size(), what, refine_queue);
+    upload_async(device.get(), staged, jobs.size(), what, q);
   }
 
   /// Refines (see refine) and raycasts the model at `T_wc`, the frame just fused, in the order
@@ -617,33 +618,24 @@ struct GpuReconstruction::Impl {
   /// for the host's decisions overlap the raycast, and its passes that write the map wait for
   /// the raycast's end (ray_end).
   void refine_and_raycast(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
+    // Every `every_n_frames`-th call refines.
+    const bool due = map_params.levels >= 2 && (refine_calls++ % params.refine.every_n_frames) == 0;
     if (!params.refine_after_raycast) {
-      refine(T_wc, visible_count, s);
+      if (due) refine(T_wc, visible_count, nullptr, s);
       raycast_model(T_wc, true);
       return;
     }
     raycast_model(T_wc, true);
-    if (!refine_due()) return;
-    const LaunchesOn on(refine_stream.get("refinement's stream"));
-    refine_queue = refine_stream.get("refinement's stream");
-    try {
-      refine(T_wc, visible_count, s);
-    } catch (...) {
-      refine_queue = nullptr;
-      throw;
-    }
-    refine_queue = nullptr;
-  }
-
-  /// Whether this frame refines (every `every_n_frames`-th call counts).
-  bool refine_due() {
-    return map_params.levels >= 2 && (refine_calls++ % params.refine.every_n_frames) == 0;
+    if (!due) return;
+    const cudaStream_t q = refine_stream.get("refinement's stream");
+    const LaunchesOn on(q);
+    refine(T_wc, visible_count, q, s);
   }
 
   /// The CPU Refiner's refinement of the blocks this frame touched (the first `visible` of the
-  /// visible list), on the device: decisions per block, then merges, then splits.
-  void refine(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
-    if (refine_queue == nullptr && !refine_due()) return;  // on its stream: refine_due was asked
+  /// visible list), on the device: decisions per block, then merges, then splits, queued on `q`
+  /// (null: the default stream; else the launches' stream too, beside the model raycast).
+  void refine(const Pose& T_wc, int32_t visible_count, cudaStream_t q, FrameStats& s) {
     Stopwatch stage;
     const RefineParams& rp = params.refine;
     RefineConstants k;
@@ -657,10 +649,9 @@ struct GpuReconstruction::Impl {
     k.unmeshable_min_weight = rp.unmeshable_min_weight;
     k.noise = rp.noise.value_or(rig.depth_noise);
     k.T_cw = to_rigid3f(T_wc.inverse());
-    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t), refine_queue),
+    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t), q),
                  "clearing counters");
-    check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t),
-                                 refine_queue),
+    check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t), q),
                  "clearing the parent set");
     const auto capacity = static_cast<int32_t>(split_list.size());
     const RefineLists lists{
@@ -676,14 +667,14 @@ struct GpuReconstruction::Impl {
     int32_t* counts = host_refine_counts.reserve(3);
     BlockRef* split_head = host_splits.reserve(head);
     BlockKey* merge_head = host_merges.reserve(head);
-    download_async(counts, refine_counts.get(), 3, "refinement (counts)", refine_queue);
-    download_async(split_head, split_list.get(), head, "refinement (split list)", refine_queue);
-    download_async(merge_head, merge_list.get(), head, "refinement (merge list)", refine_queue);
-    wait_for_queue(refine_queue, "refinement (candidates)");
+    download_async(counts, refine_counts.get(), 3, "refinement (counts)", q);
+    download_async(split_head, split_list.get(), head, "refinement (split list)", q);
+    download_async(merge_head, merge_list.get(), head, "refinement (merge list)", q);
+    wait_for_queue(q, "refinement (candidates)");
     // The passes that write the map start after the model raycast (when it runs beside them);
     // the look-ups and checks before them only read it.
     const auto after_raycast = [&] {
-      if (refine_queue != nullptr) ray_end.order_before(refine_queue, "refinement");
+      if (q != nullptr) ray_end.order_before(q, "refinement");
     };
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
@@ -698,7 +689,7 @@ struct GpuReconstruction::Impl {
     for (std::size_t i = 0; i < merges.size(); ++i) mj[i].parent = merges[i];
     int32_t* c = host_map_counters.reserve(kCounters);
     if (!mj.empty()) {
-      check_jobs(mj, merge_jobs, host_merge_jobs, c, "merging (looking up)",
+      check_jobs(mj, merge_jobs, host_merge_jobs, c, q, "merging (looking up)",
                  [&](MergeJob* jobs, int32_t n) { merge_lookup(view.read, jobs, n); });
       // A merge needs a block before it frees 8 (room_for commits their memory).
       set_pool_counters(c);
@@ -707,7 +698,7 @@ struct GpuReconstruction::Impl {
         s.refine_waiting += static_cast<int64_t>(mj.size()) - room;
         mj.resize(static_cast<std::size_t>(room));
       }
-      send_jobs(mj, merge_jobs, host_merge_jobs, "merging (the jobs)");
+      send_jobs(mj, merge_jobs, host_merge_jobs, q, "merging (the jobs)");
       after_raycast();
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
@@ -723,7 +714,7 @@ struct GpuReconstruction::Impl {
     std::vector<SplitJob> sj(splits.size());
     for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
     if (!sj.empty()) {
-      check_jobs(sj, split_jobs, host_split_jobs, c, "splitting (checking)",
+      check_jobs(sj, split_jobs, host_split_jobs, c, q, "splitting (checking)",
                  [&](SplitJob* jobs, int32_t n) { split_check(view.read, jobs, n); });
       kernels::SplitRoom room{c[kBlockFreeCount], {}};
       for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
@@ -752,7 +743,7 @@ struct GpuReconstruction::Impl {
         return a.parent.level < b.parent.level;
       });
       if (!go.empty()) {
-        send_jobs(go, split_jobs, host_split_jobs, "splitting (the jobs)");
+        send_jobs(go, split_jobs, host_split_jobs, q, "splitting (the jobs)");
         after_raycast();
         std::size_t begin = 0;
         while (begin < go.size()) {
@@ -767,8 +758,8 @@ struct GpuReconstruction::Impl {
       s.splits = static_cast<int64_t>(go.size());
     }
     // The pool's counters after the edits (a round trip).
-    download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", refine_queue);
-    wait_for_queue(refine_queue, "refinement (the pool's counters)");
+    download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", q);
+    wait_for_queue(q, "refinement (the pool's counters)");
     set_pool_counters(c);
     s.refine_ms = stage.lap_ms();
   }
