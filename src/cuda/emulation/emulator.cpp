@@ -466,23 +466,11 @@ class CopyQueue {
   }
   /// The downloads queued before mark `before` (every one by default) handed to the host.
   void finish(uint64_t before = UINT64_MAX) {
-    run_uploads();
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::erase_if(downloads_, [&](const Download& d) {
-      if (d.mark >= before) return false;
-      std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
-      return true;
-    });
+    hand_over([&](const Download& d) { return d.mark < before; });
   }
   /// The downloads queued on `stream` handed to the host.
   void finish_stream(const void* stream) {
-    run_uploads();
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::erase_if(downloads_, [&](const Download& d) {
-      if (d.stream != stream) return false;
-      std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
-      return true;
-    });
+    hand_over([&](const Download& d) { return d.stream == stream; });
   }
   /// The mark of what is queued now (an event's).
   uint64_t mark() {
@@ -491,6 +479,18 @@ class CopyQueue {
   }
 
  private:
+  struct Download;
+  /// The downloads `which` picks handed to the host (the uploads queued run first).
+  template <typename Which>
+  void hand_over(Which&& which) {
+    run_uploads();
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::erase_if(downloads_, [&](const Download& d) {
+      if (!which(d)) return false;
+      std::memcpy(d.dst, d.bytes.data(), d.bytes.size());
+      return true;
+    });
+  }
   struct Upload {
     void* dst;
     const void* src;
@@ -517,8 +517,8 @@ struct Stream;
 
 struct Event {
   std::chrono::steady_clock::time_point at;
-  uint64_t mark = 0;       // the copy queue's when recorded
-  Stream* held = nullptr;  // recorded last on a stream that holds its work (late), else null
+  uint64_t mark = 0;         // the copy queue's when recorded
+  Stream* holder = nullptr;  // recorded last on a stream that holds its work (late), else null
 };
 
 /// A recorded launch: its configuration and its threads' function (the arguments held).
@@ -571,8 +571,11 @@ void run_held(Stream* s) {
     for (const std::function<void()>& w : work) w();
   }
 }
-void run_all_held() {
+/// What the device's synchronisation (and a free) waits for: every stream's work, then every
+/// download handed to the host.
+void synchronize_device() {
   for (Stream* s : streams()) run_held(s);
+  copy_queue().finish();
 }
 
 // ---- the driver's virtual memory ---------------------------------------------------------------
@@ -833,8 +836,7 @@ cudaError_t cudaDeviceSetLimit(cudaLimit limit, std::size_t value) {
   return cudaSuccess;
 }
 cudaError_t cudaDeviceSynchronize() {
-  e::run_all_held();
-  e::copy_queue().finish();
+  e::synchronize_device();
   return e::last_error;
 }
 cudaError_t cudaGetLastError() {
@@ -883,8 +885,7 @@ cudaError_t cudaMalloc(void** ptr, std::size_t bytes) {
 }
 cudaError_t cudaFree(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
-  e::run_all_held();  // a free waits for the device
-  e::copy_queue().finish();
+  e::synchronize_device();  // a free waits for the device
   const std::size_t bytes = e::device_memory().remove(ptr);
   if (bytes == 0) return e::record(cudaErrorInvalidValue);
   e::device_memory().give_back(bytes);
@@ -915,8 +916,7 @@ cudaError_t cudaMallocHost(void** ptr, std::size_t bytes) {
 }
 cudaError_t cudaFreeHost(void* ptr) {
   if (ptr == nullptr) return cudaSuccess;
-  e::run_all_held();  // a free waits for the device
-  e::copy_queue().finish();
+  e::synchronize_device();  // a free waits for the device
   if (e::pinned_memory().remove(ptr) == 0) return e::record(cudaErrorInvalidValue);
   std::free(ptr);
   return cudaSuccess;
@@ -1006,7 +1006,7 @@ cudaError_t cudaStreamWaitEvent(cudaStream_t, cudaEvent_t event, unsigned) {
   if (event == nullptr) e::die("a stream told to wait for no event");
   // The work before the event is done now, before whatever the waiting stream is given next
   // (its own work held back runs after it anyway).
-  if (e::Stream* s = reinterpret_cast<e::Event*>(event)->held) e::run_held(s);
+  if (e::Stream* s = reinterpret_cast<e::Event*>(event)->holder) e::run_held(s);
   return cudaSuccess;
 }
 cudaError_t cudaStreamBeginCapture(cudaStream_t stream, cudaStreamCaptureMode) {
@@ -1056,16 +1056,16 @@ cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t stream) {
     ev->at = std::chrono::steady_clock::now();
     ev->mark = e::copy_queue().mark();
   };
-  ev->held = e::holding(stream);
-  if (ev->held != nullptr)
-    ev->held->held.push_back(mark);
+  ev->holder = e::holding(stream);
+  if (ev->holder != nullptr)
+    ev->holder->held.push_back(mark);
   else
     mark();
   return cudaSuccess;
 }
 cudaError_t cudaEventSynchronize(cudaEvent_t event) {
   auto* ev = reinterpret_cast<e::Event*>(event);
-  if (ev->held != nullptr) e::run_held(ev->held);
+  if (ev->holder != nullptr) e::run_held(ev->holder);
   e::copy_queue().finish(ev->mark);
   return e::last_error;
 }

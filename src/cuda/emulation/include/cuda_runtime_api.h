@@ -111,11 +111,11 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes);
 cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t stream = nullptr);
 
-// Streams as far as graphs and a second queue need them: a stream's launches run when they are
-// made (as on the default stream), unless the stream is capturing; then they are recorded into
-// its graph, and a launch of the graph runs them in order. A download queued on a stream reaches
-// the host at a synchronisation of that stream (or of the device, or an event after it); waits
-// of a stream on an event keep the order the launches already have.
+// Streams as far as graphs and queues of the program's own need them: a capturing stream records
+// its launches into its graph, which a launch of the graph runs in order; other streams run their
+// work when it is given, as the default stream does, or hold it until something waits for it
+// (HIVOX_EMULATION_STREAMS=late, emulator.cpp). A download queued on a stream reaches the host at
+// a synchronisation of that stream, of the device, or of an event after it.
 cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned flags);
 cudaError_t cudaStreamCreateWithPriority(cudaStream_t* stream, unsigned flags, int priority);
 cudaError_t cudaDeviceGetStreamPriorityRange(int* least, int* greatest);
