@@ -60,7 +60,6 @@ BadFramePolicy parse_bad_frame_policy(std::string_view name) {
 }
 
 namespace {
-
 /// The frames a run of `params` goes through on `reader` (none when the first is beyond it).
 std::size_t frames_to_run(const RunParams& params, const DatasetReader& reader) {
   const std::size_t available = reader.size() - std::min(params.first_frame, reader.size());

@@ -148,6 +148,28 @@ void expect_same_map(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu, const c
   EXPECT_LE(color_far, observed / 1000);
 }
 
+/// How far two trajectories' matching poses get apart: the largest translation and rotation.
+struct PoseGap {
+  double max_m = 0, max_deg = 0;
+  void add(const Pose& a, const Pose& b) {
+    const Pose d = a.inverse() * b;
+    max_m = std::max(max_m, d.translation().norm());
+    max_deg = std::max(max_deg, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+  }
+};
+
+/// The pixels a raycast hit.
+int64_t hit_count(const RaycastResult& r) {
+  return std::count_if(r.depth_m.data(), r.depth_m.data() + r.depth_m.size(),
+                       [](float z) { return z > 0.0f; });
+}
+
+/// Whether two raycasts have the same depth at every pixel, to the bit.
+bool same_depths(const RaycastResult& a, const RaycastResult& b) {
+  return a.depth_m.size() == b.depth_m.size() &&
+         std::equal(a.depth_m.data(), a.depth_m.data() + a.depth_m.size(), b.depth_m.data());
+}
+
 /// The GPU's model raycast against the CPU's raycast of the CPU map at the same pose.
 void expect_same_raycast(const RaycastResult& cpu, const RaycastResult& gpu) {
   ASSERT_EQ(cpu.depth_m.width(), gpu.depth_m.width());
@@ -354,25 +376,19 @@ TEST(GpuLoop, TracksAsTheCpuDoes) {
     // tracking used (none for the first).
     EXPECT_EQ(s.raycast_hits, model_hits) << "frame " << i;
     EXPECT_EQ(s.raycast_ms > 0, i > 0) << "frame " << i;
-    const RaycastResult model = gpu.download_model();
-    model_hits = 0;
-    for (std::size_t k = 0; k < model.depth_m.size(); ++k)
-      model_hits += model.depth_m.data()[k] > 0;
+    model_hits = hit_count(gpu.download_model());
   }
-  double max_dt = 0, max_dr = 0;
-  for (std::size_t i = 0; i < gt.size(); ++i) {
-    const Pose d = cpu.trajectory()[i].T_wc.inverse() * gpu.trajectory()[i].T_wc;
-    max_dt = std::max(max_dt, d.translation().norm());
-    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
-  }
+  PoseGap gap;
+  for (std::size_t i = 0; i < gt.size(); ++i)
+    gap.add(cpu.trajectory()[i].T_wc, gpu.trajectory()[i].T_wc);
   const double ate_cpu = evaluate_ate(gt, cpu.trajectory()).rmse_m;
   const double ate_gpu = evaluate_ate(gt, gpu.trajectory()).rmse_m;
   std::printf(
       "[ track    ] %zu frames: poses at most %.3f mm and %.4f deg apart; ATE CPU %.2f mm, GPU "
       "%.2f mm\n",
-      gt.size(), 1e3 * max_dt, max_dr, 1e3 * ate_cpu, 1e3 * ate_gpu);
-  EXPECT_LT(max_dt, 1e-3);
-  EXPECT_LT(max_dr, 0.1);
+      gt.size(), 1e3 * gap.max_m, gap.max_deg, 1e3 * ate_cpu, 1e3 * ate_gpu);
+  EXPECT_LT(gap.max_m, 1e-3);
+  EXPECT_LT(gap.max_deg, 0.1);
   EXPECT_LT(ate_gpu, 0.01);
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
   expect_same_map(cpu.map(), *downloaded, "tracked desk, fixed 4 mm", true);
@@ -395,7 +411,7 @@ TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
   graph.set_tracking_graph(true);
   const Pose first = *data.read(0).T_wc_gt;
   int64_t iterations_differ = 0, verdicts_differ = 0, graph_iterations_differ = 0;
-  double max_dt = 0, max_dr = 0;
+  PoseGap gap;
   const std::size_t frames = frames_to_run(data.size(), 24);
   const std::size_t graph_frames = frames_to_run(frames, 12);
   for (std::size_t i = 0; i < frames; ++i) {
@@ -405,9 +421,7 @@ TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
     EXPECT_TRUE(b.fused) << "frame " << i;
     iterations_differ += a.track_iterations != b.track_iterations;
     verdicts_differ += host.last_track().quality != on_device.last_track().quality;
-    const Pose d = host.trajectory().back().T_wc.inverse() * on_device.trajectory().back().T_wc;
-    max_dt = std::max(max_dt, d.translation().norm());
-    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+    gap.add(host.trajectory().back().T_wc, on_device.trajectory().back().T_wc);
     if (i >= graph_frames) continue;
     const FrameStats& g = graph.track_and_integrate(f, first);
     graph_iterations_differ += g.track_iterations != b.track_iterations;
@@ -421,12 +435,12 @@ TEST(GpuLoop, GaussNewtonOnTheDeviceTracksAsOnTheHost) {
   std::printf(
       "[ track    ] %zu frames, Gauss-Newton on the device against the host: poses at most %.4f "
       "mm and %.5f deg apart, %lld frames with other iteration counts\n",
-      frames, 1e3 * max_dt, max_dr, static_cast<long long>(iterations_differ));
+      frames, 1e3 * gap.max_m, gap.max_deg, static_cast<long long>(iterations_differ));
   EXPECT_GT(on_device.frames().back().track_iterations, 0);
   EXPECT_EQ(verdicts_differ, 0);
   EXPECT_LE(iterations_differ, 2);
-  EXPECT_LT(max_dt, 1e-4);
-  EXPECT_LT(max_dr, 0.01);
+  EXPECT_LT(gap.max_m, 1e-4);
+  EXPECT_LT(gap.max_deg, 0.01);
 }
 
 TEST(GpuLoop, WarpsARaycastAsTheCpuDoes) {
@@ -558,7 +572,7 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
   const Pose first = *data.read(0).T_wc_gt;
   const std::size_t frames = frames_to_run(39, 17);  // the last (index 38 or 16) refines
   int64_t cpu_splits = 0, cpu_merges = 0, gpu_splits = 0, gpu_merges = 0;
-  double max_dt = 0, max_dr = 0;
+  PoseGap gap;
   for (std::size_t i = 0; i < frames; ++i) {
     const RgbdFrame f = data.read(i);
     const FrameStats& c = cpu.track_and_integrate(f, 0.0, first);
@@ -568,22 +582,20 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
     cpu_merges += c.merges;
     gpu_splits += g.splits;
     gpu_merges += g.merges;
-    const Pose d = cpu.trajectory().back().T_wc.inverse() * gpu.trajectory().back().T_wc;
-    max_dt = std::max(max_dt, d.translation().norm());
-    max_dr = std::max(max_dr, rotation_angle_rad(d) * 180.0 / 3.14159265358979);
+    gap.add(cpu.trajectory().back().T_wc, gpu.trajectory().back().T_wc);
   }
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
   std::printf(
       "[ refine   ] after the raycast, %zu tracked frames: poses at most %.3f mm and %.4f deg "
       "apart; splits %lld / %lld, merges %lld / %lld (CPU / GPU); blocks per level %s / %s; "
       "the last frame %lld splits, %lld merges\n",
-      frames, 1e3 * max_dt, max_dr, static_cast<long long>(cpu_splits),
+      frames, 1e3 * gap.max_m, gap.max_deg, static_cast<long long>(cpu_splits),
       static_cast<long long>(gpu_splits), static_cast<long long>(cpu_merges),
       static_cast<long long>(gpu_merges), fmt_levels(cpu.map()).c_str(),
       fmt_levels(*downloaded).c_str(), static_cast<long long>(gpu.frames().back().splits),
       static_cast<long long>(gpu.frames().back().merges));
-  EXPECT_LT(max_dt, 1e-3);
-  EXPECT_LT(max_dr, 0.1);
+  EXPECT_LT(gap.max_m, 1e-3);
+  EXPECT_LT(gap.max_deg, 0.1);
   EXPECT_GT(gpu.frames().back().splits + gpu.frames().back().merges, 0);
   expect_same_refinement(cpu_splits, gpu_splits, cpu_merges, gpu_merges, cpu.map(), *downloaded);
   // The device's model shows the levels before the last frame's splits and merges, as the CPU's
@@ -645,10 +657,7 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
     EXPECT_EQ(test::file_bytes(dir.path() / "plain.hvx"),
               test::file_bytes(dir.path() / "beside.hvx"))
         << "the maps (their files hold the blocks in a canonical order)";
-    const RaycastResult ma = plain.download_model(), mb = beside.download_model();
-    ASSERT_EQ(ma.depth_m.size(), mb.depth_m.size());
-    EXPECT_TRUE(
-        std::equal(ma.depth_m.data(), ma.depth_m.data() + ma.depth_m.size(), mb.depth_m.data()));
+    EXPECT_TRUE(same_depths(plain.download_model(), beside.download_model()));
     EXPECT_GT(beside.blocks_in_use(), 1000);
   }
 }
@@ -788,12 +797,8 @@ TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
     Raycaster raycaster(p.raycast);
     const RaycastResult& cpu =
         raycaster.raycast(*map, rig.depth_camera, T_wc, p.fusion.depth_range);
-    ASSERT_EQ(render.depth_m.size(), cpu.depth_m.size());
-    EXPECT_TRUE(std::equal(cpu.depth_m.data(), cpu.depth_m.data() + cpu.depth_m.size(),
-                           render.depth_m.data()));
-    EXPECT_GT(std::count_if(render.depth_m.data(), render.depth_m.data() + render.depth_m.size(),
-                            [](float z) { return z > 0.0f; }),
-              static_cast<std::ptrdiff_t>(render.depth_m.size() / 10));
+    EXPECT_TRUE(same_depths(cpu, render));
+    EXPECT_GT(hit_count(render), static_cast<int64_t>(render.depth_m.size() / 10));
   }
   // With the memory back, the map grows again.
   left.reset();
@@ -938,10 +943,7 @@ TEST(GpuLoop, RendersOnTheDeviceAsTheCpuDoes) {
     EXPECT_LE(color_differs, same_depth / 1000);
   }
   // The frame's raycast (the next frame tracks against it) is as it was.
-  const RaycastResult after = gpu.download_model();
-  ASSERT_EQ(after.depth_m.size(), model.depth_m.size());
-  EXPECT_TRUE(std::equal(model.depth_m.data(), model.depth_m.data() + model.depth_m.size(),
-                         after.depth_m.data()));
+  EXPECT_TRUE(same_depths(model, gpu.download_model()));
   // Bad input: one line naming it.
   PinholeCamera bad = rig.depth_camera;
   bad.fx = -1.0f;
