@@ -170,8 +170,10 @@ __global__ void mask_without_own_lane(int* out) {
 }
 
 TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
-  // The threads named are the first to get there in the default schedule.
+  // The threads named are the first to get there in the default schedule (the kernels run when
+  // launched, as the default stream's work does unless held back).
   const ScopedEnv in_order("HIVOX_EMULATION_SCHEDULE", "in-order");
+  const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
   int* out = device_array<int>(32);
   EXPECT_DEATH(launch(shuffle_without_lane_31, 1, 32, out),
                "block \\(0,0,0\\) of 32 threads cannot go on: 1 finished");
@@ -281,7 +283,8 @@ __global__ void copy_one(const int* in, int* out) {
 /// synchronisation); an upload reads its host side when the device gets to it. Copies with
 /// pageable memory are done when they return.
 TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
-  const ScopedEnv fill("HIVOX_EMULATION_FILL", nullptr);  // 0xA5 bytes
+  const ScopedEnv fill("HIVOX_EMULATION_FILL", nullptr);      // 0xA5 bytes
+  const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);  // no stream's work held back
   constexpr int kFill = static_cast<int>(0xA5A5A5A5u);
   int* dev = device_array<int>(2);
   int* host = nullptr;
@@ -353,6 +356,14 @@ TEST(CudaEmulation, CopiesWithPageLockedMemoryFinishAtASynchronisation) {
   cudaFree(dev);
 }
 
+/// While it lives, the launches go to `stream` (then to the default stream again).
+struct LaunchesOnStream {
+  explicit LaunchesOnStream(cudaStream_t stream) { detail::launch_stream() = stream; }
+  ~LaunchesOnStream() { detail::launch_stream() = nullptr; }
+  LaunchesOnStream(const LaunchesOnStream&) = delete;
+  LaunchesOnStream& operator=(const LaunchesOnStream&) = delete;
+};
+
 /// HIVOX_EMULATION_STREAMS=late: what a stream of the program's own is given (kernels, clears,
 /// copies, event marks) waits until something waits for it, as a GPU may leave it; the default
 /// stream's work runs when it is given. Early (the default), it runs at once.
@@ -373,10 +384,7 @@ TEST(CudaEmulation, LateStreamsHoldTheirWorkUntilWaitedFor) {
   {
     const ScopedEnv late("HIVOX_EMULATION_STREAMS", "late");
     // A kernel and a mark on the side stream: held until the default stream waits for the mark.
-    struct Launches {
-      explicit Launches(cudaStream_t s) { detail::launch_stream() = s; }
-      ~Launches() { detail::launch_stream() = nullptr; }
-    } on(side);
+    const LaunchesOnStream on(side);
     launch(store, 1, 1, dev, 2);
     ASSERT_EQ(cudaEventRecord(done, side), cudaSuccess);
     EXPECT_EQ(read(), 1) << "a blocking copy waits for the default stream alone";
@@ -397,14 +405,75 @@ TEST(CudaEmulation, LateStreamsHoldTheirWorkUntilWaitedFor) {
   }
   {
     const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
-    detail::launch_stream() = side;
+    const LaunchesOnStream on(side);
     launch(store, 1, 1, dev, 4);
-    detail::launch_stream() = nullptr;
     EXPECT_EQ(read(), 4);
   }
   cudaEventDestroy(done);
   EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
   EXPECT_EQ(cudaFreeHost(host), cudaSuccess);
+  cudaFree(dev);
+}
+
+/// HIVOX_EMULATION_STREAMS=default-late: the default stream's work (kernels, clears, copies,
+/// event marks) waits until something waits for it, while a stream of the program's own runs
+/// what it is given at once: a stream that reads the default stream's results, or writes what
+/// its work reads, without waiting for it shows.
+TEST(CudaEmulation, TheDefaultStreamsWorkCanComeLate) {
+  int* dev = device_array<int>(2);
+  cudaStream_t side = nullptr;
+  ASSERT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
+  cudaEvent_t done = nullptr;
+  ASSERT_EQ(cudaEventCreate(&done), cudaSuccess);
+  // A blocking read on the side stream (pageable host memory: done when the call returns).
+  const auto read_beside = [&] {
+    int v = 0;
+    EXPECT_EQ(cudaMemcpyAsync(&v, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
+    return v;
+  };
+  const auto read = [&] {
+    int v = 0;
+    EXPECT_EQ(cudaMemcpy(&v, dev, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+    return v;
+  };
+  std::optional<ScopedEnv> streams;
+  streams.emplace("HIVOX_EMULATION_STREAMS", nullptr);
+  launch(store, 1, 1, dev, 7);
+  streams.reset();
+  streams.emplace("HIVOX_EMULATION_STREAMS", "default-late");
+  launch(store, 1, 1, dev, 1);
+  EXPECT_EQ(read_beside(), 7) << "a stream of its own does not wait for the default stream";
+  ASSERT_EQ(cudaEventRecord(done, nullptr), cudaSuccess);
+  ASSERT_EQ(cudaStreamWaitEvent(side, done), cudaSuccess);
+  EXPECT_EQ(read_beside(), 1);
+  // A stream of its own writes at once, under the default stream's work held back.
+  launch(store, 1, 1, dev, 2);
+  {
+    const LaunchesOnStream on(side);
+    launch(store, 1, 1, dev, 3);
+  }
+  EXPECT_EQ(read_beside(), 3);
+  EXPECT_EQ(read(), 2) << "a blocking copy waits for the default stream's work";
+  // A clear, and the synchronisations of the default stream, of an event on it, of the device.
+  ASSERT_EQ(cudaMemset(dev, 0, sizeof(int)), cudaSuccess);
+  EXPECT_EQ(read_beside(), 2);
+  ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
+  EXPECT_EQ(read_beside(), 0);
+  launch(store, 1, 1, dev, 4);
+  ASSERT_EQ(cudaEventRecord(done, nullptr), cudaSuccess);
+  EXPECT_EQ(read_beside(), 0);
+  ASSERT_EQ(cudaEventSynchronize(done), cudaSuccess);
+  EXPECT_EQ(read_beside(), 4);
+  launch(store, 1, 1, dev, 5);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  EXPECT_EQ(read_beside(), 5);
+  // A configuration a GPU refuses fails at its launch, though the kernel would come late.
+  launch(store, 0, 1, dev, 6);
+  EXPECT_EQ(cudaGetLastError(), cudaErrorInvalidConfiguration);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  EXPECT_EQ(read_beside(), 5);
+  cudaEventDestroy(done);
+  EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
   cudaFree(dev);
 }
 

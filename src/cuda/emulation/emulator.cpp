@@ -531,22 +531,38 @@ struct Graph {
 };
 struct Stream {
   Graph* capture = nullptr;  ///< the graph being recorded, or null
-  /// With HIVOX_EMULATION_STREAMS=late: the work it was given and has not done yet, in order.
+  /// While its work comes late (HIVOX_EMULATION_STREAMS): what it was given and has not done
+  /// yet, in order.
   std::vector<std::function<void()>> held;
 };
 
-/// HIVOX_EMULATION_STREAMS (read at each use): `early` (the default) runs the work given to a
-/// stream of the program's own when it is given, as the default stream's; `late` holds it back
-/// until something waits for it: a synchronisation of the stream, of an event recorded on it, or
-/// of the device, a wait of another stream for such an event (cudaStreamWaitEvent), a free, or the
-/// stream's end. On a GPU such work may run any time in between, so a result that changes from
-/// early to late depends on an order the program did not ask for: work of the default stream
-/// that reads what a stream of its own makes without waiting for it.
-bool streams_late() {
+/// HIVOX_EMULATION_STREAMS (read at each use): which queues hold their work back until something
+/// waits for it. `early` (the default): none, each runs what it is given when it is given.
+/// `late`: the streams of the program's own; `default-late`: the default stream (the others run
+/// early). Held work runs at a synchronisation of its stream, of an event recorded on it, or of
+/// the device, a wait of another stream for such an event (cudaStreamWaitEvent), a free, the
+/// stream's end, or (the default stream's) a blocking copy. On a GPU such work may run any time
+/// in between, so a result that changes with the mode depends on an order the program did not
+/// ask for: `late` shows the default stream reading what a stream of its own makes without
+/// waiting for it, `default-late` a stream of its own doing so with the default stream's work
+/// (or writing what that work still reads).
+enum class StreamsMode { Early, Late, DefaultLate };
+StreamsMode streams_mode() {
   const char* v = std::getenv("HIVOX_EMULATION_STREAMS");
-  if (v == nullptr || *v == '\0' || std::string_view(v) == "early") return false;
-  if (std::string_view(v) == "late") return true;
-  die("HIVOX_EMULATION_STREAMS=%s is neither early nor late", v);
+  if (v == nullptr || *v == '\0' || std::string_view(v) == "early") return StreamsMode::Early;
+  if (std::string_view(v) == "late") return StreamsMode::Late;
+  if (std::string_view(v) == "default-late") return StreamsMode::DefaultLate;
+  die("HIVOX_EMULATION_STREAMS=%s is none of early, late and default-late", v);
+}
+
+/// The default stream's queue (null handle).
+Stream& default_stream() {
+  static Stream s;
+  return s;
+}
+/// The queue of `stream` (null: the default stream's).
+Stream* queue_of(cudaStream_t stream) {
+  return stream == nullptr ? &default_stream() : reinterpret_cast<Stream*>(stream);
 }
 
 /// Every stream made and not yet destroyed (the device's synchronisation runs all they hold).
@@ -555,12 +571,13 @@ std::vector<Stream*>& streams() {
   return all;
 }
 
-/// The stream whose work is held back now, or null (the default stream, a capturing one, or
-/// streams early).
+/// The queue whose work is held back now, or null (it runs at once: streams early, a capturing
+/// stream, or the other kind of stream than the mode holds).
 Stream* holding(cudaStream_t stream) {
-  if (stream == nullptr || !streams_late()) return nullptr;
+  const StreamsMode mode = streams_mode();
+  if (stream == nullptr) return mode == StreamsMode::DefaultLate ? &default_stream() : nullptr;
   auto* s = reinterpret_cast<Stream*>(stream);
-  return s->capture != nullptr ? nullptr : s;
+  return mode == StreamsMode::Late && s->capture == nullptr ? s : nullptr;
 }
 
 /// Does the work `s` holds, in order.
@@ -574,8 +591,26 @@ void run_held(Stream* s) {
 /// What the device's synchronisation (and a free) waits for: every stream's work, then every
 /// download handed to the host.
 void synchronize_device() {
+  run_held(&default_stream());
   for (Stream* s : streams()) run_held(s);
   copy_queue().finish();
+}
+
+/// A copy the host waits for, in the order of `stream`: what the stream holds runs and its
+/// downloads reach the host first.
+void blocking_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
+                   cudaStream_t stream) {
+  check_copy(dst, src, bytes, kind);
+  run_held(queue_of(stream));
+  copy_queue().finish_stream(stream);
+  std::memcpy(dst, src, bytes);
+}
+/// A clear the device does now.
+void clear_now(void* ptr, int value, std::size_t bytes) {
+  copy_queue().run_uploads();
+  if (!device_memory().holds(ptr, bytes))
+    die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
+  std::memset(ptr, value, bytes);
 }
 
 // ---- the driver's virtual memory ---------------------------------------------------------------
@@ -663,13 +698,20 @@ CUresult vm_attribute(int* value, CUdevice_attribute attribute, CUdevice device)
 
 // ---- kernels -----------------------------------------------------------------------------------
 
-void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
+/// Whether a GPU takes the launch configuration (else the launch's error is recorded, at the
+/// launch as on a GPU, also when the kernel itself comes late).
+bool launchable(dim3 grid, dim3 block) {
   const uint64_t threads = uint64_t{block.x} * block.y * block.z;
   if (grid.x == 0 || grid.y == 0 || grid.z == 0 || grid.y > 65535 || grid.z > 65535 ||
       threads == 0 || threads > 1024 || block.z > 64) {
     record(cudaErrorInvalidConfiguration);
-    return;
+    return false;
   }
+  return true;
+}
+
+void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
+  if (!launchable(grid, block)) return;
   if (running != nullptr) die("a kernel launched from a kernel");
   copy_queue().run_uploads();
   const int64_t blocks = int64_t{grid.x} * grid.y * grid.z;
@@ -703,6 +745,7 @@ void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()>
     }
   }
   if (Stream* s = holding(stream)) {
+    if (!launchable(grid, block)) return;
     s->held.push_back([grid, block, thread = std::move(thread)] { run_grid(grid, block, thread); });
     return;
   }
@@ -923,12 +966,9 @@ cudaError_t cudaFreeHost(void* ptr) {
 }
 
 cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
-  if (bytes == 0) return cudaSuccess;
-  e::check_copy(dst, src, bytes, kind);
   // A blocking copy waits for what the default stream queued before it (not for a stream of
   // its own: the loop's are non-blocking).
-  e::copy_queue().finish_stream(nullptr);
-  std::memcpy(dst, src, bytes);
+  if (bytes != 0) e::blocking_copy(dst, src, bytes, kind, nullptr);
   return cudaSuccess;
 }
 cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind,
@@ -937,8 +977,11 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
   // the device's order; with pageable memory a GPU finishes the copy before returning.
   const bool upload = kind == cudaMemcpyHostToDevice && e::pinned_memory().holds(src, bytes);
   const bool download = kind == cudaMemcpyDeviceToHost && e::pinned_memory().holds(dst, bytes);
-  if (bytes == 0 || !(upload || download || kind == cudaMemcpyDeviceToDevice))
-    return cudaMemcpy(dst, src, bytes, kind);
+  if (bytes == 0) return cudaSuccess;
+  if (!(upload || download || kind == cudaMemcpyDeviceToDevice)) {
+    e::blocking_copy(dst, src, bytes, kind, stream);
+    return cudaSuccess;
+  }
   e::check_copy(dst, src, bytes, kind);
   const auto copy = [=] {
     if (upload) {
@@ -958,19 +1001,15 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
   return cudaSuccess;
 }
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
-  if (bytes == 0) return cudaSuccess;
-  e::copy_queue().run_uploads();
-  if (!e::device_memory().holds(ptr, bytes))
-    e::die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
-  std::memset(ptr, value, bytes);
-  return cudaSuccess;
+  return cudaMemsetAsync(ptr, value, bytes, nullptr);  // on the default stream, in its order
 }
 cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t stream) {
-  if (e::Stream* s = e::holding(stream)) {
-    s->held.push_back([=] { cudaMemset(ptr, value, bytes); });
-    return cudaSuccess;
-  }
-  return cudaMemset(ptr, value, bytes);
+  if (bytes == 0) return cudaSuccess;
+  if (e::Stream* s = e::holding(stream))
+    s->held.push_back([=] { e::clear_now(ptr, value, bytes); });
+  else
+    e::clear_now(ptr, value, bytes);
+  return cudaSuccess;
 }
 
 cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned) {
@@ -998,7 +1037,7 @@ cudaError_t cudaStreamDestroy(cudaStream_t stream) {
   return cudaSuccess;
 }
 cudaError_t cudaStreamSynchronize(cudaStream_t stream) {
-  if (stream != nullptr) e::run_held(reinterpret_cast<e::Stream*>(stream));
+  e::run_held(e::queue_of(stream));
   e::copy_queue().finish_stream(stream);
   return e::last_error;
 }

@@ -114,8 +114,9 @@ cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_
 // Streams as far as graphs and queues of the program's own need them: a capturing stream records
 // its launches into its graph, which a launch of the graph runs in order; other streams run their
 // work when it is given, as the default stream does, or hold it until something waits for it
-// (HIVOX_EMULATION_STREAMS=late, emulator.cpp). A download queued on a stream reaches the host at
-// a synchronisation of that stream, of the device, or of an event after it.
+// (HIVOX_EMULATION_STREAMS=late; default-late holds the default stream's: emulator.cpp). A download
+// queued on a stream reaches the host at a synchronisation of that stream, of the device, or of an
+// event after it.
 cudaError_t cudaStreamCreateWithFlags(cudaStream_t* stream, unsigned flags);
 cudaError_t cudaStreamCreateWithPriority(cudaStream_t* stream, unsigned flags, int priority);
 cudaError_t cudaDeviceGetStreamPriorityRange(int* least, int* greatest);
