@@ -19,7 +19,9 @@
 // rays start). Each variant also counts the rays' hash-table look-ups (a fresh block cache per
 // ray, as a GPU thread's): on a GPU each is a chain of dependent reads, and a warp waits for its
 // lane with the most; the counts are exact where the times are noisy. The device's allocation
-// walk over the frame's band (find_blocks) is counted likewise, a pixel.
+// walk over the frame's band (find_blocks) is counted likewise, a pixel. With levels, the rays
+// that sampled a cell across levels (a corner stored at another level) are counted apart: what
+// they cost against the others, and the share of the warps' time in warps that hold one.
 
 #include <CLI/CLI.hpp>
 
@@ -58,8 +60,9 @@ struct Ray {
   kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
   double ns = 1e30;
   int64_t lookups = 0;  ///< of the hash tables (the ray's block cache starts empty)
-  float depth_m = 0;    ///< the hit's
-  int level = -1;       ///< the hit's
+  int64_t cross_level = 0, irregular = 0;  ///< cells sampled across levels, irregular ones
+  float depth_m = 0;                       ///< the hit's
+  int level = -1;                          ///< the hit's
 };
 
 const char* outcome_name(kernels::RayOutcome o) {
@@ -148,6 +151,47 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   std::printf("); warps' most: %.2f a warp\n",
               ratio(std::accumulate(warp_lookups.begin(), warp_lookups.end(), int64_t{0}),
                     static_cast<int64_t>(warp_lookups.size())));
+  // Rays that sampled a cell across levels (a corner at another level): how many, what they
+  // cost against the others found at their hint, and the warps that hold one.
+  {
+    int64_t cross = 0, irregular_rays = 0, cells = 0, irregular = 0, at_hint[2] = {};
+    double at_hint_ns[2] = {};
+    std::vector<char> warp_cross(warp_max.size(), 0);
+    for (int i = 0; i < static_cast<int>(v.rays.size()); ++i) {
+      const Ray& r = v.rays[static_cast<std::size_t>(i)];
+      const bool c = r.cross_level > 0;
+      cross += c;
+      irregular_rays += r.irregular > 0;
+      cells += r.cross_level;
+      irregular += r.irregular;
+      if (r.outcome == kernels::RayOutcome::AtHint) {
+        ++at_hint[c];
+        at_hint_ns[c] += r.ns;
+      }
+      const int x = i % cam.width, y = i / cam.width;
+      warp_cross[static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth] |= c;
+    }
+    double warp_ns[2] = {};
+    int64_t warps[2] = {};
+    for (std::size_t w = 0; w < warp_max.size(); ++w) {
+      ++warps[warp_cross[w]];
+      warp_ns[warp_cross[w]] += warp_max[w];
+    }
+    if (cross > 0)
+      std::printf(
+          "  across levels: %lld rays (%.1f %%) sampled %lld cells across levels (%lld rays, %lld "
+          "cells irregular); found at their hint %.0f ns with such cells, %.0f ns without; warps "
+          "holding such a ray %lld (%.1f %%), %.2f us each, the others %.2f us (%.0f %% of the "
+          "warps' "
+          "time)\n",
+          static_cast<long long>(cross), 100.0 * ratio(cross, static_cast<int64_t>(v.rays.size())),
+          static_cast<long long>(cells), static_cast<long long>(irregular_rays),
+          static_cast<long long>(irregular), at_hint[1] > 0 ? at_hint_ns[1] / at_hint[1] : 0.0,
+          at_hint[0] > 0 ? at_hint_ns[0] / at_hint[0] : 0.0, static_cast<long long>(warps[1]),
+          100.0 * ratio(warps[1], warps[0] + warps[1]),
+          warps[1] > 0 ? warp_ns[1] / warps[1] / 1e3 : 0.0,
+          warps[0] > 0 ? warp_ns[0] / warps[0] / 1e3 : 0.0, 100.0 * warp_ns[1] / simt);
+  }
   std::printf("  hits by level:");
   for (int l = 0; l < kMaxLevels; ++l)
     if (hits_by_level[l] > 0) std::printf(" %d: %lld", l, static_cast<long long>(hits_by_level[l]));
@@ -322,6 +366,8 @@ int main(int argc, char** argv) {
           const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
           r.ns = std::min(r.ns, ns);
           r.lookups = cache.table_lookups;
+          r.cross_level = cache.cross_level_cells;
+          r.irregular = cache.irregular_cells;
           r.depth_m = hit.depth_m;
           r.level = r.outcome == kernels::RayOutcome::Miss ? -1 : hit.level;
         }

@@ -41,6 +41,9 @@ struct BlockLookupCache {
   /// Look-ups the cache did not answer (each a search of the hash table): what a cost model of
   /// the device's rays counts (bench/ray_cost). Host only.
   int64_t table_lookups = 0;
+  /// Cells sampled across levels (some corner stored at another level), and of them those
+  /// interpolated on their irregular corners. Host only, as table_lookups.
+  int64_t cross_level_cells = 0, irregular_cells = 0;
 #endif
 
   HIVOX_HD void reset() {
@@ -515,6 +518,9 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
   const CellRead read = read_trilinear(map, blocks, cell, min_weight, out, dv);
   if (read != CellRead::Absent) return read == CellRead::Sampled;
   if (map.levels == 1) return false;  // a corner's block is absent, and no other level has it
+#if !defined(__CUDA_ARCH__)
+  ++cache.cross_level_cells;
+#endif
   out->crossing_dz = kNoCrossing;
   Vec3f pos[8];
   bool regular = true;
@@ -538,6 +544,9 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
       out->nearest_index = i;
     }
   }
+#if !defined(__CUDA_ARCH__)
+  cache.irregular_cells += !regular;
+#endif
   if (!regular && interpolate_irregular(pos, v, q, &out->f, &out->gradient)) return true;
   out->f = interpolate_trilinear(v, t, &out->gradient);
   return true;
