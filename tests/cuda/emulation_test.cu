@@ -184,6 +184,12 @@ TEST(CudaEmulationDeathTest, MisusesAGpuLeavesUndefinedStopWithTheirPlace) {
                "reads from .*, outside device memory");
   EXPECT_DEATH(cudaMemcpy(out, out, sizeof(int), cudaMemcpyHostToDevice),
                "host-to-device reads from device memory");
+  // A clear outside device memory stops the program where it is given, also held back.
+  EXPECT_DEATH(cudaMemset(host, 0, sizeof(int)), "cudaMemset of 4 bytes at .*, outside device");
+  {
+    const ScopedEnv late("HIVOX_EMULATION_STREAMS", "default-late");
+    EXPECT_DEATH(cudaMemset(host, 0, sizeof(int)), "cudaMemset of 4 bytes at .*, outside device");
+  }
   cudaFree(out);
 }
 

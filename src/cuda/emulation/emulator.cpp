@@ -605,11 +605,9 @@ void blocking_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind
   copy_queue().finish_stream(stream);
   std::memcpy(dst, src, bytes);
 }
-/// A clear the device does now.
+/// A clear the device does now (checked when it was given).
 void clear_now(void* ptr, int value, std::size_t bytes) {
   copy_queue().run_uploads();
-  if (!device_memory().holds(ptr, bytes))
-    die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
   std::memset(ptr, value, bytes);
 }
 
@@ -1005,6 +1003,8 @@ cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
 }
 cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_t stream) {
   if (bytes == 0) return cudaSuccess;
+  if (!e::device_memory().holds(ptr, bytes))
+    e::die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
   if (e::Stream* s = e::holding(stream))
     s->held.push_back([=] { e::clear_now(ptr, value, bytes); });
   else
