@@ -133,8 +133,10 @@ void expect_same_map(const VoxelBlockMap& cpu, const VoxelBlockMap& gpu, const c
       static_cast<long long>(tsdf_mm), static_cast<long long>(color_far),
       static_cast<long long>(summary_differ));
   ASSERT_GT(a.size(), 1000u);
-  // A summary changes only where a voxel's sign or observation does (rounding, as below).
-  EXPECT_LE(summary_differ, static_cast<int64_t>(a.size() / (tracked ? 20 : 1000)));
+  // A summary changes only where a voxel's sign or observation does (rounding, as below); one
+  // voxel of a block's 512 is enough, so the bound is looser than the voxels' (0 blocks differ
+  // in the emulation; a summary built wrong makes most of them differ).
+  EXPECT_LE(summary_differ, static_cast<int64_t>(a.size() / (tracked ? 20 : 100)));
   // A band's end rounded across a block face can add or miss a block at a few pixels.
   EXPECT_LE(only_cpu + only_gpu, static_cast<int64_t>(a.size() / 1000));
   for (int l = 0; l < cpu.levels(); ++l)
