@@ -580,6 +580,17 @@ Stream* holding(cudaStream_t stream) {
   return mode == StreamsMode::Late && s->capture == nullptr ? s : nullptr;
 }
 
+/// Gives `work` to `stream`: held back when the stream's work comes late (returns its queue),
+/// else done now (returns null).
+Stream* give(cudaStream_t stream, std::function<void()> work) {
+  Stream* s = holding(stream);
+  if (s != nullptr)
+    s->held.push_back(std::move(work));
+  else
+    work();
+  return s;
+}
+
 /// Does the work `s` holds, in order.
 void run_held(Stream* s) {
   while (!s->held.empty()) {
@@ -692,8 +703,6 @@ CUresult vm_attribute(int* value, CUdevice_attribute attribute, CUdevice device)
   return CUDA_SUCCESS;
 }
 
-}  // namespace
-
 // ---- kernels -----------------------------------------------------------------------------------
 
 /// Whether a GPU takes the launch configuration (else the launch's error is recorded, at the
@@ -708,8 +717,9 @@ bool launchable(dim3 grid, dim3 block) {
   return true;
 }
 
+/// Runs `thread` for every thread of a grid of `grid` blocks of `block` threads (a configuration
+/// launchable), with the built-in indices set; returns when all have finished.
 void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
-  if (!launchable(grid, block)) return;
   if (running != nullptr) die("a kernel launched from a kernel");
   copy_queue().run_uploads();
   const int64_t blocks = int64_t{grid.x} * grid.y * grid.z;
@@ -735,6 +745,8 @@ void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread) {
   }
 }
 
+}  // namespace
+
 void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()> thread) {
   if (stream != nullptr) {
     if (Graph* g = reinterpret_cast<Stream*>(stream)->capture) {
@@ -742,12 +754,8 @@ void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()>
       return;
     }
   }
-  if (Stream* s = holding(stream)) {
-    if (!launchable(grid, block)) return;
-    s->held.push_back([grid, block, thread = std::move(thread)] { run_grid(grid, block, thread); });
-    return;
-  }
-  run_grid(grid, block, thread);
+  if (!launchable(grid, block)) return;
+  give(stream, [grid, block, thread = std::move(thread)] { run_grid(grid, block, thread); });
 }
 
 unsigned lane() {
@@ -991,11 +999,8 @@ cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes, cudaM
       std::memcpy(dst, src, bytes);
     }
   };
-  // Held back with the stream's work: the copy reads its source when the stream gets to it.
-  if (e::Stream* s = e::holding(stream))
-    s->held.push_back(copy);
-  else
-    copy();
+  // Held back with the stream's work, the copy reads its source when the stream gets to it.
+  e::give(stream, copy);
   return cudaSuccess;
 }
 cudaError_t cudaMemset(void* ptr, int value, std::size_t bytes) {
@@ -1005,10 +1010,7 @@ cudaError_t cudaMemsetAsync(void* ptr, int value, std::size_t bytes, cudaStream_
   if (bytes == 0) return cudaSuccess;
   if (!e::device_memory().holds(ptr, bytes))
     e::die("cudaMemset of %zu bytes at %p, outside device memory", bytes, ptr);
-  if (e::Stream* s = e::holding(stream))
-    s->held.push_back([=] { e::clear_now(ptr, value, bytes); });
-  else
-    e::clear_now(ptr, value, bytes);
+  e::give(stream, [=] { e::clear_now(ptr, value, bytes); });
   return cudaSuccess;
 }
 
@@ -1095,11 +1097,7 @@ cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t stream) {
     ev->at = std::chrono::steady_clock::now();
     ev->mark = e::copy_queue().mark();
   };
-  ev->holder = e::holding(stream);
-  if (ev->holder != nullptr)
-    ev->holder->held.push_back(mark);
-  else
-    mark();
+  ev->holder = e::give(stream, mark);
   return cudaSuccess;
 }
 cudaError_t cudaEventSynchronize(cudaEvent_t event) {

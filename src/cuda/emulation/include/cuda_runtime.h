@@ -35,12 +35,12 @@ extern thread_local uint3 gridDim;
 
 namespace hivox::cuda::emulation {
 
-/// Runs `thread` for every thread of a grid of `grid` blocks of `block` threads, with the
-/// built-in indices set; returns when all have finished. A configuration a GPU refuses (no
-/// blocks, more than 1024 threads a block) sets the last error instead, as a launch would.
-void run_grid(dim3 grid, dim3 block, const std::function<void()>& thread);
-/// run_grid on `stream`: now, or recorded into the stream's graph while it captures (`thread`
-/// then holds the kernel's arguments by value).
+/// Runs `thread` for every thread of a grid of `grid` blocks of `block` threads on `stream`, with
+/// the built-in indices set: now (returning when all have finished), held back with the stream's
+/// work (HIVOX_EMULATION_STREAMS), or recorded into the stream's graph while it captures
+/// (`thread` holds the kernel's arguments by value). A configuration a GPU refuses (no blocks,
+/// more than 1024 threads a block) sets the last error instead, as a launch would (a captured
+/// launch's when the graph is launched).
 void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()> thread);
 
 enum class WarpOp : uint8_t { Shuffle, ShuffleDown, ShuffleXor, Ballot };
