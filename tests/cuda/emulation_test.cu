@@ -370,55 +370,74 @@ struct LaunchesOnStream {
   LaunchesOnStream& operator=(const LaunchesOnStream&) = delete;
 };
 
+/// A device int, a stream of the program's own beside the default stream, an event, and the two
+/// ways to read the int back: a blocking copy (waits for the default stream) and a pageable copy
+/// on the side stream (waits for that stream alone).
+struct SideStream {
+  int* dev = device_array<int>(2);
+  cudaStream_t side = nullptr;
+  cudaEvent_t done = nullptr;
+  SideStream() {
+    EXPECT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
+    EXPECT_EQ(cudaEventCreate(&done), cudaSuccess);
+  }
+  ~SideStream() {
+    cudaEventDestroy(done);
+    EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
+    cudaFree(dev);
+  }
+  SideStream(const SideStream&) = delete;
+  SideStream& operator=(const SideStream&) = delete;
+  int read() const {
+    int v = 0;
+    EXPECT_EQ(cudaMemcpy(&v, dev, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
+    return v;
+  }
+  int read_beside() const {
+    int v = 0;
+    EXPECT_EQ(cudaMemcpyAsync(&v, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
+    return v;
+  }
+};
+
 /// HIVOX_EMULATION_STREAMS=late: what a stream of the program's own is given (kernels, clears,
 /// copies, event marks) waits until something waits for it, as a GPU may leave it; the default
 /// stream's work runs when it is given. Early (the default), it runs at once.
 TEST(CudaEmulation, LateStreamsHoldTheirWorkUntilWaitedFor) {
-  int* dev = device_array<int>(2);
+  const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
+  SideStream s;
   int* host = nullptr;
   ASSERT_EQ(cudaMallocHost(reinterpret_cast<void**>(&host), sizeof(int)), cudaSuccess);
-  cudaStream_t side = nullptr;
-  ASSERT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
-  cudaEvent_t done = nullptr;
-  ASSERT_EQ(cudaEventCreate(&done), cudaSuccess);
-  const auto read = [&] {
-    int v = 0;
-    EXPECT_EQ(cudaMemcpy(&v, dev, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
-    return v;
-  };
-  launch(store, 1, 1, dev, 1);
+  launch(store, 1, 1, s.dev, 1);
   {
     const ScopedEnv late("HIVOX_EMULATION_STREAMS", "late");
     // A kernel and a mark on the side stream: held until the default stream waits for the mark.
-    const LaunchesOnStream on(side);
-    launch(store, 1, 1, dev, 2);
-    ASSERT_EQ(cudaEventRecord(done, side), cudaSuccess);
-    EXPECT_EQ(read(), 1) << "a blocking copy waits for the default stream alone";
-    ASSERT_EQ(cudaStreamWaitEvent(nullptr, done), cudaSuccess);
-    EXPECT_EQ(read(), 2);
+    const LaunchesOnStream on(s.side);
+    launch(store, 1, 1, s.dev, 2);
+    ASSERT_EQ(cudaEventRecord(s.done, s.side), cudaSuccess);
+    EXPECT_EQ(s.read(), 1) << "a blocking copy waits for the default stream alone";
+    ASSERT_EQ(cudaStreamWaitEvent(nullptr, s.done), cudaSuccess);
+    EXPECT_EQ(s.read(), 2);
     // A clear and a download: held until the stream is synchronised.
-    ASSERT_EQ(cudaMemsetAsync(dev, 0, sizeof(int), side), cudaSuccess);
-    ASSERT_EQ(cudaMemcpyAsync(host, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
-    EXPECT_EQ(read(), 2);
-    ASSERT_EQ(cudaStreamSynchronize(side), cudaSuccess);
-    EXPECT_EQ(read(), 0);
+    ASSERT_EQ(cudaMemsetAsync(s.dev, 0, sizeof(int), s.side), cudaSuccess);
+    ASSERT_EQ(cudaMemcpyAsync(host, s.dev, sizeof(int), cudaMemcpyDeviceToHost, s.side),
+              cudaSuccess);
+    EXPECT_EQ(s.read(), 2);
+    ASSERT_EQ(cudaStreamSynchronize(s.side), cudaSuccess);
+    EXPECT_EQ(s.read(), 0);
     EXPECT_EQ(host[0], 0);
     // The device's synchronisation runs what every stream holds.
-    launch(store, 1, 1, dev, 3);
-    EXPECT_EQ(read(), 0);
+    launch(store, 1, 1, s.dev, 3);
+    EXPECT_EQ(s.read(), 0);
     ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
-    EXPECT_EQ(read(), 3);
+    EXPECT_EQ(s.read(), 3);
   }
   {
-    const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
-    const LaunchesOnStream on(side);
-    launch(store, 1, 1, dev, 4);
-    EXPECT_EQ(read(), 4);
+    const LaunchesOnStream on(s.side);
+    launch(store, 1, 1, s.dev, 4);
+    EXPECT_EQ(s.read(), 4);
   }
-  cudaEventDestroy(done);
-  EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
   EXPECT_EQ(cudaFreeHost(host), cudaSuccess);
-  cudaFree(dev);
 }
 
 /// HIVOX_EMULATION_STREAMS=default-late: the default stream's work (kernels, clears, copies,
@@ -426,61 +445,41 @@ TEST(CudaEmulation, LateStreamsHoldTheirWorkUntilWaitedFor) {
 /// what it is given at once: a stream that reads the default stream's results, or writes what
 /// its work reads, without waiting for it shows.
 TEST(CudaEmulation, TheDefaultStreamsWorkCanComeLate) {
-  int* dev = device_array<int>(2);
-  cudaStream_t side = nullptr;
-  ASSERT_EQ(cudaStreamCreateWithFlags(&side, cudaStreamNonBlocking), cudaSuccess);
-  cudaEvent_t done = nullptr;
-  ASSERT_EQ(cudaEventCreate(&done), cudaSuccess);
-  // A blocking read on the side stream (pageable host memory: done when the call returns).
-  const auto read_beside = [&] {
-    int v = 0;
-    EXPECT_EQ(cudaMemcpyAsync(&v, dev, sizeof(int), cudaMemcpyDeviceToHost, side), cudaSuccess);
-    return v;
-  };
-  const auto read = [&] {
-    int v = 0;
-    EXPECT_EQ(cudaMemcpy(&v, dev, sizeof(int), cudaMemcpyDeviceToHost), cudaSuccess);
-    return v;
-  };
-  std::optional<ScopedEnv> streams;
-  streams.emplace("HIVOX_EMULATION_STREAMS", nullptr);
-  launch(store, 1, 1, dev, 7);
-  streams.reset();
-  streams.emplace("HIVOX_EMULATION_STREAMS", "default-late");
-  launch(store, 1, 1, dev, 1);
-  EXPECT_EQ(read_beside(), 7) << "a stream of its own does not wait for the default stream";
-  ASSERT_EQ(cudaEventRecord(done, nullptr), cudaSuccess);
-  ASSERT_EQ(cudaStreamWaitEvent(side, done), cudaSuccess);
-  EXPECT_EQ(read_beside(), 1);
+  const ScopedEnv early("HIVOX_EMULATION_STREAMS", nullptr);
+  SideStream s;
+  launch(store, 1, 1, s.dev, 7);
+  const ScopedEnv late("HIVOX_EMULATION_STREAMS", "default-late");
+  launch(store, 1, 1, s.dev, 1);
+  EXPECT_EQ(s.read_beside(), 7) << "a stream of its own does not wait for the default stream";
+  ASSERT_EQ(cudaEventRecord(s.done, nullptr), cudaSuccess);
+  ASSERT_EQ(cudaStreamWaitEvent(s.side, s.done), cudaSuccess);
+  EXPECT_EQ(s.read_beside(), 1);
   // A stream of its own writes at once, under the default stream's work held back.
-  launch(store, 1, 1, dev, 2);
+  launch(store, 1, 1, s.dev, 2);
   {
-    const LaunchesOnStream on(side);
-    launch(store, 1, 1, dev, 3);
+    const LaunchesOnStream on(s.side);
+    launch(store, 1, 1, s.dev, 3);
   }
-  EXPECT_EQ(read_beside(), 3);
-  EXPECT_EQ(read(), 2) << "a blocking copy waits for the default stream's work";
+  EXPECT_EQ(s.read_beside(), 3);
+  EXPECT_EQ(s.read(), 2) << "a blocking copy waits for the default stream's work";
   // A clear, and the synchronisations of the default stream, of an event on it, of the device.
-  ASSERT_EQ(cudaMemset(dev, 0, sizeof(int)), cudaSuccess);
-  EXPECT_EQ(read_beside(), 2);
+  ASSERT_EQ(cudaMemset(s.dev, 0, sizeof(int)), cudaSuccess);
+  EXPECT_EQ(s.read_beside(), 2);
   ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
-  EXPECT_EQ(read_beside(), 0);
-  launch(store, 1, 1, dev, 4);
-  ASSERT_EQ(cudaEventRecord(done, nullptr), cudaSuccess);
-  EXPECT_EQ(read_beside(), 0);
-  ASSERT_EQ(cudaEventSynchronize(done), cudaSuccess);
-  EXPECT_EQ(read_beside(), 4);
-  launch(store, 1, 1, dev, 5);
+  EXPECT_EQ(s.read_beside(), 0);
+  launch(store, 1, 1, s.dev, 4);
+  ASSERT_EQ(cudaEventRecord(s.done, nullptr), cudaSuccess);
+  EXPECT_EQ(s.read_beside(), 0);
+  ASSERT_EQ(cudaEventSynchronize(s.done), cudaSuccess);
+  EXPECT_EQ(s.read_beside(), 4);
+  launch(store, 1, 1, s.dev, 5);
   ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
-  EXPECT_EQ(read_beside(), 5);
+  EXPECT_EQ(s.read_beside(), 5);
   // A configuration a GPU refuses fails at its launch, though the kernel would come late.
-  launch(store, 0, 1, dev, 6);
+  launch(store, 0, 1, s.dev, 6);
   EXPECT_EQ(cudaGetLastError(), cudaErrorInvalidConfiguration);
   ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
-  EXPECT_EQ(read_beside(), 5);
-  cudaEventDestroy(done);
-  EXPECT_EQ(cudaStreamDestroy(side), cudaSuccess);
-  cudaFree(dev);
+  EXPECT_EQ(s.read_beside(), 5);
 }
 
 /// The emulated driver function `name`, as the loop fetches it (src/cuda/device_memory.cpp).
