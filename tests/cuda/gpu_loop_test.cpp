@@ -649,26 +649,19 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
     beside.set_upload_beside_raycast(true);
     // One run after the other: a run's waits for the device in between the other's frames
     // would end the other's raycast before its next upload, and hide the overlap.
-    struct Step {
-      FrameStats stats;
-      Pose T_wc;
-    };
-    const auto run = [&](cuda::GpuReconstruction& gpu) {
-      std::vector<Step> steps;
-      for (std::size_t i = 0; i < frames; ++i)
-        steps.push_back(
-            {gpu.track_and_integrate(data.read(i), first), gpu.trajectory().back().T_wc});
+    for (cuda::GpuReconstruction* gpu : {&plain, &beside}) {
+      for (std::size_t i = 0; i < frames; ++i) gpu->track_and_integrate(data.read(i), first);
       const RgbdFrame last = data.read(frames);
-      gpu.integrate(last, *last.T_wc_gt);
-      return steps;
-    };
-    const std::vector<Step> a = run(plain), b = run(beside);
+      gpu->integrate(last, *last.T_wc_gt);
+    }
     for (std::size_t i = 0; i < frames; ++i) {
-      EXPECT_TRUE(b[i].stats.fused) << "frame " << i;
-      EXPECT_EQ(a[i].stats.valid_pixels, b[i].stats.valid_pixels) << "frame " << i;
-      EXPECT_EQ(a[i].stats.track_iterations, b[i].stats.track_iterations) << "frame " << i;
-      EXPECT_EQ(a[i].stats.splits, b[i].stats.splits) << "frame " << i;
-      EXPECT_TRUE(a[i].T_wc.matrix() == b[i].T_wc.matrix()) << "frame " << i;
+      const FrameStats &a = plain.frames()[i], &b = beside.frames()[i];
+      EXPECT_TRUE(b.fused) << "frame " << i;
+      EXPECT_EQ(a.valid_pixels, b.valid_pixels) << "frame " << i;
+      EXPECT_EQ(a.track_iterations, b.track_iterations) << "frame " << i;
+      EXPECT_EQ(a.splits, b.splits) << "frame " << i;
+      EXPECT_TRUE(plain.trajectory()[i].T_wc.matrix() == beside.trajectory()[i].T_wc.matrix())
+          << "frame " << i;
     }
     write_map_file(dir.path() / "plain.hvx", *plain.download_map(), p.fusion, MapSession{});
     write_map_file(dir.path() / "beside.hvx", *beside.download_map(), p.fusion, MapSession{});
@@ -1105,9 +1098,7 @@ TEST(GpuLoop, AReconstructionAndARunOnTheDevice) {
       EXPECT_LE(bytes_to_host() - before,
                 raycast_bytes(static_cast<int64_t>(render.depth_m.size())) + 4096);
     }
-    int64_t hits = 0;
-    for (std::size_t i = 0; i < render.depth_m.size(); ++i) hits += render.depth_m.data()[i] > 0;
-    EXPECT_GT(hits, 200000);
+    EXPECT_GT(hit_count(render), 200000);
     Raycaster raycaster(p.raycast);
     expect_same_raycast(raycaster.raycast(gpu->map(), rig.depth_camera, T_wc, p.fusion.depth_range),
                         render);
