@@ -102,6 +102,11 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   int64_t by_outcome[4] = {}, lookups_by_outcome[4] = {}, lookups = 0;
   double ns_by_outcome[4] = {};
   int64_t hits_by_level[kMaxLevels] = {};
+  // Rays that sampled a cell across levels (a corner at another level), [1] below, and the
+  // others [0]: their count found at their hint and its time; the warps that hold one.
+  int64_t cross = 0, irregular_rays = 0, cells = 0, irregular = 0, at_hint[2] = {};
+  double at_hint_ns[2] = {};
+  std::vector<char> warp_cross(warp_max.size(), 0);
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       const int i = y * cam.width + x;
@@ -119,6 +124,16 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
         warp_max[w] = r.ns;
         warp_slowest[w] = i;
       }
+      const bool c = r.cross_level > 0;
+      cross += c;
+      irregular_rays += r.irregular > 0;
+      cells += r.cross_level;
+      irregular += r.irregular;
+      if (r.outcome == kernels::RayOutcome::AtHint) {
+        ++at_hint[c];
+        at_hint_ns[c] += r.ns;
+      }
+      warp_cross[w] |= c;
     }
   const double simt = std::accumulate(warp_max.begin(), warp_max.end(), 0.0);
   std::vector<std::size_t> order(warp_max.size());
@@ -151,46 +166,27 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   std::printf("); warps' most: %.2f a warp\n",
               ratio(std::accumulate(warp_lookups.begin(), warp_lookups.end(), int64_t{0}),
                     static_cast<int64_t>(warp_lookups.size())));
-  // Rays that sampled a cell across levels (a corner at another level): how many, what they
-  // cost against the others found at their hint, and the warps that hold one.
-  {
-    int64_t cross = 0, irregular_rays = 0, cells = 0, irregular = 0, at_hint[2] = {};
-    double at_hint_ns[2] = {};
-    std::vector<char> warp_cross(warp_max.size(), 0);
-    for (int i = 0; i < static_cast<int>(v.rays.size()); ++i) {
-      const Ray& r = v.rays[static_cast<std::size_t>(i)];
-      const bool c = r.cross_level > 0;
-      cross += c;
-      irregular_rays += r.irregular > 0;
-      cells += r.cross_level;
-      irregular += r.irregular;
-      if (r.outcome == kernels::RayOutcome::AtHint) {
-        ++at_hint[c];
-        at_hint_ns[c] += r.ns;
-      }
-      const int x = i % cam.width, y = i / cam.width;
-      warp_cross[static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth] |= c;
-    }
+  // What the rays across levels cost against the others, and the share of the warps' time in
+  // the warps that hold one.
+  if (cross > 0) {
     double warp_ns[2] = {};
     int64_t warps[2] = {};
     for (std::size_t w = 0; w < warp_max.size(); ++w) {
       ++warps[warp_cross[w]];
       warp_ns[warp_cross[w]] += warp_max[w];
     }
-    if (cross > 0)
-      std::printf(
-          "  across levels: %lld rays (%.1f %%) sampled %lld cells across levels (%lld rays, %lld "
-          "cells irregular); found at their hint %.0f ns with such cells, %.0f ns without; warps "
-          "holding such a ray %lld (%.1f %%), %.2f us each, the others %.2f us (%.0f %% of the "
-          "warps' "
-          "time)\n",
-          static_cast<long long>(cross), 100.0 * ratio(cross, static_cast<int64_t>(v.rays.size())),
-          static_cast<long long>(cells), static_cast<long long>(irregular_rays),
-          static_cast<long long>(irregular), at_hint[1] > 0 ? at_hint_ns[1] / at_hint[1] : 0.0,
-          at_hint[0] > 0 ? at_hint_ns[0] / at_hint[0] : 0.0, static_cast<long long>(warps[1]),
-          100.0 * ratio(warps[1], warps[0] + warps[1]),
-          warps[1] > 0 ? warp_ns[1] / warps[1] / 1e3 : 0.0,
-          warps[0] > 0 ? warp_ns[0] / warps[0] / 1e3 : 0.0, 100.0 * warp_ns[1] / simt);
+    const auto mean = [](double sum, int64_t n) { return n > 0 ? sum / n : 0.0; };
+    std::printf(
+        "  across levels: %lld rays (%.1f %%) sampled %lld cells across levels (%lld rays, %lld "
+        "cells irregular); found at their hint %.0f ns with such cells, %.0f ns without; warps "
+        "holding such a ray %lld (%.1f %%), %.2f us each, the others %.2f us (%.0f %% of the "
+        "warps' time)\n",
+        static_cast<long long>(cross), 100.0 * ratio(cross, static_cast<int64_t>(v.rays.size())),
+        static_cast<long long>(cells), static_cast<long long>(irregular_rays),
+        static_cast<long long>(irregular), mean(at_hint_ns[1], at_hint[1]),
+        mean(at_hint_ns[0], at_hint[0]), static_cast<long long>(warps[1]),
+        100.0 * ratio(warps[1], warps[0] + warps[1]), mean(warp_ns[1], warps[1]) / 1e3,
+        mean(warp_ns[0], warps[0]) / 1e3, 100.0 * warp_ns[1] / simt);
   }
   std::printf("  hits by level:");
   for (int l = 0; l < kMaxLevels; ++l)
