@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <numeric>
@@ -37,6 +38,7 @@
 #include "fusion/fusion_kernels.h"
 #include "hivox/core/error.h"
 #include "hivox/io/dataset.h"
+#include "hivox/map/hierarchy_edit.h"
 #include "hivox/pipeline/reconstruction.h"
 #include "hivox/raycast/hints.h"
 #include "hivox/raycast/raycaster.h"
@@ -104,9 +106,10 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
   int64_t hits_by_level[kMaxLevels] = {};
   // Rays that sampled a cell across levels (a corner at another level), [1] below, and the
   // others [0]: their count found at their hint and its time; the warps that hold one.
-  int64_t cross = 0, irregular_rays = 0, cells = 0, irregular = 0, at_hint[2] = {};
+  int64_t cross = 0, irregular_rays = 0, cells = 0, irregular = 0, at_hint[2] = {},
+          at_hint_lookups[2] = {};
   double at_hint_ns[2] = {};
-  std::vector<char> warp_cross(warp_max.size(), 0);
+  std::vector<uint8_t> warp_cross(warp_max.size(), 0);
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       const int i = y * cam.width + x;
@@ -132,6 +135,7 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       if (r.outcome == kernels::RayOutcome::AtHint) {
         ++at_hint[c];
         at_hint_ns[c] += r.ns;
+        at_hint_lookups[c] += r.lookups;
       }
       warp_cross[w] |= c;
     }
@@ -178,13 +182,15 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
     const auto mean = [](double sum, int64_t n) { return n > 0 ? sum / n : 0.0; };
     std::printf(
         "  across levels: %lld rays (%.1f %%) sampled %lld cells across levels (%lld rays, %lld "
-        "cells irregular); found at their hint %.0f ns with such cells, %.0f ns without; warps "
+        "cells irregular); found at their hint %.0f ns (%.2f look-ups) with such cells, %.0f ns "
+        "(%.2f) without; warps "
         "holding such a ray %lld (%.1f %%), %.2f us each, the others %.2f us (%.0f %% of the "
         "warps' time)\n",
         static_cast<long long>(cross), 100.0 * ratio(cross, static_cast<int64_t>(v.rays.size())),
         static_cast<long long>(cells), static_cast<long long>(irregular_rays),
         static_cast<long long>(irregular), mean(at_hint_ns[1], at_hint[1]),
-        mean(at_hint_ns[0], at_hint[0]), static_cast<long long>(warps[1]),
+        ratio(at_hint_lookups[1], at_hint[1]), mean(at_hint_ns[0], at_hint[0]),
+        ratio(at_hint_lookups[0], at_hint[0]), static_cast<long long>(warps[1]),
         100.0 * ratio(warps[1], warps[0] + warps[1]), mean(warp_ns[1], warps[1]) / 1e3,
         mean(warp_ns[0], warps[0]) / 1e3, 100.0 * warp_ns[1] / simt);
   }
@@ -224,6 +230,56 @@ struct WalkCounter {
     return s.ptr;
   }
 };
+
+/// The map's level boundaries: faces between leaf blocks stored at different levels (counted
+/// once, from the finer side, in m^2), and the split parents with no split block among their 26
+/// neighbours at their level (an island of finer blocks, with a boundary all round).
+void report_levels(const VoxelBlockMap& map) {
+  const MapView view = map.view();
+  const std::vector<BlockRef> leaves = map.allocated_blocks();
+  std::vector<double> boundary_m2(static_cast<std::size_t>(view.levels), 0.0);
+  std::vector<BlockKey> parents;
+  for (const BlockRef& b : leaves) {
+    if (b.level + 1 < view.levels) parents.push_back({parent_block_pos(b.pos), b.level + 1});
+    const double face = static_cast<double>(view.level[b.level].block_size_m);
+    for (int axis = 0; axis < 3; ++axis)
+      for (int side : {-1, 1}) {
+        Vec3i n = b.pos;
+        n[axis] += side;
+        if (find_block_ptr(view.level[b.level], n) != kPtrEmpty) continue;  // same level, finer
+        for (int l = b.level + 1; l < view.levels; ++l) {
+          n = parent_block_pos(n);
+          const int32_t ptr = find_block_ptr(view.level[l], n);
+          if (ptr >= 0) boundary_m2[static_cast<std::size_t>(b.level)] += face * face;
+          if (ptr != kPtrSplit) break;  // a coarser leaf, or nothing stored there
+        }
+      }
+  }
+  std::sort(parents.begin(), parents.end());
+  parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
+  std::vector<int64_t> split(static_cast<std::size_t>(view.levels), 0),
+      isolated(static_cast<std::size_t>(view.levels), 0);
+  for (const BlockKey& p : parents) {
+    ++split[static_cast<std::size_t>(p.level)];
+    int neighbours = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          neighbours += (dx | dy | dz) != 0 &&
+                        find_block_ptr(view.level[p.level], p.pos + Vec3i{dx, dy, dz}) == kPtrSplit;
+    isolated[static_cast<std::size_t>(p.level)] += neighbours == 0;
+  }
+  const std::vector<int64_t> per_level = map.blocks_per_level();
+  for (int l = 0; l < view.levels; ++l) {
+    std::printf("level %d: %lld blocks", l, static_cast<long long>(per_level[l]));
+    if (l + 1 < view.levels)
+      std::printf(", %.3f m^2 of faces against a coarser level", boundary_m2[l]);
+    if (l > 0)
+      std::printf(", %lld split (%lld with no split neighbour)", static_cast<long long>(split[l]),
+                  static_cast<long long>(isolated[l]));
+    std::printf("\n");
+  }
+}
 
 /// The look-ups of frame `f`'s allocation walk over `map` at its true pose, a valid pixel, with
 /// threads of 1, 2x1 and 2x2 pixels (GpuReconstruction::set_allocation_pixels).
@@ -310,6 +366,7 @@ int main(int argc, char** argv) {
     const MapView view = map.view();
     std::printf("%s, frame %d: %lld blocks, %d levels; model raycast %dx%d\n", spec.c_str(), at,
                 static_cast<long long>(map.blocks_in_use()), map.levels(), cam.width, cam.height);
+    report_levels(map);
     report_walk(view, f, rig, p);
 
     // Range tiles as the device fills them.

@@ -97,16 +97,39 @@ HIVOX_HD inline int32_t locate_block(const MapView& map, BlockLookupCache& cache
   return ptr == kPtrSplit ? kPtrEmpty : ptr;
 }
 
-/// Irregular-grid interpolation (paper §V): the function of the trilinear form
-/// F = a1 XYZ + a2 XY + a3 YZ + a4 XZ + a5 X + a6 Y + a7 Z + a8 through 8 samples at arbitrary
-/// positions `pos` (in voxel units of the cell's level), evaluated at `p`, with its gradient.
-/// Sample 0 is moved to the origin, which gives a8 = F0 and leaves a 7x7 system, solved by
-/// Gaussian elimination with partial pivoting. Returns false (and leaves the outputs untouched)
-/// when the positions are degenerate (a pivot below 1e-6): the caller falls back.
-HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool interpolate_irregular(const Vec3f pos[8],
-                                                                 const float value[8],
-                                                                 const Vec3f& p, float* f,
-                                                                 Vec3f* gradient) {
+/// The function of the trilinear form through 8 samples at arbitrary positions (paper §V):
+/// F(Q) = a[0] XYZ + a[1] XY + a[2] YZ + a[3] XZ + a[4] X + a[5] Y + a[6] Z + a[7], with
+/// (X, Y, Z) = Q the offset from sample 0's position (voxel units of the cell's level).
+struct IrregularInterpolant {
+  Vec3f origin;  ///< sample 0's position
+  float a[8];
+  /// F at offset `q` from `origin`, with its gradient.
+  HIVOX_HD float at(const Vec3f& q, Vec3f* gradient) const {
+    gradient->x = a[0] * q.y * q.z + a[1] * q.y + a[3] * q.z + a[4];
+    gradient->y = a[0] * q.x * q.z + a[1] * q.x + a[2] * q.z + a[5];
+    gradient->z = a[0] * q.x * q.y + a[2] * q.y + a[3] * q.x + a[6];
+    return a[0] * q.x * q.y * q.z + a[1] * q.x * q.y + a[2] * q.y * q.z + a[3] * q.x * q.z +
+           a[4] * q.x + a[5] * q.y + a[6] * q.z + a[7];
+  }
+  /// F along the ray through offset `q` with direction `d`: F(q + s d) = p[0] + s (p[1] +
+  /// s (p[2] + s p[3])).
+  HIVOX_HD void along_ray(const Vec3f& q, const Vec3f& d, float p[4]) const {
+    Vec3f g;
+    p[0] = at(q, &g);
+    p[1] = g.x * d.x + g.y * d.y + g.z * d.z;
+    p[2] = a[0] * (q.x * d.y * d.z + q.y * d.x * d.z + q.z * d.x * d.y) + a[1] * d.x * d.y +
+           a[2] * d.y * d.z + a[3] * d.x * d.z;
+    p[3] = a[0] * d.x * d.y * d.z;
+  }
+};
+
+/// Irregular-grid interpolation (paper §V): the function of the trilinear form through 8 samples
+/// `value` at positions `pos` (IrregularInterpolant). Sample 0 is moved to the origin, which gives
+/// a[7] = F0 and leaves a 7x7 system, solved by Gaussian elimination with partial pivoting.
+/// Returns false (and leaves `out` untouched) when the positions are degenerate (a pivot below
+/// 1e-6): the caller falls back.
+HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool solve_irregular(const Vec3f pos[8], const float value[8],
+                                                           IrregularInterpolant* out) {
   float a[7][8];  // augmented rows: 7 coefficients (a1..a7) and the right-hand side
   for (int i = 0; i < 7; ++i) {
     const Vec3f q = pos[i + 1] - pos[0];
@@ -135,18 +158,23 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool interpolate_irregular(const Vec3f pos
       for (int k = c; k < 8; ++k) a[r][k] -= m * a[c][k];
     }
   }
-  float x[7];
   for (int r = 6; r >= 0; --r) {
     float s = a[r][7];
-    for (int k = r + 1; k < 7; ++k) s -= a[r][k] * x[k];
-    x[r] = s / a[r][r];
+    for (int k = r + 1; k < 7; ++k) s -= a[r][k] * out->a[k];
+    out->a[r] = s / a[r][r];
   }
-  const Vec3f q = p - pos[0];
-  *f = x[0] * q.x * q.y * q.z + x[1] * q.x * q.y + x[2] * q.y * q.z + x[3] * q.x * q.z +
-       x[4] * q.x + x[5] * q.y + x[6] * q.z + value[0];
-  gradient->x = x[0] * q.y * q.z + x[1] * q.y + x[3] * q.z + x[4];
-  gradient->y = x[0] * q.x * q.z + x[1] * q.x + x[2] * q.z + x[5];
-  gradient->z = x[0] * q.x * q.y + x[2] * q.y + x[3] * q.x + x[6];
+  out->a[7] = value[0];
+  out->origin = pos[0];
+  return true;
+}
+
+/// The irregular interpolant through samples `value` at `pos` (solve_irregular) evaluated at `p`,
+/// with its gradient; false when the positions are degenerate.
+HIVOX_HD inline bool interpolate_irregular(const Vec3f pos[8], const float value[8], const Vec3f& p,
+                                           float* f, Vec3f* gradient) {
+  IrregularInterpolant in;
+  if (!solve_irregular(pos, value, &in)) return false;
+  *f = in.at(p - in.origin, gradient);
   return true;
 }
 
@@ -164,34 +192,16 @@ HIVOX_HD inline float interpolate_trilinear(const float v[8], const Vec3f& t, Ve
   return y0 + (y1 - y0) * t.z;
 }
 
-/// Where a ray crosses the surface from its front (the interpolant going from positive to
-/// non-positive) inside one trilinear cell of values `v`. The ray passes fractional position `t`
-/// with direction `dv` (cell units per unit of ray parameter; `inv_dv` its reciprocal per axis,
-/// any value of the right sign beyond 1e20 where a component is 0). It looks on the side of `t`
-/// the sign of the interpolant there calls for (ahead of a positive value, behind a
-/// non-positive one) as far as the ray stays in the cell. Along a ray the interpolant is a cubic
-/// in the ray parameter; its root in that bracket is found by false position with the Illinois
-/// rule (7 steps, then a secant), which is exact for the linear TSDF of a plane and within
-/// ~0.005 voxel even for cubics far more curved than a TSDF's. Returns false when that part of the
-/// ray has no sign change; otherwise the root's offset from `t` in ray parameter goes to `dz` and
-/// its fractional position to `t_hit`. Without branches, so that the cells of a ray packet solve in
-/// one vectorized loop.
-HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& t, const Vec3f& dv,
-                                                 const Vec3f& inv_dv, float* dz, Vec3f* t_hit) {
-  // The interpolant as a polynomial in the cell's coordinates, then along the ray:
-  // F(t + s dv) = p0 + s (p1 + s (p2 + s p3)).
-  const float cx = v[1] - v[0], cy = v[2] - v[0], cz = v[4] - v[0];
-  const float cxy = v[3] - v[2] - cx, cxz = v[5] - v[4] - cx, cyz = v[6] - v[4] - cy;
-  const float cxyz = v[7] - v[6] - v[5] + v[4] - v[3] + v[2] + cx;
-  const float fxy = cxy + cxyz * t.z, fxz = cxz + cxyz * t.y, fyz = cyz + cxyz * t.x;
-  const float fx = cx + cxy * t.y + cxz * t.z + cxyz * t.y * t.z;
-  const float fy = cy + cxy * t.x + cyz * t.z + cxyz * t.x * t.z;
-  const float fz = cz + cxz * t.x + cyz * t.y + cxyz * t.x * t.y;
-  const float p0 = v[0] + cx * t.x + cy * t.y + cz * t.z + cxy * t.x * t.y + cxz * t.x * t.z +
-                   cyz * t.y * t.z + cxyz * t.x * t.y * t.z;
-  const float p1 = fx * dv.x + fy * dv.y + fz * dv.z;
-  const float p2 = fxy * dv.x * dv.y + fxz * dv.x * dv.z + fyz * dv.y * dv.z;
-  const float p3 = cxyz * dv.x * dv.y * dv.z;
+/// The root of F(s) = p0 + s (p1 + s (p2 + s p3)), a function of the trilinear form along a ray
+/// (crossing_in_cell), on the side of s = 0 the sign of p0 calls for (ahead of a positive value,
+/// behind a non-positive one) as far as the ray stays in the cell: the ray passes fractional
+/// position `t` of the cell with direction `dv` (`inv_dv` its reciprocal per axis, see
+/// crossing_in_cell). False position with the Illinois rule (7 steps, then a secant). Returns
+/// false when that part of the ray has no sign change; otherwise the root's offset in ray
+/// parameter goes to `dz` and its fractional position to `t_hit`. Without branches.
+HIVOX_HD HIVOX_FORCEINLINE bool crossing_on_ray(float p0, float p1, float p2, float p3,
+                                                const Vec3f& t, const Vec3f& dv,
+                                                const Vec3f& inv_dv, float* dz, Vec3f* t_hit) {
   auto value_at = [&](float s) { return p0 + s * (p1 + s * (p2 + s * p3)); };
   // The ray's segment inside the cell, [s_in, s_out] around t (s_in <= 0 <= s_out).
   float s_in = -FLT_MAX, s_out = FLT_MAX;
@@ -232,6 +242,32 @@ HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& 
   *t_hit = Vec3f{clampf(t.x + dv.x * s, 0.0f, 1.0f), clampf(t.y + dv.y * s, 0.0f, 1.0f),
                  clampf(t.z + dv.z * s, 0.0f, 1.0f)};
   return found;
+}
+
+/// Where a ray crosses the surface from its front (the interpolant going from positive to
+/// non-positive) inside one trilinear cell of values `v`. The ray passes fractional position `t`
+/// with direction `dv` (cell units per unit of ray parameter; `inv_dv` its reciprocal per axis,
+/// any value of the right sign beyond 1e20 where a component is 0). Along a ray the interpolant is
+/// a cubic in the ray parameter, whose root crossing_on_ray finds: exact for the linear TSDF of a
+/// plane and within ~0.005 voxel even for cubics far more curved than a TSDF's. Without branches,
+/// so that the cells of a ray packet solve in one vectorized loop.
+HIVOX_HD HIVOX_FORCEINLINE bool crossing_in_cell(const float v[8], const Vec3f& t, const Vec3f& dv,
+                                                 const Vec3f& inv_dv, float* dz, Vec3f* t_hit) {
+  // The interpolant as a polynomial in the cell's coordinates, then along the ray:
+  // F(t + s dv) = p0 + s (p1 + s (p2 + s p3)).
+  const float cx = v[1] - v[0], cy = v[2] - v[0], cz = v[4] - v[0];
+  const float cxy = v[3] - v[2] - cx, cxz = v[5] - v[4] - cx, cyz = v[6] - v[4] - cy;
+  const float cxyz = v[7] - v[6] - v[5] + v[4] - v[3] + v[2] + cx;
+  const float fxy = cxy + cxyz * t.z, fxz = cxz + cxyz * t.y, fyz = cyz + cxyz * t.x;
+  const float fx = cx + cxy * t.y + cxz * t.z + cxyz * t.y * t.z;
+  const float fy = cy + cxy * t.x + cyz * t.z + cxyz * t.x * t.z;
+  const float fz = cz + cxz * t.x + cyz * t.y + cxyz * t.x * t.y;
+  const float p0 = v[0] + cx * t.x + cy * t.y + cz * t.z + cxy * t.x * t.y + cxz * t.x * t.z +
+                   cyz * t.y * t.z + cxyz * t.x * t.y * t.z;
+  const float p1 = fx * dv.x + fy * dv.y + fz * dv.z;
+  const float p2 = fxy * dv.x * dv.y + fxz * dv.x * dv.z + fyz * dv.y * dv.z;
+  const float p3 = cxyz * dv.x * dv.y * dv.z;
+  return crossing_on_ray(p0, p1, p2, p3, t, dv, inv_dv, dz, t_hit);
 }
 
 /// Per axis 1 / d, and a value of the right sign beyond 1e20 where d is 0 (crossing_in_cell's
@@ -496,17 +532,15 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline CellRead read_trilinear(const MapView& map
 
 /// The general case of `sample_trilinear`: the 8 voxels of `cell` span several blocks, and some
 /// may be stored at another level. `neighbours` (optional) remembers the blocks around the cell's
-/// block between calls. `dv` (optional): as in sample_cell; only a cell whose voxels are all
-/// stored at `level` is searched for a crossing.
+/// block between calls. `dv` (optional): as in sample_cell, the ray's crossing inside the cell is
+/// looked for on the interpolant the cell takes (trilinear, or the irregular one across levels),
+/// so that a ray near a level boundary ends its search in one sample as elsewhere.
 HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     const MapView& map, BlockLookupCache& cache, int level, const CellCoords& cell, int min_weight,
     TsdfSample* out, NeighbourBlocks* neighbours = nullptr, const Vec3f* dv = nullptr) {
-  const Vec3f& q = cell.q;
   const Vec3i& base = cell.base;
   const Vec3f& t = cell.t;
   const Vec3i& local = cell.local;
-  float v[8];
-  const int nearest = nearest_corner(t);
   // The 8 voxels span 2, 4 or 8 blocks: look each distinct block up once.
   int32_t own[8];
   const int32_t* blocks = own;
@@ -521,8 +555,10 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
 #if !defined(__CUDA_ARCH__)
   ++cache.cross_level_cells;
 #endif
-  out->crossing_dz = kNoCrossing;
+  float v[8];
   Vec3f pos[8];
+  int32_t ptrs[8];
+  int index[8];
   bool regular = true;
   for (int c = 0; c < 8; ++c) {
     const int ox = c & 1, oy = (c >> 1) & 1, oz = c >> 2;
@@ -539,16 +575,34 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + i];
     if (vox.weight < min_weight) return false;
     v[c] = tsdf_to_float(vox.tsdf);
-    if (c == nearest) {
-      out->nearest_ptr = ptr;
-      out->nearest_index = i;
-    }
+    ptrs[c] = ptr;
+    index[c] = i;
   }
 #if !defined(__CUDA_ARCH__)
   cache.irregular_cells += !regular;
 #endif
-  if (!regular && interpolate_irregular(pos, v, q, &out->f, &out->gradient)) return true;
-  out->f = interpolate_trilinear(v, t, &out->gradient);
+  int nearest;  // the corner nearest to the point the sample describes
+  IrregularInterpolant in;
+  if (!regular && solve_irregular(pos, v, &in)) {
+    Vec3f q = cell.q - in.origin;
+    nearest = nearest_corner(t);
+    out->crossing_dz = kNoCrossing;
+    if (dv != nullptr) {
+      float p[4], dz;
+      Vec3f t_hit;
+      in.along_ray(q, *dv, p);
+      if (crossing_on_ray(p[0], p[1], p[2], p[3], t, *dv, inverse_direction(*dv), &dz, &t_hit)) {
+        out->crossing_dz = dz;
+        q = q + (t_hit - t);
+        nearest = nearest_corner(t_hit);
+      }
+    }
+    out->f = in.at(q, &out->gradient);
+  } else {
+    nearest = sample_cell(v, t, dv, out);  // a regular cell, or degenerate positions
+  }
+  out->nearest_ptr = ptrs[nearest];
+  out->nearest_index = index[nearest];
   return true;
 }
 
@@ -559,7 +613,7 @@ HIVOX_HD HIVOX_NOINLINE inline bool sample_trilinear_across_blocks(
 /// (trilinear on their values if the positions are degenerate). Fails (returns false) when a
 /// corner is not stored at any level or has fewer than `min_weight` observations: unknown space
 /// must never look like surface. Given the direction `ray_d` (metres per unit of ray parameter)
-/// of a ray through `p_w`, a trilinear cell also gives the ray's crossing inside it (see
+/// of a ray through `p_w`, the cell (of either kind) also gives the ray's crossing inside it (see
 /// TsdfSample::crossing_dz).
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_trilinear(
     const MapView& map, BlockLookupCache& cache, int level, const Vec3f& p_w, int min_weight,

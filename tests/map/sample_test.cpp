@@ -293,6 +293,48 @@ TEST(LatticeSampling, FineCellsReachingIntoACoarseRegionKeepALinearFieldExact) {
   EXPECT_LT(worst, 0.05) << "largest error, int16 TSDF units (F changes by 3-7 per voxel)";
 }
 
+TEST(LatticeSampling, ARayFindsItsCrossingInsideACellAcrossLevels) {
+  // The map of the test above, its linear field's plane F = 0 through the last fine cells before
+  // the coarse block (x in [15, 16), level-0 units). A ray sampled in such a cell, its corners
+  // partly coarse, finds where it crosses the plane inside the cell as a cell within one level
+  // does (TsdfSample::crossing_dz), on the cell's interpolant: the irregular one, which holds the
+  // linear field exactly, or the trilinear one where the coarse samples stand on the lattice. A
+  // ray's search near a level boundary then ends at its first sample, as elsewhere.
+  const auto map = lattice_map({{1, 0, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+  const MapView view = map->view();
+  auto cache = std::make_unique<kernels::BlockLookupCache>();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const Vec3f normal = normalized(Vec3f{3.0f, -5.0f, 7.0f});  // F's gradient
+  int checked = 0;
+  double worst = 0.0;
+  const int64_t irregular_before = cache->irregular_cells;
+  for (int i = 0; i < 2000; ++i) {
+    // A point of the plane in a cell x in [15, 16), and a ray through it from the plane's front.
+    const float x = 15.05f + 0.9f * u(rng), z = 3.2f * u(rng);
+    const Vec3f hit{x, (3.0f * x + 7.0f * z + 11.0f) / 5.0f, z};
+    Vec3f d = normalized(Vec3f{u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f});
+    if (dot(d, normal) > 0.0f) d = d * -1.0f;
+    if (dot(d, normal) > -0.2f) continue;  // not grazing
+    // Sampled a little before or after the crossing, in the same cell.
+    const float s0 = (u(rng) - 0.5f) * 0.6f;  // level-0 voxels along the ray
+    const Vec3f q = hit - d * s0;
+    if (!(floor_to_int(q) == floor_to_int(hit))) continue;
+    kernels::TsdfSample s;
+    const Vec3f ray_d = d;  // metres per unit of ray parameter: the ray in metres
+    ASSERT_TRUE(kernels::sample_trilinear(view, *cache, 0, q * 0.01f, 1, &s, Vec3i{INT_MIN, 0, 0},
+                                          kPtrEmpty, nullptr, &ray_d));
+    ASSERT_TRUE(s.at_crossing()) << "sampled " << s0 << " voxels before the crossing";
+    const Vec3f found = q + d * (s.crossing_dz / 0.01f);
+    worst = std::max(worst, static_cast<double>(norm(found - hit)));
+    EXPECT_NEAR(s.f, 0.0f, 0.05f / kTsdfScale);
+    ++checked;
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_GT(cache->irregular_cells - irregular_before, 100);
+  EXPECT_LT(worst, 0.01) << "level-0 voxels from the plane's crossing";
+}
+
 TEST(LatticeSampling, CoarseLatticePointsInASplitRegionReadTheFinerVoxel) {
   const auto map = split_lattice_map();
   const MapView view = map->view();
