@@ -566,10 +566,12 @@ TEST(GpuLoop, RefinesAsTheCpuDoes) {
 
 /// Refinement after the model raycast (ReconstructionParams::refine_after_raycast): the device
 /// refines on a stream of its own while the raycast runs, its passes that write the map waiting
-/// for the raycast's end. Tracked, against the CPU refining after its raycast too: the same
-/// poses, splits and merges and blocks per level within the bounds of the tests above, and the
-/// model the last frame leaves (raycast before its splits and merges; the frame count makes it
-/// a refining frame) as the CPU's.
+/// for the raycast's end. Tracked on the device, each frame fused by the CPU at the device's pose,
+/// refining after its raycast too: the same splits and merges and blocks per level within the
+/// bounds of the tests above, and the model the last frame leaves (raycast before its splits and
+/// merges; the frame count makes it a refining frame) as the CPU's. Two trackers would drift
+/// apart by rounding (TracksAsTheCpuDoes), a split decided at its threshold tipping one way on one
+/// and the other way on the other, and the two models' normals then differ over whole blocks.
 TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
@@ -582,30 +584,26 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
   const Pose first = *data.read(0).T_wc_gt;
   const std::size_t frames = frames_to_run(39, 17);  // the last (index 38 or 16) refines
   int64_t cpu_splits = 0, cpu_merges = 0, gpu_splits = 0, gpu_merges = 0;
-  PoseGap gap;
   for (std::size_t i = 0; i < frames; ++i) {
     const RgbdFrame f = data.read(i);
-    const FrameStats& c = cpu.track_and_integrate(f, 0.0, first);
     const FrameStats& g = gpu.track_and_integrate(f, first);
-    EXPECT_TRUE(g.fused) << "frame " << i;
+    ASSERT_TRUE(g.fused) << "frame " << i;
+    const FrameStats& c = cpu.integrate(f, gpu.trajectory().back().T_wc);
     cpu_splits += c.splits;
     cpu_merges += c.merges;
     gpu_splits += g.splits;
     gpu_merges += g.merges;
-    gap.add(cpu.trajectory().back().T_wc, gpu.trajectory().back().T_wc);
   }
   const std::unique_ptr<VoxelBlockMap> downloaded = gpu.download_map();
   std::printf(
-      "[ refine   ] after the raycast, %zu tracked frames: poses at most %.3f mm and %.4f deg "
-      "apart; splits %lld / %lld, merges %lld / %lld (CPU / GPU); blocks per level %s / %s; "
-      "the last frame %lld splits, %lld merges\n",
-      frames, 1e3 * gap.max_m, gap.max_deg, static_cast<long long>(cpu_splits),
-      static_cast<long long>(gpu_splits), static_cast<long long>(cpu_merges),
-      static_cast<long long>(gpu_merges), fmt_levels(cpu.map()).c_str(),
-      fmt_levels(*downloaded).c_str(), static_cast<long long>(gpu.frames().back().splits),
+      "[ refine   ] after the raycast, %zu frames tracked on the device: splits %lld / %lld, "
+      "merges %lld / %lld (CPU / GPU); blocks per level %s / %s; the last frame %lld splits, "
+      "%lld merges\n",
+      frames, static_cast<long long>(cpu_splits), static_cast<long long>(gpu_splits),
+      static_cast<long long>(cpu_merges), static_cast<long long>(gpu_merges),
+      fmt_levels(cpu.map()).c_str(), fmt_levels(*downloaded).c_str(),
+      static_cast<long long>(gpu.frames().back().splits),
       static_cast<long long>(gpu.frames().back().merges));
-  EXPECT_LT(gap.max_m, 1e-3);
-  EXPECT_LT(gap.max_deg, 0.1);
   EXPECT_GT(gpu.frames().back().splits + gpu.frames().back().merges, 0);
   expect_same_refinement(cpu_splits, gpu_splits, cpu_merges, gpu_merges, cpu.map(), *downloaded);
   // The device's model shows the levels before the last frame's splits and merges, as the CPU's
