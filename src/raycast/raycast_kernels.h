@@ -56,39 +56,22 @@ HIVOX_HD inline Vec3f normal_from_ahead(const Vec3f& ahead, float f_at_p) {
   return normalized(ahead - Vec3f{f_at_p, f_at_p, f_at_p});
 }
 
-/// tsdf_normal where the voxels one voxel ahead are not all stored at `level`: three samples at
-/// whatever level stores them; `fallback` where one of them is unknown.
-HIVOX_HD HIVOX_NOINLINE inline Vec3f tsdf_normal_across_levels(const MapView& map,
-                                                               BlockLookupCache& cache,
-                                                               const Vec3f& p_w, float f_at_p,
-                                                               int level, int min_weight,
-                                                               const Vec3f& fallback) {
-  const float h = map.level[level].voxel_size_m;
-  Vec3f g;
-  for (int k = 0; k < 3; ++k) {
-    Vec3f a = p_w;
-    a[k] += h;
-    TsdfSample sa;
-    int la;
-    if (!sample_tsdf(map, cache, a, min_weight, &sa, &la, nullptr, level))
-      return normalized(fallback);
-    g[k] = sa.f - f_at_p;
-  }
-  return normalized(g);
-}
-
 /// Surface normal at a surface point `p_w` (unit, pointing to free space) from differences of
 /// the interpolated TSDF one voxel apart. At a surface point F = 0, so forward differences need
 /// only 3 samples; spanning a voxel they are smoother than the gradient of a single
-/// interpolation cell, which follows per-voxel noise. Falls back to `fallback` where a sample is
-/// unknown.
+/// interpolation cell, which follows per-voxel noise. Where those samples' voxels are not all
+/// stored at `level` (a level boundary, or voxels not yet observed), the normal is `at_hit`, the
+/// gradient of the hit's own interpolant: across levels, the irregular interpolant spans the
+/// coarse samples around the hit. Three more samples across levels took ~13 % of a model
+/// raycast's warps' time on fr1/rpy (`bench/ray_cost`); the gradient gave the same trajectory and
+/// fewer speckles at level borders (docs/cuda.md).
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline Vec3f tsdf_normal(const MapView& map, BlockLookupCache& cache,
                                                         const Vec3f& p_w, float f_at_p, int level,
-                                                        int min_weight, const Vec3f& fallback) {
+                                                        int min_weight, const Vec3f& at_hit) {
   Vec3f ahead;
   if (samples_one_voxel_ahead(map, cache, level, p_w, min_weight, &ahead))
     return normal_from_ahead(ahead, f_at_p);
-  return tsdf_normal_across_levels(map, cache, p_w, f_at_p, level, min_weight, fallback);
+  return normalized(at_hit);
 }
 
 struct RayMarchConstants {

@@ -90,9 +90,9 @@ void search_hints(const MapView& map, kernels::BlockLookupCache& cache, PacketSc
   for (int j = 0; j < with_hit; ++j) {
     const int i = s.live[j];
     RayHit& hit = s.hits[i];
-    hit.normal_w = s.sampled[j] ? normal_from_ahead(s.ahead[j], 0.0f)
-                                : tsdf_normal_across_levels(map, cache, hit.p_w, 0.0f, hit.level,
-                                                            min_w, s.bracket[i].best.gradient);
+    // As tsdf_normal: the forward differences, else the gradient at the hit.
+    hit.normal_w =
+        s.sampled[j] ? normal_from_ahead(s.ahead[j], 0.0f) : normalized(s.bracket[i].best.gradient);
     s.found[i] = true;
   }
 }
