@@ -262,6 +262,12 @@ std::unique_ptr<VoxelBlockMap> split_lattice_map() {
   return lattice_map({{0, 0, 0}}, {{1, 0, 0}});
 }
 
+// Level-1 blocks (0, 0, 0) and (0, 1, 0) split, (1, 0, 0) coarse, (1, 1, 0) split again: the
+// last fine cells before the coarse block, x in [15, 16) (level-0 units), reach across levels.
+std::unique_ptr<VoxelBlockMap> boundary_lattice_map() {
+  return lattice_map({{1, 0, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+}
+
 TEST(LatticeSampling, FineCellsReachingIntoACoarseRegionKeepALinearFieldExact) {
   // Level-1 block 0 split (level-0 x in [0, 16)), level-1 block (1, 0, 0) coarse (x in [16,
   // 32)) and block (1, 1, 0) split again. The last fine cells, x in [15, 16), take their x = 16
@@ -271,7 +277,7 @@ TEST(LatticeSampling, FineCellsReachingIntoACoarseRegionKeepALinearFieldExact) {
   // the samples stay distinct and the interpolant, which holds every linear function, gives F
   // exactly. At y in [14, 16) the sample beyond y = 15 lies in the split block (1, 1, 0), whose
   // fine voxel at y = 16 stands in for it.
-  const auto map = lattice_map({{1, 0, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+  const auto map = boundary_lattice_map();
   const MapView view = map->view();
   auto cache = std::make_unique<kernels::BlockLookupCache>();
   std::mt19937 rng(7);
@@ -300,7 +306,7 @@ TEST(LatticeSampling, ARayFindsItsCrossingInsideACellAcrossLevels) {
   // does (TsdfSample::crossing_dz), on the cell's interpolant: the irregular one, which holds the
   // linear field exactly, or the trilinear one where the coarse samples stand on the lattice. A
   // ray's search near a level boundary then ends at its first sample, as elsewhere.
-  const auto map = lattice_map({{1, 0, 0}}, {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+  const auto map = boundary_lattice_map();
   const MapView view = map->view();
   auto cache = std::make_unique<kernels::BlockLookupCache>();
   std::mt19937 rng(11);
@@ -321,9 +327,9 @@ TEST(LatticeSampling, ARayFindsItsCrossingInsideACellAcrossLevels) {
     const Vec3f q = hit - d * s0;
     if (!(floor_to_int(q) == floor_to_int(hit))) continue;
     kernels::TsdfSample s;
-    const Vec3f ray_d = d;  // metres per unit of ray parameter: the ray in metres
+    // The ray in metres: `d` metres per unit of ray parameter.
     ASSERT_TRUE(kernels::sample_trilinear(view, *cache, 0, q * 0.01f, 1, &s, Vec3i{INT_MIN, 0, 0},
-                                          kPtrEmpty, nullptr, &ray_d));
+                                          kPtrEmpty, nullptr, &d));
     ASSERT_TRUE(s.at_crossing()) << "sampled " << s0 << " voxels before the crossing";
     const Vec3f found = q + d * (s.crossing_dz / 0.01f);
     worst = std::max(worst, static_cast<double>(norm(found - hit)));
