@@ -257,10 +257,10 @@ void report_levels(const VoxelBlockMap& map) {
   }
   std::sort(parents.begin(), parents.end());
   parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
-  std::vector<int64_t> split(static_cast<std::size_t>(view.levels), 0),
-      isolated(static_cast<std::size_t>(view.levels), 0);
+  // Every split entry (the map's count); of the parents of leaves, those with no split neighbour.
+  const std::vector<int64_t> split = map.split_entries_per_level();
+  std::vector<int64_t> isolated(static_cast<std::size_t>(view.levels), 0);
   for (const BlockKey& p : parents) {
-    ++split[static_cast<std::size_t>(p.level)];
     int neighbours = 0;
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
