@@ -218,6 +218,50 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_crossing(
   refine_bracket(map, cache, o, d, b, k, hit);
 }
 
+/// The crossing in front of `s`, a sample at `z` behind a surface (-1 < s.f <= 0, level
+/// `level`), found by following the sample's gradient back along the ray: where it puts the
+/// crossing, half a voxel in front, a sample on the positive side brackets it with the last
+/// negative one (refine_crossing). Where that sample falls on unobserved voxels (a sliver of
+/// them can part the positive side from the negative, beside a level boundary), 1.5 and then 3
+/// voxels in front: a positive sample there brackets the crossing across the sliver. At most two
+/// steps; false (nothing written) where the gradient does not fall along the ray, a step leaves
+/// [z_start, z) or finds no observed voxels.
+HIVOX_HD inline bool back_to_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
+                                      const Vec3f& d, float z, const TsdfSample& s, int level,
+                                      float z_start, const RayMarchConstants& k, RayHit* hit) {
+  TsdfSample neg = s;
+  int neg_level = level;
+  float z_neg = z;
+  for (int i = 0; i < 2; ++i) {
+    const float voxel_m = map.level[neg_level].voxel_size_m;
+    const float slope = dot(neg.gradient, d) / voxel_m;  // dF per unit of ray parameter
+    if (!(slope < 0.0f)) return false;
+    // Where the gradient puts the values of half a voxel, then 1.5 and 3 voxels, in front of the
+    // surface (a voxel is voxel_m / mu in TSDF units), whatever the ray's incidence: an
+    // unobserved voxel layer leaves the cells of two voxels unknown.
+    constexpr float kInFront[3] = {0.5f, 1.5f, 3.0f};
+    const float f_voxel = voxel_m / k.mu_m;
+    TsdfSample t;
+    int lt;
+    bool sampled = false;
+    float z_try = z_neg;
+    for (int j = 0; j < 3 && !sampled; ++j) {
+      z_try = z_neg - (neg.f - kInFront[j] * f_voxel) / slope;
+      if (!(z_try >= z_start && z_try < z_neg)) return false;
+      sampled = sample_tsdf(map, cache, o + d * z_try, k.min_weight, &t, &lt, nullptr, neg_level);
+    }
+    if (!sampled) return false;
+    if (t.f > 0.0f) {
+      refine_crossing(map, cache, o, d, z_try, t.f, z_neg, neg.f, neg, neg_level, k, hit);
+      return true;
+    }
+    neg = t;
+    neg_level = lt;
+    z_neg = z_try;
+  }
+  return false;
+}
+
 /// What a march saw on its way, besides its hit (march_ray's optional report).
 struct MarchReport {
   bool known = false;           ///< it met observed voxels (a sample, or an observed free octant)
@@ -345,9 +389,17 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
       }
       if (!prev_valid && s.f > -1.0f) {
         // Came from skipped or unknown space straight into the band behind a surface: search
-        // back for the positive side, doubling the distance (along a ray at a grazing angle the
-        // positive side can lie several voxels back).
+        // back for the positive side. First where the sample's gradient puts the crossing, half
+        // a voxel in front of it (twice at most): the positive side can be thinner than the
+        // steps below where unobserved voxels lie in front of it.
+        if (back_to_crossing(map, cache, o, d, z, s, level, z_start, k, hit))
+          return hit->depth_m <= z_end;
+        // Then doubling the distance (along a ray at a grazing angle the positive side can lie
+        // several voxels back).
         float back_m = voxel_m;
+        float z_front = z;  // the frontmost negative sample met
+        TsdfSample front;
+        int front_level = level;
         for (int i = 0; i < 4; ++i, back_m *= 2.0f) {
           const float z_back = z - back_m * inv_len;
           if (z_back < z_start) break;
@@ -359,7 +411,17 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
             refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
             return hit->depth_m <= z_end;
           }
+          if (sb.f > -1.0f) {
+            z_front = z_back;
+            front = sb;
+            front_level = lb;
+          }
         }
+        // The gradient again from the frontmost negative sample (nearer the crossing, where the
+        // first one lay where the band flattens).
+        if (z_front < z &&
+            back_to_crossing(map, cache, o, d, z_front, front, front_level, z_start, k, hit))
+          return hit->depth_m <= z_end;
       }
     }
     prev_valid = true;
