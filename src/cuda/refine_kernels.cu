@@ -258,7 +258,7 @@ __global__ void __launch_bounds__(kBlockVoxels)
   const int i = threadIdx.x;
   ColorVoxel color;
   const TsdfVoxel v =
-      kernels::split_child_voxel(map, s.parents, s.neighbour_children, c, i, weight_scale,
+      kernels::split_child_voxel(map, p, s.parents, s.neighbour_children, c, i, weight_scale,
                                  map.color != nullptr ? &color : nullptr);
   map.tsdf[static_cast<int64_t>(block) * kBlockVoxels + i] = v;
   if (map.color != nullptr) map.color[static_cast<int64_t>(block) * kBlockVoxels + i] = color;

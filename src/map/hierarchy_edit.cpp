@@ -85,8 +85,8 @@ SplitMergeResult split_blocks_cpu(VoxelBlockMap& map, std::span<const BlockRef> 
       for (int c = 0; c < kBlockChildren; ++c) {
         child_entry[s][c] = kernels::reserve_entry(view, p.level - 1, child_block_pos(p.pos, c));
         child_block[s][c] = kernels::take_block(view);
-        child_surface[s][c] = kernels::fill_split_child(view, src.parents, src.neighbour_children,
-                                                        c, child_block[s][c], weight_scale);
+        child_surface[s][c] = kernels::fill_split_child(
+            view, p, src.parents, src.neighbour_children, c, child_block[s][c], weight_scale);
       }
     });
     // Pass 3: publish the children, mark the parents Split.

@@ -15,18 +15,76 @@ namespace hivox::kernels {
 
 // ---- split: children from the parent ---------------------------------------------------------
 
+/// What a coarser level stores at lattice point `g` of `level` (global voxel coordinates of
+/// that level) where no block of `level` holds it: the TSDF, weight and colour interpolated
+/// trilinearly at the same point from the voxels of the first coarser level that stores the
+/// point's block (the point lies on that level's lattice or between its voxels). False where no
+/// coarser level stores it, or a voxel the interpolation takes is missing or unobserved.
+struct CoarserValue {
+  float f = 0, w = 0;
+  float r = 0, g = 0, b = 0, cw = 0;
+  bool coloured = false;
+};
+HIVOX_HD inline bool value_from_coarser(const MapView& map, const TsdfVoxel* tsdf,
+                                        const ColorVoxel* color, int level, const Vec3i& g,
+                                        CoarserValue* out) {
+  for (int l = level + 1; l < map.levels; ++l) {
+    const int32_t s = 1 << (l - level);
+    const Vec3i base{floor_div(g.x, s), floor_div(g.y, s), floor_div(g.z, s)};
+    const int32_t holder = find_block_ptr(map.level[l], block_of_voxel(base));
+    if (holder == kPtrEmpty) continue;  // not stored here either: coarser
+    if (holder < 0) return false;       // split: finer than this level, yet not at `level`
+    const float inv = 1.0f / static_cast<float>(s);
+    const float t[3] = {static_cast<float>(g.x - base.x * s) * inv,
+                        static_cast<float>(g.y - base.y * s) * inv,
+                        static_cast<float>(g.z - base.z * s) * inv};
+    CoarserValue v;
+    v.coloured = color != nullptr;
+    for (int c = 0; c < 8; ++c) {
+      const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
+      const float a =
+          (cx ? t[0] : 1.0f - t[0]) * (cy ? t[1] : 1.0f - t[1]) * (cz ? t[2] : 1.0f - t[2]);
+      if (a == 0.0f) continue;  // a corner the point does not reach
+      const Vec3i voxel{base.x + cx, base.y + cy, base.z + cz};
+      const Vec3i block = block_of_voxel(voxel);
+      const int32_t ptr =
+          block == block_of_voxel(base) ? holder : find_block_ptr(map.level[l], block);
+      if (ptr < 0) return false;
+      const int64_t k = static_cast<int64_t>(ptr) * kBlockVoxels + local_voxel_index(voxel);
+      const TsdfVoxel vox = tsdf[k];
+      if (vox.weight == 0) return false;
+      v.f += a * tsdf_to_float(vox.tsdf);
+      v.w += a * static_cast<float>(vox.weight);
+      if (v.coloured) {
+        const ColorVoxel col = color[k];
+        v.coloured = col.weight > 0;
+        v.cw += a * static_cast<float>(col.weight);
+        v.r += a * col.r;
+        v.g += a * col.g;
+        v.b += a * col.b;
+      }
+    }
+    *out = v;
+    return true;
+  }
+  return false;
+}
+
 /// Voxel `i` of child `child` (offset (child & 1, (child >> 1) & 1, child >> 2)) of a splitting
 /// parent: trilinear interpolation of the parent's voxels. `parent_blocks[d]` holds the parent's
 /// block (d = 0) and its +x/+y/+z neighbours at the parent's level (d = dx | dy << 1 | dz << 2; a
 /// negative ptr when absent), `neighbour_children[d][c]` the children one level down of a
 /// neighbour that was split before (negative when none): the last half voxel of the parent
 /// interpolates towards the neighbour's voxel, read at the parent's level or, when split, at the
-/// same point one level down. A child voxel is observed only when every parent voxel its
-/// interpolation takes is observed: a value is not extrapolated towards an unobserved or
-/// missing voxel (behind a surface seen at a grazing angle that would leave a positive value
-/// inside the object, a false surface fine observations never reach to correct). Weights are
-/// interpolated and scaled by `weight_scale`. Writes its colour to `*color` when not null.
-HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map,
+/// same point one level down, or, where the neighbour's region is stored at a coarser level, at
+/// the same point from that level (value_from_coarser: without it the children's last voxel
+/// layer towards a coarser region stayed unobserved, a sliver rays stepped over). A child voxel
+/// is observed only when every parent voxel its interpolation takes is observed: a value is not
+/// extrapolated towards an unobserved or missing voxel (behind a surface seen at a grazing angle
+/// that would leave a positive value inside the object, a false surface fine observations never
+/// reach to correct). Weights are interpolated and scaled by `weight_scale`. Writes its colour to
+/// `*color` when not null. `parent`: the splitting block (its position and level).
+HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map, const BlockRef& parent,
                                             const int32_t parent_blocks[8],
                                             const int32_t neighbour_children[8][8], int child,
                                             int i, float weight_scale, ColorVoxel* color) {
@@ -51,6 +109,27 @@ HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map,
       const int fx = 2 * (px & 7), fy = 2 * (py & 7), fz = 2 * (pz & 7);
       ptr = neighbour_children[d][(fx >> 3) | ((fy >> 3) << 1) | ((fz >> 3) << 2)];
       vi = voxel_index(fx & 7, fy & 7, fz & 7);
+    }
+    if (ptr < 0 && d != 0) {
+      // The neighbour's region is stored at a coarser level (or nowhere).
+      const Vec3i lattice{parent.pos.x * kBlockSide + px, parent.pos.y * kBlockSide + py,
+                          parent.pos.z * kBlockSide + pz};
+      CoarserValue cv;
+      if (!value_from_coarser(map.read, map.tsdf, coloured ? map.color : nullptr, parent.level,
+                              lattice, &cv)) {
+        observed = false;
+        break;
+      }
+      w_sum += a * cv.w;
+      f_sum += a * cv.f;
+      if (coloured) {
+        coloured = cv.coloured;
+        cw_sum += a * cv.cw;
+        r += a * cv.r;
+        g += a * cv.g;
+        b += a * cv.b;
+      }
+      continue;
     }
     if (ptr < 0) {
       observed = false;
@@ -94,7 +173,7 @@ HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map,
 
 /// Fills every voxel of child `child` of a splitting parent (split_child_voxel) into pool block
 /// `child_ptr`. Returns the child's surface summary.
-HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map,
+HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map, const BlockRef& parent,
                                               const int32_t parent_blocks[8],
                                               const int32_t neighbour_children[8][8], int child,
                                               int32_t child_ptr, float weight_scale) {
@@ -102,8 +181,8 @@ HIVOX_HD inline BlockSurface fill_split_child(const MutableMapView& map,
   ColorVoxel* out_c =
       map.color ? map.color + static_cast<int64_t>(child_ptr) * kBlockVoxels : nullptr;
   for (int i = 0; i < kBlockVoxels; ++i)
-    out[i] = split_child_voxel(map, parent_blocks, neighbour_children, child, i, weight_scale,
-                               out_c != nullptr ? out_c + i : nullptr);
+    out[i] = split_child_voxel(map, parent, parent_blocks, neighbour_children, child, i,
+                               weight_scale, out_c != nullptr ? out_c + i : nullptr);
   return block_surface(out);
 }
 

@@ -74,11 +74,35 @@ std::optional<TsdfVoxel> parent_voxel(const VoxelBlockMap& map, const BlockRef& 
                    {8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z});
 }
 
+// The value and weight at lattice point `g` of `level` interpolated from the voxels of the next
+// coarser level (g / 2: on its lattice or halfway between its voxels), or nothing where one it
+// takes is missing or unobserved.
+std::optional<TsdfVoxel> coarser_voxel(const VoxelBlockMap& map, int level, const Vec3i& g) {
+  float f = 0, w = 0;
+  for (int k = 0; k < 8; ++k) {
+    const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
+    if ((ox && !(g.x & 1)) || (oy && !(g.y & 1)) || (oz && !(g.z & 1))) continue;
+    const float a =
+        ((g.x & 1) ? 0.5f : 1.0f) * ((g.y & 1) ? 0.5f : 1.0f) * ((g.z & 1) ? 0.5f : 1.0f);
+    const std::optional<TsdfVoxel> v =
+        map.voxel(level + 1, {(g.x >> 1) + ox, (g.y >> 1) + oy, (g.z >> 1) + oz});
+    if (!v || v->weight == 0) return std::nullopt;
+    f += a * tsdf_to_float(v->tsdf);
+    w += a * v->weight;
+  }
+  // Carried as a voxel (the test's weights are even, so their halves and quarters round exactly
+  // only where they are whole: callers use constant weights).
+  return TsdfVoxel{tsdf_from_float(f), static_cast<uint16_t>(std::lround(w))};
+}
+
 // The child voxels a split of `parent` should give, computed independently from the voxels of
 // its level in `map` as they are now: at global child voxel coordinates, the trilinear value and
 // weight, or nothing (unobserved) where a voxel the interpolation takes is unobserved or missing.
+// With `coarser`, a voxel missing at the parent's level is taken from the next coarser level
+// (coarser_voxel) where that stores it.
 using ChildValues = std::map<std::tuple<int, int, int>, std::optional<std::pair<float, float>>>;
-ChildValues expected_children(const VoxelBlockMap& map, const BlockRef& parent) {
+ChildValues expected_children(const VoxelBlockMap& map, const BlockRef& parent,
+                              bool coarser = false) {
   ChildValues expected;
   for (int j = 0; j < 16 * 16 * 16; ++j) {
     const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
@@ -89,8 +113,11 @@ ChildValues expected_children(const VoxelBlockMap& map, const BlockRef& parent) 
       if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
       const float a =
           ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
-      const std::optional<TsdfVoxel> v =
-          parent_voxel(map, parent, {c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz});
+      const Vec3i q{c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz};
+      std::optional<TsdfVoxel> v = parent_voxel(map, parent, q);
+      if (!v && coarser)
+        v = coarser_voxel(map, parent.level,
+                          {8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z});
       if (!v || v->weight == 0) {
         observed = false;
         break;
@@ -185,6 +212,34 @@ TEST(Split, ABorderInterpolatesTowardsASplitNeighboursChildren) {
   for (const auto& [key, value] : expected) border += std::get<0>(key) == 15 && value.has_value();
   EXPECT_GT(border, 30);
   EXPECT_GT(expect_children(map, a, expected), 2000);
+}
+
+TEST(Split, ABorderInterpolatesTowardsACoarserNeighboursVoxels) {
+  std::mt19937 rng(5);
+  VoxelBlockMap map(three_levels());
+  // Two blocks of the coarsest level side by side along x; the first split to level 1, then its
+  // child (1, 0, 0), whose +x neighbour's region (level 1 block (2, 0, 0)) is stored at level 2.
+  std::vector<BlockRef> refs;
+  map.insert_blocks(std::vector<BlockKey>{{{0, 0, 0}, 2}, {{1, 0, 0}, 2}}, &refs);
+  for (const BlockRef& b : refs) {
+    fill_block(map, b, rng);
+    TsdfVoxel* v = MapAccess::tsdf(map, b.ptr);
+    for (int i = 0; i < kBlockVoxels; ++i) v[i].weight = 12;  // all observed, exact halves
+  }
+  ASSERT_EQ(split_blocks(map, std::span(&refs[0], 1), 1.0f).done, 1);
+  const std::optional<BlockRef> parent = map.find(1, {1, 0, 0});
+  ASSERT_TRUE(parent.has_value());
+  ASSERT_FALSE(map.find(1, {2, 0, 0}).has_value());
+  const ChildValues expected = expected_children(map, *parent, true);
+  ASSERT_EQ(split_blocks(map, std::span(&*parent, 1), 0.5f).done, 1);
+  test::expect_map_consistent(map);
+  // The +x border of the children (child x = 15, halfway to the coarse region) is observed and
+  // interpolates towards the coarser level's voxels (without them it stayed unobserved: a sliver
+  // between the two levels).
+  int border = 0;
+  for (const auto& [key, value] : expected) border += std::get<0>(key) == 31 && value.has_value();
+  EXPECT_EQ(border, 16 * 16);
+  EXPECT_EQ(expect_children(map, *parent, expected), 16 * 16 * 16);
 }
 
 TEST(SplitMerge, RoundTripReproducesTheParent) {
