@@ -90,8 +90,8 @@ struct RaycastLaunch {
   /// > 0: a warp where at most that many rays march splits each march across its lanes
   /// (kernels::split_march_from_hint).
   int split_at_most = 0;
-  /// 0: as many registers a thread as the compiler takes (160 for sm_90, CUDA 13: 12 warps a
-  /// multiprocessor); else one of kRaycastRegisterCaps, more warps at once for some spilling.
+  /// 0: at most 168 registers a thread (launch bounds: 12 warps a multiprocessor); else one of
+  /// kRaycastRegisterCaps, more warps at once for some spilling.
   int registers_at_most = 0;
 };
 /// The register caps the ray kernel is built with (besides none).

@@ -218,23 +218,31 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline void refine_crossing(
   refine_bracket(map, cache, o, d, b, k, hit);
 }
 
+/// A crossing bracketed from behind (back_to_crossing): a positive sample in front, the negative
+/// one behind it.
+struct BackBracket {
+  float z_pos = 0, f_pos = 0, z_neg = 0;
+  TsdfSample neg;
+  int neg_level = 0;
+};
+
 /// The crossing in front of `s`, a sample at `z` behind a surface (-1 < s.f <= 0, level
 /// `level`), found by following the sample's gradient back along the ray: where it puts the
 /// crossing, half a voxel in front, a sample on the positive side brackets it with the last
-/// negative one (refine_crossing). Where that sample falls on unobserved voxels (a sliver of
-/// them can part the positive side from the negative, beside a level boundary), 1.5 and then 3
-/// voxels in front: a positive sample there brackets the crossing across the sliver. At most two
-/// steps; false (nothing written) where the gradient does not fall along the ray, a step leaves
-/// [z_start, z) or finds no observed voxels.
+/// negative one (`*b`, for refine_crossing). Where that sample falls on unobserved voxels (a
+/// sliver of them can part the positive side from the negative, beside a level boundary), 1.5 and
+/// then 3 voxels in front: a positive sample there brackets the crossing across the sliver. At
+/// most two steps; false where the gradient does not fall along the ray, a step leaves
+/// [z_start, z) or finds no observed voxels. The caller refines the bracket.
 HIVOX_HD inline bool back_to_crossing(const MapView& map, BlockLookupCache& cache, const Vec3f& o,
                                       const Vec3f& d, float z, const TsdfSample& s, int level,
-                                      float z_start, const RayMarchConstants& k, RayHit* hit) {
-  TsdfSample neg = s;
-  int neg_level = level;
-  float z_neg = z;
+                                      float z_start, const RayMarchConstants& k, BackBracket* b) {
+  b->neg = s;
+  b->neg_level = level;
+  b->z_neg = z;
   for (int i = 0; i < 2; ++i) {
-    const float voxel_m = map.level[neg_level].voxel_size_m;
-    const float slope = dot(neg.gradient, d) / voxel_m;  // dF per unit of ray parameter
+    const float voxel_m = map.level[b->neg_level].voxel_size_m;
+    const float slope = dot(b->neg.gradient, d) / voxel_m;  // dF per unit of ray parameter
     if (!(slope < 0.0f)) return false;
     // Where the gradient puts the values of half a voxel, then 1.5 and 3 voxels, in front of the
     // surface (a voxel is voxel_m / mu in TSDF units), whatever the ray's incidence: an
@@ -244,22 +252,66 @@ HIVOX_HD inline bool back_to_crossing(const MapView& map, BlockLookupCache& cach
     TsdfSample t;
     int lt;
     bool sampled = false;
-    float z_try = z_neg;
+    float z_try = b->z_neg;
     for (int j = 0; j < 3 && !sampled; ++j) {
-      z_try = z_neg - (neg.f - kInFront[j] * f_voxel) / slope;
-      if (!(z_try >= z_start && z_try < z_neg)) return false;
-      sampled = sample_tsdf(map, cache, o + d * z_try, k.min_weight, &t, &lt, nullptr, neg_level);
+      z_try = b->z_neg - (b->neg.f - kInFront[j] * f_voxel) / slope;
+      if (!(z_try >= z_start && z_try < b->z_neg)) return false;
+      sampled =
+          sample_tsdf(map, cache, o + d * z_try, k.min_weight, &t, &lt, nullptr, b->neg_level);
     }
     if (!sampled) return false;
     if (t.f > 0.0f) {
-      refine_crossing(map, cache, o, d, z_try, t.f, z_neg, neg.f, neg, neg_level, k, hit);
+      b->z_pos = z_try;
+      b->f_pos = t.f;
       return true;
     }
-    neg = t;
-    neg_level = lt;
-    z_neg = z_try;
+    b->neg = t;
+    b->neg_level = lt;
+    b->z_neg = z_try;
   }
   return false;
+}
+
+/// The crossing in front of `s`, the sample at `z` (level `level`) where a march came from
+/// skipped or unobserved space straight into the band behind a surface (-1 < s.f <= 0): first
+/// where the sample's gradient puts it (back_to_crossing: the positive side can be thinner than
+/// the steps below where unobserved voxels lie in front of it), then at 1, 2, 4 and 8 voxels back
+/// (along a ray at a grazing angle the positive side can lie several voxels back), then along the
+/// gradient again from the frontmost negative sample met (nearer the crossing where the first
+/// one lay where the band flattens). Refines the crossing into `hit` and returns true where it
+/// finds one.
+HIVOX_HD inline bool search_back_for_crossing(const MapView& map, BlockLookupCache& cache,
+                                              const Vec3f& o, const Vec3f& d, float z,
+                                              const TsdfSample& s, int level, float z_start,
+                                              const RayMarchConstants& k, RayHit* hit) {
+  const float inv_len = 1.0f / norm(d);
+  BackBracket back;
+  bool behind = back_to_crossing(map, cache, o, d, z, s, level, z_start, k, &back);
+  float back_m = map.level[level].voxel_size_m;
+  float z_front = z;  // the frontmost negative sample met (sampled again where it is needed)
+  for (int i = 0; i < 4 && !behind; ++i, back_m *= 2.0f) {
+    const float z_back = z - back_m * inv_len;
+    if (z_back < z_start) break;
+    TsdfSample sb;
+    int lb;
+    if (!sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb, nullptr, level)) continue;
+    if (sb.f > 0.0f) {
+      refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
+      return true;
+    }
+    if (sb.f > -1.0f) z_front = z_back;
+  }
+  if (!behind && z_front < z) {
+    TsdfSample front;
+    int front_level;
+    behind = sample_tsdf(map, cache, o + d * z_front, k.min_weight, &front, &front_level, nullptr,
+                         level) &&
+             back_to_crossing(map, cache, o, d, z_front, front, front_level, z_start, k, &back);
+  }
+  if (!behind) return false;
+  refine_crossing(map, cache, o, d, back.z_pos, back.f_pos, back.z_neg, back.neg.f, back.neg,
+                  back.neg_level, k, hit);
+  return true;
 }
 
 /// What a march saw on its way, besides its hit (march_ray's optional report).
@@ -387,42 +439,11 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool march_ray(const MapView& map, BlockLo
         refine_crossing(map, cache, o, d, prev_z, prev_f, z, s.f, s, level, k, hit);
         return hit->depth_m <= z_end;
       }
-      if (!prev_valid && s.f > -1.0f) {
-        // Came from skipped or unknown space straight into the band behind a surface: search
-        // back for the positive side. First where the sample's gradient puts the crossing, half
-        // a voxel in front of it (twice at most): the positive side can be thinner than the
-        // steps below where unobserved voxels lie in front of it.
-        if (back_to_crossing(map, cache, o, d, z, s, level, z_start, k, hit))
-          return hit->depth_m <= z_end;
-        // Then doubling the distance (along a ray at a grazing angle the positive side can lie
-        // several voxels back).
-        float back_m = voxel_m;
-        float z_front = z;  // the frontmost negative sample met
-        TsdfSample front;
-        int front_level = level;
-        for (int i = 0; i < 4; ++i, back_m *= 2.0f) {
-          const float z_back = z - back_m * inv_len;
-          if (z_back < z_start) break;
-          TsdfSample sb;
-          int lb;
-          if (!sample_tsdf(map, cache, o + d * z_back, k.min_weight, &sb, &lb, nullptr, level))
-            continue;
-          if (sb.f > 0.0f) {
-            refine_crossing(map, cache, o, d, z_back, sb.f, z, s.f, s, level, k, hit);
-            return hit->depth_m <= z_end;
-          }
-          if (sb.f > -1.0f) {
-            z_front = z_back;
-            front = sb;
-            front_level = lb;
-          }
-        }
-        // The gradient again from the frontmost negative sample (nearer the crossing, where the
-        // first one lay where the band flattens).
-        if (z_front < z &&
-            back_to_crossing(map, cache, o, d, z_front, front, front_level, z_start, k, hit))
-          return hit->depth_m <= z_end;
-      }
+      // Came from skipped or unknown space straight into the band behind a surface: search back
+      // for the positive side.
+      if (!prev_valid && s.f > -1.0f &&
+          search_back_for_crossing(map, cache, o, d, z, s, level, z_start, k, hit))
+        return hit->depth_m <= z_end;
     }
     prev_valid = true;
     prev_f = s.f;
