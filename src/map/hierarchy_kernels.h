@@ -10,64 +10,83 @@
 #include "hivox/core/hd.h"
 #include "hivox/map/hierarchy_edit.h"
 #include "hivox/map/map_view.h"
+#include "map/sample_kernels.h"
 
 namespace hivox::kernels {
 
 // ---- split: children from the parent ---------------------------------------------------------
 
-/// What a coarser level stores at lattice point `g` of `level` (global voxel coordinates of
-/// that level) where no block of `level` holds it: the TSDF, weight and colour interpolated
-/// trilinearly at the same point from the voxels of the first coarser level that stores the
-/// point's block (the point lies on that level's lattice or between its voxels). False where no
-/// coarser level stores it, or a voxel the interpolation takes is missing or unobserved.
-struct CoarserValue {
+/// A weighted sum of voxels, as a split's interpolations take it: TSDF, weight and colour
+/// (`coloured` stays true while every voxel added has a colour; colours are read only then).
+struct VoxelBlend {
   float f = 0, w = 0;
   float r = 0, g = 0, b = 0, cw = 0;
   bool coloured = false;
+
+  /// Adds `a` times `vox` and, while coloured, `*col`.
+  HIVOX_HD void add(float a, const TsdfVoxel& vox, const ColorVoxel* col) {
+    w += a * static_cast<float>(vox.weight);
+    f += a * tsdf_to_float(vox.tsdf);
+    if (coloured) {
+      coloured = col->weight > 0;
+      cw += a * static_cast<float>(col->weight);
+      r += a * col->r;
+      g += a * col->g;
+      b += a * col->b;
+    }
+  }
+  /// Adds `a` times another blend.
+  HIVOX_HD void add(float a, const VoxelBlend& o) {
+    w += a * o.w;
+    f += a * o.f;
+    if (coloured) {
+      coloured = o.coloured;
+      cw += a * o.cw;
+      r += a * o.r;
+      g += a * o.g;
+      b += a * o.b;
+    }
+  }
 };
+
+/// What a coarser level stores at lattice point `g` of `level` (global voxel coordinates of
+/// that level) where no block of `level` holds it: the TSDF, weight and colour (`color`, or none)
+/// interpolated trilinearly at the same point from the voxels of the first coarser level that
+/// stores the point's block (the point lies on that level's lattice or between its voxels).
+/// False where no coarser level stores it, or a voxel the interpolation takes is missing or
+/// unobserved.
 HIVOX_HD inline bool value_from_coarser(const MapView& map, const TsdfVoxel* tsdf,
                                         const ColorVoxel* color, int level, const Vec3i& g,
-                                        CoarserValue* out) {
-  for (int l = level + 1; l < map.levels; ++l) {
-    const int32_t s = 1 << (l - level);
-    const Vec3i base{floor_div(g.x, s), floor_div(g.y, s), floor_div(g.z, s)};
-    const int32_t holder = find_block_ptr(map.level[l], block_of_voxel(base));
-    if (holder == kPtrEmpty) continue;  // not stored here either: coarser
-    if (holder < 0) return false;       // split: finer than this level, yet not at `level`
-    const float inv = 1.0f / static_cast<float>(s);
-    const float t[3] = {static_cast<float>(g.x - base.x * s) * inv,
-                        static_cast<float>(g.y - base.y * s) * inv,
-                        static_cast<float>(g.z - base.z * s) * inv};
-    CoarserValue v;
-    v.coloured = color != nullptr;
-    for (int c = 0; c < 8; ++c) {
-      const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
-      const float a =
-          (cx ? t[0] : 1.0f - t[0]) * (cy ? t[1] : 1.0f - t[1]) * (cz ? t[2] : 1.0f - t[2]);
-      if (a == 0.0f) continue;  // a corner the point does not reach
-      const Vec3i voxel{base.x + cx, base.y + cy, base.z + cz};
-      const Vec3i block = block_of_voxel(voxel);
-      const int32_t ptr =
-          block == block_of_voxel(base) ? holder : find_block_ptr(map.level[l], block);
-      if (ptr < 0) return false;
-      const int64_t k = static_cast<int64_t>(ptr) * kBlockVoxels + local_voxel_index(voxel);
-      const TsdfVoxel vox = tsdf[k];
-      if (vox.weight == 0) return false;
-      v.f += a * tsdf_to_float(vox.tsdf);
-      v.w += a * static_cast<float>(vox.weight);
-      if (v.coloured) {
-        const ColorVoxel col = color[k];
-        v.coloured = col.weight > 0;
-        v.cw += a * static_cast<float>(col.weight);
-        v.r += a * col.r;
-        v.g += a * col.g;
-        v.b += a * col.b;
-      }
-    }
-    *out = v;
-    return true;
+                                        VoxelBlend* out) {
+  int l;
+  const int32_t holder =
+      find_coarser_holder(map, level, block_of_voxel(g), &l,
+                          [&](int at, const Vec3i& p) { return find_block_ptr(map.level[at], p); });
+  if (holder < 0) return false;
+  const int32_t s = 1 << (l - level);
+  const Vec3i base{floor_div(g.x, s), floor_div(g.y, s), floor_div(g.z, s)};
+  const Vec3i base_block = block_of_voxel(base);
+  const float inv = 1.0f / static_cast<float>(s);
+  const float t[3] = {static_cast<float>(g.x - base.x * s) * inv,
+                      static_cast<float>(g.y - base.y * s) * inv,
+                      static_cast<float>(g.z - base.z * s) * inv};
+  VoxelBlend v;
+  v.coloured = color != nullptr;
+  for (int c = 0; c < 8; ++c) {
+    const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
+    const float a =
+        (cx ? t[0] : 1.0f - t[0]) * (cy ? t[1] : 1.0f - t[1]) * (cz ? t[2] : 1.0f - t[2]);
+    if (a == 0.0f) continue;  // a corner the point does not reach
+    const Vec3i voxel{base.x + cx, base.y + cy, base.z + cz};
+    const Vec3i block = block_of_voxel(voxel);
+    const int32_t ptr = block == base_block ? holder : find_block_ptr(map.level[l], block);
+    if (ptr < 0) return false;
+    const int64_t k = static_cast<int64_t>(ptr) * kBlockVoxels + local_voxel_index(voxel);
+    if (tsdf[k].weight == 0) return false;
+    v.add(a, tsdf[k], v.coloured ? &color[k] : nullptr);
   }
-  return false;
+  *out = v;
+  return true;
 }
 
 /// Voxel `i` of child `child` (offset (child & 1, (child >> 1) & 1, child >> 2)) of a splitting
@@ -93,9 +112,9 @@ HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map, const Blo
   // Parent coordinate of the child voxel: (8 o + j) / 2, i.e. a parent voxel or a midpoint.
   const int qx = 4 * ox + (j.x >> 1), qy = 4 * oy + (j.y >> 1), qz = 4 * oz + (j.z >> 1);
   const int hx = j.x & 1, hy = j.y & 1, hz = j.z & 1;  // 1: halfway to the next parent voxel
-  float f_sum = 0.0f, w_sum = 0.0f;
-  float r = 0.0f, g = 0.0f, b = 0.0f, cw_sum = 0.0f;
-  bool observed = true, coloured = color != nullptr && map.color != nullptr;
+  VoxelBlend sum;
+  sum.coloured = color != nullptr && map.color != nullptr;
+  bool observed = true;
   for (int c = 0; c < 8 && observed; ++c) {
     const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
     if ((cx > hx) | (cy > hy) | (cz > hz)) continue;  // corner not involved
@@ -114,56 +133,29 @@ HIVOX_HD inline TsdfVoxel split_child_voxel(const MutableMapView& map, const Blo
       // The neighbour's region is stored at a coarser level (or nowhere).
       const Vec3i lattice{parent.pos.x * kBlockSide + px, parent.pos.y * kBlockSide + py,
                           parent.pos.z * kBlockSide + pz};
-      CoarserValue cv;
-      if (!value_from_coarser(map.read, map.tsdf, coloured ? map.color : nullptr, parent.level,
-                              lattice, &cv)) {
-        observed = false;
-        break;
-      }
-      w_sum += a * cv.w;
-      f_sum += a * cv.f;
-      if (coloured) {
-        coloured = cv.coloured;
-        cw_sum += a * cv.cw;
-        r += a * cv.r;
-        g += a * cv.g;
-        b += a * cv.b;
-      }
+      VoxelBlend coarse;
+      observed = value_from_coarser(map.read, map.tsdf, sum.coloured ? map.color : nullptr,
+                                    parent.level, lattice, &coarse);
+      if (observed) sum.add(a, coarse);
       continue;
     }
-    if (ptr < 0) {
-      observed = false;
-      break;
-    }
-    const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-    if (vox.weight == 0) {
-      observed = false;
-      break;
-    }
-    w_sum += a * static_cast<float>(vox.weight);
-    f_sum += a * tsdf_to_float(vox.tsdf);
-    if (coloured) {
-      const ColorVoxel col = map.color[static_cast<int64_t>(ptr) * kBlockVoxels + vi];
-      coloured = col.weight > 0;
-      cw_sum += a * static_cast<float>(col.weight);
-      r += a * col.r;
-      g += a * col.g;
-      b += a * col.b;
-    }
+    const int64_t k = static_cast<int64_t>(ptr) * kBlockVoxels + vi;
+    observed = ptr >= 0 && map.tsdf[k].weight > 0;
+    if (observed) sum.add(a, map.tsdf[k], sum.coloured ? &map.color[k] : nullptr);
   }
   TsdfVoxel v;
   if (observed) {
-    v.tsdf = tsdf_from_float(f_sum);
-    const float w = w_sum * weight_scale + 0.5f;
+    v.tsdf = tsdf_from_float(sum.f);
+    const float w = sum.w * weight_scale + 0.5f;
     v.weight = static_cast<uint16_t>(w < 1.0f ? 1.0f : w);
   }
   if (color != nullptr) {
     ColorVoxel cv;
-    if (observed && coloured) {
-      cv.r = static_cast<uint8_t>(r + 0.5f);
-      cv.g = static_cast<uint8_t>(g + 0.5f);
-      cv.b = static_cast<uint8_t>(b + 0.5f);
-      const float w = cw_sum * weight_scale + 0.5f;
+    if (observed && sum.coloured) {
+      cv.r = static_cast<uint8_t>(sum.r + 0.5f);
+      cv.g = static_cast<uint8_t>(sum.g + 0.5f);
+      cv.b = static_cast<uint8_t>(sum.b + 0.5f);
+      const float w = sum.cw * weight_scale + 0.5f;
       cv.weight = static_cast<uint8_t>(w < 1.0f ? 1.0f : (w > 255.0f ? 255.0f : w));
     }
     *color = cv;

@@ -343,13 +343,14 @@ HIVOX_HD inline int sample_cell(const float v[8], const Vec3f& t, const Vec3f* d
 
 /// The block of a coarser level holding the region of block `pos` of `level` (when `level`
 /// itself has no block there): its ptr, its level in `holder_level`; kPtrEmpty when no coarser
-/// level stores the region.
-HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cache, int level,
-                                       const Vec3i& pos, int* holder_level) {
+/// level stores the region. `find(l, p)` gives the ptr of block `p` of level `l` (a cache's, or
+/// find_block_ptr where a caller has no cache).
+template <typename Find>
+HIVOX_HD inline int32_t find_coarser_holder(const MapView& map, int level, const Vec3i& pos,
+                                            int* holder_level, const Find& find) {
   for (int l = level + 1; l < map.levels; ++l) {
     const int k = 1 << (l - level);
-    const int32_t p =
-        cache.find(map, l, {floor_div(pos.x, k), floor_div(pos.y, k), floor_div(pos.z, k)});
+    const int32_t p = find(l, Vec3i{floor_div(pos.x, k), floor_div(pos.y, k), floor_div(pos.z, k)});
     if (p >= 0) {
       *holder_level = l;
       return p;
@@ -357,6 +358,12 @@ HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cac
     if (p == kPtrSplit) break;  // the finer level has nothing there
   }
   return kPtrEmpty;
+}
+/// find_coarser_holder through `cache`.
+HIVOX_HD inline int32_t coarser_holder(const MapView& map, BlockLookupCache& cache, int level,
+                                       const Vec3i& pos, int* holder_level) {
+  return find_coarser_holder(map, level, pos, holder_level,
+                             [&](int l, const Vec3i& p) { return cache.find(map, l, p); });
 }
 
 /// The voxel exactly at lattice point `g` of `level`: of `level` itself, or of the finer level

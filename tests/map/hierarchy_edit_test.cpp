@@ -74,60 +74,54 @@ std::optional<TsdfVoxel> parent_voxel(const VoxelBlockMap& map, const BlockRef& 
                    {8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z});
 }
 
-// The value and weight at lattice point `g` of `level` interpolated from the voxels of the next
-// coarser level (g / 2: on its lattice or halfway between its voxels), or nothing where one it
-// takes is missing or unobserved.
-std::optional<TsdfVoxel> coarser_voxel(const VoxelBlockMap& map, int level, const Vec3i& g) {
+// A value and its weight.
+using Sample = std::pair<float, float>;
+
+// A voxel's value and weight, or nothing when it is missing or unobserved.
+std::optional<Sample> observed(const std::optional<TsdfVoxel>& v) {
+  if (!v || v->weight == 0) return std::nullopt;
+  return Sample{tsdf_to_float(v->tsdf), static_cast<float>(v->weight)};
+}
+
+// The trilinear value and weight at lattice point `c` of a level from the samples `at(q)` of the
+// next coarser level (at c / 2: on its lattice, or halfway between its points along some axes),
+// or nothing where one it takes is.
+template <typename At>
+std::optional<Sample> halfway(const Vec3i& c, const At& at) {
   float f = 0, w = 0;
   for (int k = 0; k < 8; ++k) {
     const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
-    if ((ox && !(g.x & 1)) || (oy && !(g.y & 1)) || (oz && !(g.z & 1))) continue;
+    if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
     const float a =
-        ((g.x & 1) ? 0.5f : 1.0f) * ((g.y & 1) ? 0.5f : 1.0f) * ((g.z & 1) ? 0.5f : 1.0f);
-    const std::optional<TsdfVoxel> v =
-        map.voxel(level + 1, {(g.x >> 1) + ox, (g.y >> 1) + oy, (g.z >> 1) + oz});
-    if (!v || v->weight == 0) return std::nullopt;
-    f += a * tsdf_to_float(v->tsdf);
-    w += a * v->weight;
+        ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
+    const std::optional<Sample> v = at(Vec3i{(c.x >> 1) + ox, (c.y >> 1) + oy, (c.z >> 1) + oz});
+    if (!v) return std::nullopt;
+    f += a * v->first;
+    w += a * v->second;
   }
-  // Carried as a voxel (the test's weights are even, so their halves and quarters round exactly
-  // only where they are whole: callers use constant weights).
-  return TsdfVoxel{tsdf_from_float(f), static_cast<uint16_t>(std::lround(w))};
+  return Sample{f, w};
 }
 
 // The child voxels a split of `parent` should give, computed independently from the voxels of
 // its level in `map` as they are now: at global child voxel coordinates, the trilinear value and
 // weight, or nothing (unobserved) where a voxel the interpolation takes is unobserved or missing.
-// With `coarser`, a voxel missing at the parent's level is taken from the next coarser level
-// (coarser_voxel) where that stores it.
-using ChildValues = std::map<std::tuple<int, int, int>, std::optional<std::pair<float, float>>>;
+// With `coarser`, a voxel missing at the parent's level is interpolated at the same point from
+// the next coarser level's voxels where that stores them.
+using ChildValues = std::map<std::tuple<int, int, int>, std::optional<Sample>>;
 ChildValues expected_children(const VoxelBlockMap& map, const BlockRef& parent,
                               bool coarser = false) {
+  const auto at_parent_level = [&](const Vec3i& q) -> std::optional<Sample> {
+    const std::optional<TsdfVoxel> v = parent_voxel(map, parent, q);
+    if (v || !coarser) return observed(v);
+    return halfway(Vec3i{8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z},
+                   [&](const Vec3i& g) { return observed(map.voxel(parent.level + 1, g)); });
+  };
   ChildValues expected;
   for (int j = 0; j < 16 * 16 * 16; ++j) {
     const Vec3i c{j % 16, (j / 16) % 16, j / 256};  // child voxel within the parent's extent
-    float f = 0, w = 0;
-    bool observed = true;
-    for (int k = 0; k < 8; ++k) {
-      const int ox = k & 1, oy = (k >> 1) & 1, oz = k >> 2;
-      if ((ox && !(c.x & 1)) || (oy && !(c.y & 1)) || (oz && !(c.z & 1))) continue;
-      const float a =
-          ((c.x & 1) ? 0.5f : 1.0f) * ((c.y & 1) ? 0.5f : 1.0f) * ((c.z & 1) ? 0.5f : 1.0f);
-      const Vec3i q{c.x / 2 + ox, c.y / 2 + oy, c.z / 2 + oz};
-      std::optional<TsdfVoxel> v = parent_voxel(map, parent, q);
-      if (!v && coarser)
-        v = coarser_voxel(map, parent.level,
-                          {8 * parent.pos.x + q.x, 8 * parent.pos.y + q.y, 8 * parent.pos.z + q.z});
-      if (!v || v->weight == 0) {
-        observed = false;
-        break;
-      }
-      w += a * v->weight;
-      f += a * tsdf_to_float(v->tsdf);
-    }
     const std::tuple<int, int, int> key{16 * parent.pos.x + c.x, 16 * parent.pos.y + c.y,
                                         16 * parent.pos.z + c.z};
-    expected[key] = observed ? std::optional(std::pair(f, w)) : std::nullopt;
+    expected[key] = halfway(c, at_parent_level);
   }
   return expected;
 }
@@ -224,7 +218,7 @@ TEST(Split, ABorderInterpolatesTowardsACoarserNeighboursVoxels) {
   for (const BlockRef& b : refs) {
     fill_block(map, b, rng);
     TsdfVoxel* v = MapAccess::tsdf(map, b.ptr);
-    for (int i = 0; i < kBlockVoxels; ++i) v[i].weight = 12;  // all observed, exact halves
+    for (int i = 0; i < kBlockVoxels; ++i) v[i].weight = 12;  // all observed
   }
   ASSERT_EQ(split_blocks(map, std::span(&refs[0], 1), 1.0f).done, 1);
   const std::optional<BlockRef> parent = map.find(1, {1, 0, 0});
