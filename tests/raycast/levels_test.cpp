@@ -177,9 +177,19 @@ TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
   const Pose T_wc = side_view();
   const RaycastResult& r = raycaster.raycast(*scene().map, camera(), T_wc, kLevelsRange);
   const DepthImage truth = scene().shape.render(camera(), T_wc);
-  int checked = 0, normals = 0, missed = 0, fine = 0, coarse = 0, beside = 0;
+  int checked = 0, missed = 0, fine = 0, coarse = 0;
   std::vector<double> errors;  // distance to the true surface, in voxels of the local level
-  double sum_angle = 0.0, sum_beside = 0.0;
+  // Mean normal errors in degrees, per surface (floor, sphere), per level, away from the level
+  // boundary or beside it (where the voxels one voxel ahead lie at two levels: the normal is then
+  // the gradient of the hit's interpolant, kernels::tsdf_normal).
+  struct Mean {
+    double sum = 0.0;
+    int n = 0;
+    void add(double a) { sum += a, ++n; }
+    double get() const { return n > 0 ? sum / n : 0.0; }
+  };
+  enum { kFloor, kSphere };
+  Mean away[2][3], beside[2][3], all_away;
   kernels::BlockLookupCache cache;
   for (int y = 0; y < 120; ++y)
     for (int x = 0; x < 160; ++x) {
@@ -207,16 +217,14 @@ TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
         const Vec3f nr = r.normals_w(x, y);
         const double angle =
             std::acos(std::clamp(n.dot(Eigen::Vector3d(nr.x, nr.y, nr.z)), -1.0, 1.0)) * 180 / M_PI;
-        // Beside the level boundary the voxels one voxel ahead lie at two levels: the normal is
-        // the gradient of the hit's interpolant there (kernels::tsdf_normal).
+        const int surface = p.z() < 0.01 ? kFloor : kSphere;
         Vec3f ahead;
-        if (!kernels::samples_one_voxel_ahead(scene().map->view(), cache, level, pw, 1, &ahead)) {
-          sum_beside += angle;
-          ++beside;
-          continue;
+        if (kernels::samples_one_voxel_ahead(scene().map->view(), cache, level, pw, 1, &ahead)) {
+          away[surface][level].add(angle);
+          all_away.add(angle);
+        } else {
+          beside[surface][level].add(angle);
         }
-        sum_angle += angle;
-        ++normals;
       }
     }
   std::sort(errors.begin(), errors.end());
@@ -229,12 +237,32 @@ TEST(Levels, RaycastAcrossLevelsMatchesTheExactScene) {
   EXPECT_GT(fine, 2000);
   EXPECT_GT(coarse, 2000);
   EXPECT_LT(missed, (checked + missed) / 100 + 5);
-  ASSERT_GT(normals, 1000);
-  EXPECT_LT(sum_angle / normals, 3.0) << "mean normal error, degrees";
-  // Forward differences across the levels (three more samples there) gave 7.4 degrees; the
-  // gradient 7.6. Both follow the two levels' disagreement beside the boundary.
-  ASSERT_GT(beside, 100);
-  EXPECT_LT(sum_beside / beside, 9.0) << "mean normal error beside the level boundary, degrees";
+  for (int surface : {kFloor, kSphere})
+    for (int level : {0, 2})
+      std::printf(
+          "[ normals  ] %s, level %d: %.2f degrees off away from the boundary (%d), %.2f "
+          "beside it (%d)\n",
+          surface == kFloor ? "floor" : "sphere", level, away[surface][level].get(),
+          away[surface][level].n, beside[surface][level].get(), beside[surface][level].n);
+  ASSERT_GT(all_away.n, 1000);
+  EXPECT_LT(all_away.get(), 3.0) << "mean normal error, degrees";
+  ASSERT_GT(away[kFloor][0].n + away[kFloor][2].n, 1000);
+  EXPECT_LT((away[kFloor][0].sum + away[kFloor][2].sum) / (away[kFloor][0].n + away[kFloor][2].n),
+            1.0)
+      << "the floor's mean normal error, degrees";
+  // The sphere's normals are off by ~6.5 degrees at 16 mm and ~11 at 4 mm away from the boundary
+  // too, the floor's by 0.2-0.6: the fused field around the sphere is not a distance field
+  // (projective distances from 24 views, truncated), and the gradient of a hit's own cell is as
+  // far off (7.9 and 12.8 degrees; the TSDF at the hits is 0 within 5e-4). Beside the boundary
+  // (the hits there are the coarse level's, whose cells reach into the fine region) they are
+  // 8.5: the boundary costs ~2 degrees, judged against the same surface at the same level. (The
+  // mean over every surface away from the boundary, 1.9 degrees, is mostly the floor's: against
+  // it, the sphere's points beside the boundary once read as 7.6 degrees off for 1.9.)
+  ASSERT_GT(beside[kSphere][2].n, 100);
+  ASSERT_GT(away[kSphere][2].n, 100);
+  EXPECT_LT(away[kSphere][2].get(), 9.0) << "the sphere's mean normal error at 16 mm, degrees";
+  EXPECT_LT(beside[kSphere][2].get(), 1.5 * away[kSphere][2].get())
+      << "the sphere's mean normal error beside the level boundary against away from it, degrees";
 }
 
 // Packets whose cells reach across the level boundary sample those cells ray by ray.
