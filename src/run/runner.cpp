@@ -154,7 +154,9 @@ class Run {
 
   RunResult go() {
     check_pose_source();
-    for (const std::string& w : info_.warnings) log::warn("{}", w);
+    // The dataset's doubts (a depth scale that looks wrong, frames far apart in time), logged
+    // when it was opened, belong to the run's result too: stats.json lists them with its own.
+    summary_.warnings = info_.warnings;
     OutputFolder folder(params_.out_dir, params_.overwrite);
     folder_ = &folder;
     RunResult result;

@@ -284,6 +284,37 @@ TEST(Reconstruct, AResultOfNoUseExitsNonZeroAndSaysWhy) {
   EXPECT_GE(stats["warnings"].size(), 2u);
 }
 
+// Frames stamped far apart in time (keyframes): the run warns that tracking may misplace them,
+// on the console once and in stats.json.
+TEST(Reconstruct, FramesFarApartInTimeAreAWarningOfTheRun) {
+  test::TempDir dir;
+  ASSERT_EQ(run_hivox("synth --scene box --frames 3 --width 80 --height 60 --noise none --out " +
+                      (dir / "seq").string())
+                .exit_code,
+            0);
+  // The same frames and poses, stamped 0.5 s apart.
+  test::write_text(dir / "seq" / "associations.txt",
+                   "0.0 rgb/0.000000.png 0.0 depth/0.000000.png\n"
+                   "0.5 rgb/0.033333.png 0.5 depth/0.033333.png\n"
+                   "1.0 rgb/0.066667.png 1.0 depth/0.066667.png\n");
+  std::vector<StampedPose> poses = read_tum_trajectory(dir / "seq" / "groundtruth.txt");
+  ASSERT_EQ(poses.size(), 3u);
+  for (std::size_t i = 0; i < poses.size(); ++i)
+    poses[i].timestamp_s = 0.5 * static_cast<double>(i);
+  write_tum_trajectory(dir / "seq" / "groundtruth.txt", poses);
+  const auto r = run_hivox("reconstruct " + (dir / "seq").string() +
+                           " --poses gt --levels 1 --voxel-size 0.01 --truncation 0.04 --out " +
+                           (dir / "run").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const std::string warning = "frames are 0.50 s apart";
+  const std::size_t first = r.output.find(warning);
+  ASSERT_NE(first, std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(warning, first + 1), std::string::npos) << "warned twice:\n" << r.output;
+  const auto stats = read_json(dir / "run" / "stats.json");
+  ASSERT_EQ(stats["warnings"].size(), 1u) << stats["warnings"].dump();
+  EXPECT_TRUE(test::contains(stats["warnings"][0].get<std::string>(), warning));
+}
+
 // A frame that cannot be read stops the run there (the frames before it are kept, exit 4), or
 // is skipped and counted with --on-bad-frame skip; the same when frames are read ahead.
 TEST(Reconstruct, AnUnreadableFrameStopsTheRunOrIsSkipped) {

@@ -55,6 +55,7 @@ TEST(RealData, TumFr1Rpy) {
   EXPECT_TRUE(info.has_color);
   // The mocap has a gap around t = 1305031244.88: frames 441-443 lie > 20 ms from any pose.
   EXPECT_EQ(info.ground_truth_count, 691u);
+  EXPECT_NEAR(info.median_frame_step_s, 1.0 / 30.0, 0.002);
   EXPECT_TRUE(info.warnings.empty());
 
   const RgbdFrame f = reader->read(100);
@@ -123,7 +124,10 @@ TEST(RealData, TumFr3CabinetKeyframes) {
   EXPECT_EQ(info.rig.depth_camera.fx, 535.4f);
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 1341841278.8427);
   EXPECT_EQ(info.ground_truth_count, 58u);
-  EXPECT_TRUE(info.warnings.empty());
+  // Keyframes ~0.67 s apart: too far apart for tracking, and said so.
+  EXPECT_NEAR(info.median_frame_step_s, 0.67, 0.01);
+  ASSERT_EQ(info.warnings.size(), 1u);
+  EXPECT_TRUE(test::contains(info.warnings[0], "frames are 0.67 s apart")) << info.warnings[0];
   const RgbdFrame f = reader->read(2);
   EXPECT_DOUBLE_EQ(f.timestamp_s, 1341841280.1825);
   ASSERT_TRUE(f.T_wc_gt.has_value());
@@ -158,7 +162,9 @@ TEST(RealData, ThreeDMatchSun3dSample) {
   EXPECT_EQ(info.rig.depth_camera.width, 640);
   EXPECT_EQ(info.rig.depth_scale, 1000.0);
   EXPECT_EQ(info.ground_truth_count, 5u);
-  EXPECT_TRUE(info.warnings.empty());
+  // Frames 0, 1, 2, 116 and 422 of a 30 frames/s sequence: the median step is 3.8 s.
+  ASSERT_EQ(info.warnings.size(), 1u);
+  EXPECT_TRUE(test::contains(info.warnings[0], "frames are 3.80 s apart")) << info.warnings[0];
   const RgbdFrame f = reader->read(4);
   ASSERT_TRUE(f.T_wc_gt.has_value());
   expect_pose_equals_line(*f.T_wc_gt,

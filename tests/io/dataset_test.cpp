@@ -336,6 +336,30 @@ TEST(DatasetCalibration, ImplausibleDepthScaleIsAWarning) {
   EXPECT_NEAR(reader->read(0).depth_m(0, 0), 400.0f / 5000.0f, kTol);
 }
 
+TEST(DatasetCalibration, FramesFarApartInTimeAreAWarning) {
+  // Keyframes half a second apart: tracking cannot follow, and says nothing itself.
+  TempDir dir;
+  write_small_tum(dir.path());
+  write_text(dir / "associations.txt",
+             "0.99 rgb/c0.png 1.00 depth/d0.png\n"
+             "1.49 rgb/c1.png 1.50 depth/d1.png\n"
+             "2.09 rgb/c2.png 2.10 depth/d2.png\n");
+  auto reader = open_dataset(dir.path().string());
+  EXPECT_DOUBLE_EQ(reader->info().median_frame_step_s, 0.6);
+  ASSERT_EQ(reader->info().warnings.size(), 1u);
+  const std::string& w = reader->info().warnings[0];
+  for (const char* part : {"frames are 0.60 s apart", "1.7 frames/s", "--poses gt"})
+    EXPECT_TRUE(test::contains(w, part)) << "'" << part << "' missing in: " << w;
+  EXPECT_TRUE(test::contains(describe_dataset(*reader), "frame step:     0.600 s median"));
+  // The first two frames only: one step of 0.5 s.
+  DatasetParams first_two;
+  first_two.max_frames = 2;
+  EXPECT_DOUBLE_EQ(open_dataset(dir.path().string(), first_two)->info().median_frame_step_s, 0.5);
+  // 30 frames/s, and layouts that number their frames instead: no warning.
+  write_small_tum(dir.path());
+  EXPECT_TRUE(open_dataset(dir.path().string())->info().warnings.empty());
+}
+
 TEST(DatasetCalibration, DescribeSaysWhatWasFound) {
   TempDir dir;
   write_small_tum(dir.path());
@@ -344,7 +368,8 @@ TEST(DatasetCalibration, DescribeSaysWhatWasFound) {
   for (const char* part :
        {"layout:         TUM", "frames:         3", "resolution:     8x6", "fx=10.000",
         "depth scale:    5000", "1.000 / ", "/ 1.415 m", "colour:         yes",
-        "ground truth:   yes, 2 of 3 frames", "first time:     1.000000 s", "warnings:       none"})
+        "ground truth:   yes, 2 of 3 frames", "first time:     1.000000 s",
+        "frame step:     0.100 s median (10.0 frames/s)", "warnings:       none"})
     EXPECT_TRUE(test::contains(text, part)) << "'" << part << "' missing in:\n" << text;
 }
 

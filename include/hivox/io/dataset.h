@@ -75,13 +75,16 @@ DatasetLayout detect_layout(const std::filesystem::path& dir);
 
 /// Opens a dataset folder, detecting its layout. Checks the depth scale on a few of the first
 /// frames and adds a line to `info().warnings` (and logs it) when the median valid depth is
-/// outside 0.1–10 m. `synthetic:NAME` specs are not served here yet (`Error(Unsupported)`).
+/// outside 0.1–10 m, and another where the frames' recorded timestamps lie more than 0.15 s
+/// apart (median): too far for tracking against the model. `synthetic:NAME` specs are not
+/// served here yet (`Error(Unsupported)`).
 std::unique_ptr<DatasetReader> open_dataset(const std::string& spec,
                                             const DatasetParams& params = {});
 
 /// A multi-line, human-readable summary: layout, frame count, resolution, intrinsics and where
 /// they came from, depth scale and its source, valid depth range over a few sampled frames,
-/// colour, ground-truth poses, first timestamp, warnings. Reads a few frames.
+/// colour, ground-truth poses, first timestamp, the median step between timestamps (where
+/// recorded), warnings. Reads a few frames.
 std::string describe_dataset(DatasetReader& reader);
 
 /// Associates two time-stamped lists the way TUM's `associate.py` does: all pairs with
