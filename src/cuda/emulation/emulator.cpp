@@ -12,6 +12,7 @@
 #include <boost/context/stack_context.hpp>
 #include <chrono>
 #include <cstdarg>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -47,10 +48,14 @@ namespace ctx = boost::context;
 // ---- fibers ------------------------------------------------------------------------------------
 
 /// Fiber stacks, kept for reuse by the host thread that made them; a guard page below each
-/// turns an overflow into a fault.
+/// turns an overflow into a fault. Each stack starts at its own offset below its mapping's top
+/// (one of 64 cache lines): the tops of page-aligned stacks all fall into the same sets of the
+/// L1 cache, and a block's hundreds of threads, switched at every warp operation, then evicted
+/// each other's stack frames at every switch.
 class StackPool {
  public:
   static constexpr std::size_t kBytes = 256 * 1024;
+  static constexpr std::size_t kColours = 64, kLine = 64;
 
   ctx::stack_context allocate() {
     std::vector<void*>& free = free_list();
@@ -64,9 +69,12 @@ class StackPool {
       if (base == MAP_FAILED) die("no memory for a thread's stack");
       mprotect(base, page(), PROT_NONE);
     }
+    // The colour of a stack follows from its address (the mapping is page-aligned), so that a
+    // stack taken again from the free list keeps its own.
+    const std::size_t colour = (reinterpret_cast<std::uintptr_t>(base) / page()) % kColours;
     ctx::stack_context sc;
-    sc.size = kBytes;
-    sc.sp = static_cast<char*>(base) + page() + kBytes;
+    sc.size = kBytes - colour * kLine;
+    sc.sp = static_cast<char*>(base) + page() + sc.size;
     return sc;
   }
   void deallocate(ctx::stack_context& sc) {
