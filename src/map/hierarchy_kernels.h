@@ -63,21 +63,14 @@ HIVOX_HD inline bool value_from_coarser(const MapView& map, const TsdfVoxel* tsd
       find_coarser_holder(map, level, block_of_voxel(g), &l,
                           [&](int at, const Vec3i& p) { return find_block_ptr(map.level[at], p); });
   if (holder < 0) return false;
-  const int32_t s = 1 << (l - level);
-  const Vec3i base{floor_div(g.x, s), floor_div(g.y, s), floor_div(g.z, s)};
-  const Vec3i base_block = block_of_voxel(base);
-  const float inv = 1.0f / static_cast<float>(s);
-  const float t[3] = {static_cast<float>(g.x - base.x * s) * inv,
-                      static_cast<float>(g.y - base.y * s) * inv,
-                      static_cast<float>(g.z - base.z * s) * inv};
+  const CoarserCell cell = coarser_cell(level, g, l);
+  const Vec3i base_block = block_of_voxel(cell.base);
   VoxelBlend v;
   v.coloured = color != nullptr;
   for (int c = 0; c < 8; ++c) {
-    const int cx = c & 1, cy = (c >> 1) & 1, cz = c >> 2;
-    const float a =
-        (cx ? t[0] : 1.0f - t[0]) * (cy ? t[1] : 1.0f - t[1]) * (cz ? t[2] : 1.0f - t[2]);
+    const float a = cell.weight(c);
     if (a == 0.0f) continue;  // a corner the point does not reach
-    const Vec3i voxel{base.x + cx, base.y + cy, base.z + cz};
+    const Vec3i voxel = cell.corner(c);
     const Vec3i block = block_of_voxel(voxel);
     const int32_t ptr = block == base_block ? holder : find_block_ptr(map.level[l], block);
     if (ptr < 0) return false;

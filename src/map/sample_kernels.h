@@ -688,6 +688,35 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool samples_one_voxel_ahead(const MapView
   return true;
 }
 
+/// The cell of level `coarse` around lattice point `g` of the finer `level` (global voxel
+/// coordinates of each): its lowest corner `base` on the coarse lattice and g's fractions `t` in
+/// it, exact (the levels' voxel sizes differ by a power of two).
+struct CoarserCell {
+  Vec3i base;
+  Vec3f t;
+  /// Corner c of the cell (c = cx | cy << 1 | cz << 2), on the coarse lattice.
+  HIVOX_HD Vec3i corner(int c) const {
+    return {base.x + (c & 1), base.y + ((c >> 1) & 1), base.z + (c >> 2)};
+  }
+  /// Corner c's trilinear weight at g: 0 for a corner g does not reach (g on a face, an edge or
+  /// a coarse lattice point reads only the corners there).
+  HIVOX_HD float weight(int c) const {
+    const float wx = (c & 1) ? t.x : 1.0f - t.x, wy = ((c >> 1) & 1) ? t.y : 1.0f - t.y,
+                wz = (c >> 2) ? t.z : 1.0f - t.z;
+    return wx * wy * wz;
+  }
+};
+HIVOX_HD inline CoarserCell coarser_cell(int level, const Vec3i& g, int coarse) {
+  const int k = 1 << (coarse - level);
+  CoarserCell cell;
+  cell.base = {floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
+  const float inv_k = 1.0f / static_cast<float>(k);  // exact: k is a power of two
+  cell.t = {static_cast<float>(g.x - cell.base.x * k) * inv_k,
+            static_cast<float>(g.y - cell.base.y * k) * inv_k,
+            static_cast<float>(g.z - cell.base.z * k) * inv_k};
+  return cell;
+}
+
 /// The TSDF at lattice point `g` of `level` as the coarser level `coarse` represents it: the
 /// trilinear interpolant of that level's cell around the point, with exact fractions (a point
 /// on a coarse face or edge reads only the corners of that face or edge, a coarse lattice point
@@ -699,24 +728,16 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool samples_one_voxel_ahead(const MapView
 HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_on_coarser_lattice(
     const MapView& map, BlockLookupCache& cache, int level, const Vec3i& g, int coarse,
     float min_weight, float* f, int32_t* nearest_ptr, int* nearest_index) {
-  const int k = 1 << (coarse - level);
-  const Vec3i base{floor_div(g.x, k), floor_div(g.y, k), floor_div(g.z, k)};
-  const float inv_k = 1.0f / static_cast<float>(k);  // exact: k is a power of two
-  const Vec3f t{static_cast<float>(g.x - base.x * k) * inv_k,
-                static_cast<float>(g.y - base.y * k) * inv_k,
-                static_cast<float>(g.z - base.z * k) * inv_k};
+  const CoarserCell cell = coarser_cell(level, g, coarse);
   float v[8];
   float best = -1.0f;
   for (int c = 0; c < 8; ++c) {
-    const float wx = (c & 1) ? t.x : 1.0f - t.x, wy = ((c >> 1) & 1) ? t.y : 1.0f - t.y,
-                wz = (c >> 2) ? t.z : 1.0f - t.z;
-    const float w = wx * wy * wz;
+    const float w = cell.weight(c);
     v[c] = 0.0f;
     if (w == 0.0f) continue;
     int32_t ptr;
     Vec3i voxel;
-    const Vec3i corner{base.x + (c & 1), base.y + ((c >> 1) & 1), base.z + (c >> 2)};
-    if (lattice_voxel(map, cache, coarse, corner, &ptr, &voxel) < 0) return false;
+    if (lattice_voxel(map, cache, coarse, cell.corner(c), &ptr, &voxel) < 0) return false;
     const int index = local_voxel_index(voxel);
     const TsdfVoxel vox = map.tsdf[static_cast<int64_t>(ptr) * kBlockVoxels + index];
     if (static_cast<float>(vox.weight) < min_weight) return false;
@@ -728,7 +749,7 @@ HIVOX_HD HIVOX_DEVICE_NOINLINE inline bool sample_on_coarser_lattice(
     }
   }
   Vec3f unused;
-  *f = interpolate_trilinear(v, t, &unused);
+  *f = interpolate_trilinear(v, cell.t, &unused);
   return true;
 }
 
