@@ -65,12 +65,6 @@ void append_valid(const DepthImage& depth, std::vector<float>* values) {
     if (d[i] > 0.0f) values->push_back(d[i]);
 }
 
-float median_of(std::vector<float>& values) {
-  auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
-}
-
 std::string list_frames(const std::vector<std::size_t>& indices) {
   std::string s;
   for (std::size_t i : indices) s += (s.empty() ? "" : ", ") + std::to_string(i);
@@ -96,7 +90,7 @@ void check_depth_scale(detail::FileDataset& dataset) {
     log::warn("{}", info.warnings.back());
     return;
   }
-  const double median_m = median_of(values);
+  const double median_m = detail::median_of(values);
   if (median_m >= 0.1 && median_m <= 10.0) return;
   // Suggest the common scale that brings the median nearest to a typical 2 m, else the scale
   // that puts it at 2 m.
@@ -347,7 +341,7 @@ std::string describe_dataset(DatasetReader& reader) {
   } else {
     const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
     const float min_m = *lo, max_m = *hi;
-    const float median_m = median_of(values);
+    const float median_m = detail::median_of(values);
     line("depth range",
          fmt::format("{:.3f} / {:.3f} / {:.3f} m (min / median / max valid; {:.0f}% of pixels "
                      "valid; frames {})",

@@ -132,4 +132,12 @@ std::unique_ptr<FileDataset> open_scannet(const std::filesystem::path& dir,
 std::unique_ptr<FileDataset> open_image_folders(const std::filesystem::path& dir,
                                                 const DatasetParams& params);
 
+/// The median of `values` (not empty; reordered).
+template <typename T>
+T median_of(std::vector<T>& values) {
+  auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
 }  // namespace hivox::detail

@@ -104,13 +104,11 @@ void FileDataset::truncate(std::size_t max_frames) {
       [](const FrameFiles& f) { return f.T_wc_gt.has_value() || !f.pose_file.empty(); }));
   info_.has_ground_truth = info_.ground_truth_count > 0;
   info_.median_frame_step_s = 0;
-  if (info_.layout == DatasetLayout::Tum && frames_.size() >= 2) {
+  if (info_.timestamps_recorded && frames_.size() >= 2) {
     std::vector<double> steps;
     for (std::size_t i = 1; i < frames_.size(); ++i)
       steps.push_back(frames_[i].timestamp_s - frames_[i - 1].timestamp_s);
-    auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
-    std::nth_element(steps.begin(), mid, steps.end());
-    info_.median_frame_step_s = *mid;
+    info_.median_frame_step_s = median_of(steps);
   }
 }
 

@@ -156,6 +156,7 @@ std::unique_ptr<FileDataset> open_tum(const fs::path& dir, const DatasetParams& 
                            .depth_scale_source = "TUM default (intrinsics.json has none)"});
   info.source = dir.string();
   info.layout = DatasetLayout::Tum;
+  info.timestamps_recorded = true;
   calibration.apply_to(info, params.undistort);  // TUM depth is registered to colour
   return std::make_unique<FileDataset>(std::move(info), std::move(frames),
                                        DepthDecoding{calibration.depth_scale, 0, 0.0});

@@ -355,7 +355,7 @@ TEST(DatasetCalibration, FramesFarApartInTimeAreAWarning) {
   DatasetParams first_two;
   first_two.max_frames = 2;
   EXPECT_DOUBLE_EQ(open_dataset(dir.path().string(), first_two)->info().median_frame_step_s, 0.5);
-  // 30 frames/s, and layouts that number their frames instead: no warning.
+  // 0.1 s apart (the small set's own timestamps): no warning.
   write_small_tum(dir.path());
   EXPECT_TRUE(open_dataset(dir.path().string())->info().warnings.empty());
 }
@@ -446,6 +446,9 @@ TEST(SevenScenesDataset, SequencesFramesAndPoses) {
   EXPECT_EQ(info.ground_truth_count, 4u);
   EXPECT_TRUE(info.has_color);
   EXPECT_DOUBLE_EQ(info.first_timestamp_s, 0.0);
+  // Numbered frames: no recorded timestamps, so no step to judge.
+  EXPECT_FALSE(info.timestamps_recorded);
+  EXPECT_EQ(info.median_frame_step_s, 0.0);
   ASSERT_EQ(info.warnings.size(), 1u);
   EXPECT_TRUE(test::contains(info.warnings[0], "registered")) << info.warnings[0];
 

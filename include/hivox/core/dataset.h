@@ -49,8 +49,11 @@ struct DatasetInfo {
   /// without reading every frame.
   std::size_t ground_truth_count = 0;
   double first_timestamp_s = 0;
-  /// Median step between consecutive frames' timestamps, seconds, where the files record when
-  /// each frame was taken (TUM's lists); 0 where a layout numbers its frames instead.
+  /// The files say when each frame was taken (TUM's lists); other layouts number their frames
+  /// and time them at 30 frames/s.
+  bool timestamps_recorded = false;
+  /// Median step between consecutive frames' timestamps, seconds, where they are recorded; 0
+  /// otherwise.
   double median_frame_step_s = 0;
   std::vector<std::string> warnings;  ///< e.g. implausible depth scale; printed by tools
 };
