@@ -9,8 +9,8 @@
 //
 //   render_steps out/run/trajectory.txt --every 40 a.hvx b.hvx
 //
-// Each map is rendered with its own camera (the one it was made with) and the raycaster's
-// defaults; the hits' levels tell the blocks apart.
+// Each map is rendered with the camera it was made with (a map that does not say is refused) and
+// the raycaster's defaults; the hits' levels tell the blocks apart.
 
 #include <CLI/CLI.hpp>
 
@@ -50,17 +50,14 @@ struct MapSteps {
   Steps inside, same_level, across_levels;
 };
 
-MapSteps measure(const LoadedMap& m, const std::vector<Pose>& poses) {
-  const PinholeCamera cam = m.info.session.camera ? *m.info.session.camera
-                                                  : PinholeCamera{525, 525, 319.5, 239.5, 640, 480};
+MapSteps measure(const std::string& path, const std::vector<Pose>& poses) {
+  const LoadedMap m = read_map_file(path);
+  if (!m.info.session.camera)
+    fail(ErrorCode::InvalidArgument, "{}: the map does not say which camera made it", path);
+  const PinholeCamera cam = *m.info.session.camera;
   const MapView view = m.map->view();
   Raycaster raycaster{RaycastParams{}};
   MapSteps out;
-  auto block_of = [&](const Vec3f& p, int level) {
-    const float side = view.level[level].block_size_m;
-    return Vec3i{static_cast<int>(std::floor(p.x / side)), static_cast<int>(std::floor(p.y / side)),
-                 static_cast<int>(std::floor(p.z / side))};
-  };
   for (const Pose& T_wc : poses) {
     const RaycastResult& r = raycaster.raycast(*m.map, cam, T_wc, DepthRange{0.2f, 3.0f});
     for (int y = 0; y < cam.height; ++y)
@@ -77,7 +74,7 @@ MapSteps measure(const LoadedMap& m, const std::vector<Pose>& poses) {
           const int lp = r.levels(x, y), lq = r.levels(u, v);
           if (lp != lq)
             out.across_levels.add(apart);
-          else if (!(block_of(p, lp) == block_of(q, lq)))
+          else if (!(block_of_point(view.level[lp], p) == block_of_point(view.level[lq], q)))
             out.same_level.add(apart);
           else
             out.inside.add(apart);
@@ -104,7 +101,7 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < all.size(); i += static_cast<std::size_t>(every))
       poses.push_back(all[i].T_wc);
     for (const std::string& path : maps) {
-      const MapSteps s = measure(read_map_file(path), poses);
+      const MapSteps s = measure(path, poses);
       std::printf("%s: %zu renders, %lld hits; neighbouring hits on smooth surface\n", path.c_str(),
                   poses.size(), static_cast<long long>(s.hits));
       s.inside.print("inside a block");
