@@ -318,6 +318,38 @@ RaycastResult Reconstruction::render(const PinholeCamera& camera, const Pose& T_
   return raycaster.raycast(*map_, camera, T_wc, range);
 }
 
+std::vector<PoorTrackingStretch> poor_tracking_stretches(std::span<const FrameStats> frames,
+                                                         const TrackParams& track,
+                                                         int64_t min_poor) {
+  std::vector<PoorTrackingStretch> found;
+  std::optional<PoorTrackingStretch> open;
+  const auto close = [&] {
+    if (open && open->poor >= min_poor) found.push_back(*open);
+    open.reset();
+  };
+  for (const FrameStats& f : frames) {
+    if (f.tracking == TrackingQuality::Good) {
+      close();
+      continue;
+    }
+    if (!open) open = PoorTrackingStretch{.first_index = f.index};
+    PoorTrackingStretch& s = *open;
+    s.last_index = f.index;
+    if (f.tracking == TrackingQuality::Lost) {
+      ++s.lost;
+      continue;
+    }
+    ++s.poor;
+    const bool few_inliers = f.track_inlier_ratio < track.poor_inlier_ratio;
+    s.few_inliers += few_inliers;
+    s.unconstrained += !few_inliers && f.track_condition < track.poor_condition;
+    s.min_inlier_ratio = std::min(s.min_inlier_ratio, f.track_inlier_ratio);
+    s.max_inlier_ratio = std::max(s.max_inlier_ratio, f.track_inlier_ratio);
+  }
+  close();
+  return found;
+}
+
 StageTimes mean_stage_times(std::span<const FrameStats> frames) {
   StageTimes t;
   if (frames.empty()) return t;

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <set>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "hivox/core/error.h"
@@ -132,6 +133,79 @@ TEST(Runner, StopRequestEndsTheRunWithTheFramesSoFar) {
   EXPECT_EQ(run.summary.end, RunEnd::StopRequested);
   EXPECT_EQ(run.summary.frames_fused, 3u);
   EXPECT_EQ(read_tum_trajectory(dir / "trajectory.txt").size(), 3u) << "results of those frames";
+}
+
+// Stretches of poor tracking in a list of frame verdicts: a stretch runs from one good frame to
+// the next, lost frames inside it extend it but are not poor, and each poor frame has one cause.
+TEST(Runner, StretchesOfPoorTrackingAreFoundWithTheirCause) {
+  const TrackParams track;  // poor below 40 % inliers or a condition of 1e-3
+  std::vector<FrameStats> frames;
+  auto add = [&](TrackingQuality q, double inliers, double condition) {
+    FrameStats f;
+    f.index = 10 + frames.size();  // indices of the dataset, not of the list
+    f.tracking = q;
+    f.track_inlier_ratio = inliers;
+    f.track_condition = condition;
+    frames.push_back(f);
+  };
+  const auto G = TrackingQuality::Good, P = TrackingQuality::Poor, L = TrackingQuality::Lost;
+  add(G, 0.9, 0.1);
+  for (int i = 0; i < 4; ++i) add(P, 0.3, 0.1);  // 11-14: four poor, too short
+  add(G, 0.9, 0.1);
+  add(P, 0.35, 0.1);  // 16: few inliers
+  add(P, 0.2, 0.1);   // 17: few inliers
+  add(L, 0.1, 0.0);   // 18: lost, not poor
+  add(P, 0.8, 1e-4);  // 19: unconstrained
+  add(P, 0.3, 1e-4);  // 20: few inliers (that cause first)
+  add(P, 0.7, 5e-4);  // 21: unconstrained
+  add(G, 0.9, 0.1);   // 22
+  add(P, 0.39, 0.1);  // 23-27: five poor to the end of the list
+  for (int i = 0; i < 4; ++i) add(P, 0.25, 0.1);
+
+  const std::vector<PoorTrackingStretch> s = poor_tracking_stretches(frames, track, 5);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_EQ(s[0].first_index, 16u);
+  EXPECT_EQ(s[0].last_index, 21u);
+  EXPECT_EQ(s[0].poor, 5);
+  EXPECT_EQ(s[0].lost, 1);
+  EXPECT_EQ(s[0].few_inliers, 3);
+  EXPECT_EQ(s[0].unconstrained, 2);
+  EXPECT_DOUBLE_EQ(s[0].min_inlier_ratio, 0.2);
+  EXPECT_DOUBLE_EQ(s[0].max_inlier_ratio, 0.8);
+  EXPECT_EQ(s[1].first_index, 23u);
+  EXPECT_EQ(s[1].last_index, 27u);
+  EXPECT_EQ(s[1].poor, 5);
+  EXPECT_EQ(s[1].few_inliers, 5);
+  EXPECT_EQ(s[1].unconstrained, 0);
+  EXPECT_EQ(poor_tracking_stretches(frames, track, 4).size(), 3u) << "11-14 counts from 4";
+  EXPECT_EQ(poor_tracking_stretches(frames, track, 6).size(), 0u);
+  EXPECT_TRUE(poor_tracking_stretches({}, track, 1).empty());
+}
+
+// A smooth blob leaves ICP a direction it cannot pin down: every frame is poor, none lost, and
+// the run says so once, with the cause. The desk, which constrains every direction, does not.
+TEST(Runner, AStretchOfPoorTrackingIsAWarning) {
+  SyntheticDataset blob(
+      parse_synthetic_spec("synthetic:blob?frames=20&noise=none&width=160&height=120"));
+  const RunResult run = run_reconstruction(blob, small_run());
+  const TrackingCounts& counts = run.reconstruction->tracking_counts();
+  EXPECT_EQ(counts.lost, 0);
+  ASSERT_GE(counts.poor, 5);
+  std::vector<std::string> warned;
+  for (const std::string& w : run.summary.warnings)
+    if (test::contains(w, "tracking was poor")) warned.push_back(w);
+  ASSERT_EQ(warned.size(), 1u) << ::testing::PrintToString(run.summary.warnings);
+  EXPECT_TRUE(test::contains(warned[0], fmt::format("poor on {} frames in a row", counts.poor)))
+      << warned[0];
+  EXPECT_TRUE(test::contains(warned[0], "a direction of motion unconstrained")) << warned[0];
+  EXPECT_FALSE(test::contains(warned[0], "inliers")) << warned[0];
+
+  SyntheticDataset data = desk(300);
+  RunParams p = small_run();
+  p.max_frames = 20;
+  const RunResult good = run_reconstruction(data, p);
+  EXPECT_EQ(good.reconstruction->tracking_counts().poor, 0);
+  EXPECT_TRUE(good.summary.warnings.empty()) << ::testing::PrintToString(good.summary.warnings);
 }
 
 TEST(Runner, BadSettingsAreNamed) {

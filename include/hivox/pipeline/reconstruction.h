@@ -111,6 +111,24 @@ struct TrackingCounts {
   int64_t good = 0, poor = 0, lost = 0;
 };
 
+/// Consecutive frames whose tracking was not good. Poor frames are fused (only lost ones are
+/// not), so a long stretch of them can leave the model, and every pose tracked against it
+/// after, offset without a single frame being lost.
+struct PoorTrackingStretch {
+  std::size_t first_index = 0, last_index = 0;  ///< the frames' indices in their dataset
+  int64_t poor = 0;                             ///< frames fused with poor tracking
+  int64_t lost = 0;                             ///< frames lost among them (not fused)
+  /// Of the poor frames: those with too few inliers (`TrackParams::poor_inlier_ratio`), and
+  /// the others, whose geometry left a direction of motion unconstrained (`poor_condition`).
+  int64_t few_inliers = 0, unconstrained = 0;
+  double min_inlier_ratio = 1, max_inlier_ratio = 0;  ///< over the poor frames
+};
+/// The stretches of `frames` (in the order run) with at least `min_poor` poor frames, a
+/// stretch ending at a good frame; `track` gives the thresholds the verdicts came from.
+std::vector<PoorTrackingStretch> poor_tracking_stretches(std::span<const FrameStats> frames,
+                                                         const TrackParams& track,
+                                                         int64_t min_poor);
+
 class Reconstruction {
  public:
   /// `rig`: the sensor whose frames are fused (cameras, their relative pose, depth noise).
