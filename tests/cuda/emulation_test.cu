@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/mman.h>
+
 #include "core/parallel.h"
 
 namespace hivox::test {
@@ -526,6 +528,20 @@ TEST(CudaEmulationDeathTest, VirtualMemoryIsOpenOnlyWhereCommittedAndOpened) {
   EXPECT_EQ(unmap(base, chunk), CUDA_SUCCESS);
   EXPECT_EQ(release(h), CUDA_SUCCESS);
   EXPECT_EQ(free(base, 4 * chunk), CUDA_SUCCESS);
+
+  // Reserved addresses are aligned to the granularity, as a GPU's are, wherever the host's
+  // mappings lie: here after odd-sized mappings of the host's own.
+  std::vector<std::pair<void*, std::size_t>> odd;
+  for (int k = 1; k <= 3; ++k) {
+    const std::size_t bytes = static_cast<std::size_t>(k) * 4096 * 3;
+    odd.push_back({mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0), bytes});
+    ASSERT_NE(odd.back().first, MAP_FAILED);
+    CUdeviceptr at = 0;
+    ASSERT_EQ(reserve(&at, static_cast<std::size_t>(k) * chunk, 0, 0, 0), CUDA_SUCCESS);
+    EXPECT_EQ(at % chunk, 0u) << "reservation " << k << " at " << at;
+    EXPECT_EQ(free(at, static_cast<std::size_t>(k) * chunk), CUDA_SUCCESS);
+  }
+  for (const auto& [p, bytes] : odd) munmap(p, bytes);
 }
 
 }  // namespace

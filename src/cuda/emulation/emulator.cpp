@@ -645,8 +645,18 @@ CUresult vm_granularity(std::size_t* granularity, const CUmemAllocationProp*,
 CUresult vm_reserve(CUdeviceptr* ptr, std::size_t size, std::size_t, CUdeviceptr,
                     unsigned long long) {
   if (size == 0 || size % kGranularity != 0) return CUDA_ERROR_INVALID_VALUE;
-  void* p = mmap(nullptr, size, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-  if (p == MAP_FAILED) return CUDA_ERROR_OUT_OF_MEMORY;
+  // Addresses aligned to the granularity, as a GPU's are: mmap aligns only to a page (a kernel
+  // may align large mappings further, valgrind's placement does not), so one granule more is
+  // reserved and what lies outside the aligned range given back.
+  void* raw = mmap(nullptr, size + kGranularity, PROT_NONE,
+                   MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (raw == MAP_FAILED) return CUDA_ERROR_OUT_OF_MEMORY;
+  const uintptr_t start = reinterpret_cast<uintptr_t>(raw);
+  const uintptr_t aligned = (start + kGranularity - 1) / kGranularity * kGranularity;
+  if (aligned > start) munmap(raw, aligned - start);
+  if (start + kGranularity > aligned)
+    munmap(reinterpret_cast<void*>(aligned + size), start + kGranularity - aligned);
+  void* p = reinterpret_cast<void*>(aligned);
   device_memory().add(p, size);
   *ptr = reinterpret_cast<CUdeviceptr>(p);
   return CUDA_SUCCESS;
