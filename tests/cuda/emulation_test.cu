@@ -219,6 +219,13 @@ TEST(CudaEmulationDeathTest, NewMemoryHoldsTheFillAsked) {
   for (const unsigned char x : a) seen[x] = true;
   EXPECT_GT(std::count(seen.begin(), seen.end(), true), 200);
   EXPECT_DEATH(filled("256"), "HIVOX_EMULATION_FILL=256 is neither a byte");
+  // Left as it is and marked undefined for valgrind's memcheck (which a run under valgrind then
+  // reports where it is used); without valgrind's headers at build time, refused.
+#if __has_include(<valgrind/memcheck.h>)
+  EXPECT_EQ(filled("undefined").size(), kBytes);
+#else
+  EXPECT_DEATH(filled("undefined"), "needs valgrind's headers");
+#endif
 }
 
 /// Each thread takes the next slot for its index (the threads' order through the atomic), then

@@ -21,6 +21,17 @@
 #include <string_view>
 #include <vector>
 
+// Under valgrind's memcheck: fiber stacks made known, new device memory undefined on request
+// (the macros do nothing outside valgrind).
+#if __has_include(<valgrind/memcheck.h>)
+#include <valgrind/memcheck.h>
+#define HIVOX_WITH_VALGRIND 1
+#define HIVOX_STACK_REGISTER(low, high) VALGRIND_STACK_REGISTER(low, high)
+#else
+#define HIVOX_WITH_VALGRIND 0
+#define HIVOX_STACK_REGISTER(low, high) 0
+#endif
+
 #include "cuda.h"
 #include "cuda_runtime.h"
 
@@ -68,6 +79,10 @@ class StackPool {
                   MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
       if (base == MAP_FAILED) die("no memory for a thread's stack");
       mprotect(base, page(), PROT_NONE);
+      // Under valgrind, a switch between two fibers' stacks is then a switch of stacks, not a
+      // frame hundreds of kilobytes deep that leaves the other fiber's frames undefined.
+      static_cast<void>(HIVOX_STACK_REGISTER(static_cast<char*>(base) + page(),
+                                             static_cast<char*>(base) + page() + kBytes));
     }
     // The colour of a stack follows from its address (the mapping is page-aligned), so that a
     // stack taken again from the free list keeps its own.
@@ -393,7 +408,9 @@ AddressRanges& pinned_memory() {
 /// By default with 0xA5, except cudaMalloc's beyond 64 MiB (`large`), left as they come;
 /// HIVOX_EMULATION_FILL=N (a byte, 0-255) fills all of it with N, =random each allocation with
 /// bytes of its own, so that a kernel reading memory nothing wrote gives results that move with
-/// the fill. Read at each allocation.
+/// the fill; =undefined leaves it as it is and tells valgrind's memcheck that it is undefined,
+/// so that memcheck reports where such a read decides a branch, an address or an output. Read at
+/// each allocation.
 void fill_new(void* p, std::size_t bytes, bool large) {
   static std::atomic<uint64_t> allocations{0};
   const char* v = std::getenv("HIVOX_EMULATION_FILL");
@@ -401,11 +418,20 @@ void fill_new(void* p, std::size_t bytes, bool large) {
     if (!large) std::memset(p, 0xA5, bytes);
     return;
   }
+  if (std::string_view(v) == "undefined") {
+    if (!HIVOX_WITH_VALGRIND)
+      die("HIVOX_EMULATION_FILL=undefined needs valgrind's headers (valgrind/memcheck.h) at build "
+          "time");
+#if HIVOX_WITH_VALGRIND
+    static_cast<void>(VALGRIND_MAKE_MEM_UNDEFINED(p, bytes));
+#endif
+    return;
+  }
   if (std::string_view(v) != "random") {
     char* end = nullptr;
     const long byte = std::strtol(v, &end, 0);
     if (*end != '\0' || byte < 0 || byte > 255)
-      die("HIVOX_EMULATION_FILL=%s is neither a byte (0-255) nor \"random\"", v);
+      die("HIVOX_EMULATION_FILL=%s is neither a byte (0-255) nor \"random\" nor \"undefined\"", v);
     std::memset(p, static_cast<int>(byte), bytes);
     return;
   }
