@@ -340,11 +340,13 @@ std::vector<PoorTrackingStretch> poor_tracking_stretches(std::span<const FrameSt
       continue;
     }
     ++s.poor;
-    const bool few_inliers = f.track_inlier_ratio < track.poor_inlier_ratio;
-    s.few_inliers += few_inliers;
-    s.unconstrained += !few_inliers && f.track_condition < track.poor_condition;
-    s.min_inlier_ratio = std::min(s.min_inlier_ratio, f.track_inlier_ratio);
-    s.max_inlier_ratio = std::max(s.max_inlier_ratio, f.track_inlier_ratio);
+    if (f.track_inlier_ratio < track.poor_inlier_ratio) {
+      ++s.few_inliers;
+      s.min_inlier_ratio = std::min(s.min_inlier_ratio, f.track_inlier_ratio);
+      s.max_inlier_ratio = std::max(s.max_inlier_ratio, f.track_inlier_ratio);
+    } else {
+      s.unconstrained += f.track_condition < track.poor_condition;
+    }
   }
   close();
   return found;

@@ -170,13 +170,15 @@ TEST(Runner, StretchesOfPoorTrackingAreFoundWithTheirCause) {
   EXPECT_EQ(s[0].lost, 1);
   EXPECT_EQ(s[0].few_inliers, 3);
   EXPECT_EQ(s[0].unconstrained, 2);
-  EXPECT_DOUBLE_EQ(s[0].min_inlier_ratio, 0.2);
-  EXPECT_DOUBLE_EQ(s[0].max_inlier_ratio, 0.8);
+  EXPECT_DOUBLE_EQ(s[0].min_inlier_ratio, 0.2);  // of the frames with too few inliers
+  EXPECT_DOUBLE_EQ(s[0].max_inlier_ratio, 0.35);
   EXPECT_EQ(s[1].first_index, 23u);
   EXPECT_EQ(s[1].last_index, 27u);
   EXPECT_EQ(s[1].poor, 5);
   EXPECT_EQ(s[1].few_inliers, 5);
   EXPECT_EQ(s[1].unconstrained, 0);
+  EXPECT_DOUBLE_EQ(s[1].min_inlier_ratio, 0.25);
+  EXPECT_DOUBLE_EQ(s[1].max_inlier_ratio, 0.39);
   EXPECT_EQ(poor_tracking_stretches(frames, track, 4).size(), 3u) << "11-14 counts from 4";
   EXPECT_EQ(poor_tracking_stretches(frames, track, 6).size(), 0u);
   EXPECT_TRUE(poor_tracking_stretches({}, track, 1).empty());

@@ -121,7 +121,7 @@ struct PoorTrackingStretch {
   /// Of the poor frames: those with too few inliers (`TrackParams::poor_inlier_ratio`), and
   /// the others, whose geometry left a direction of motion unconstrained (`poor_condition`).
   int64_t few_inliers = 0, unconstrained = 0;
-  double min_inlier_ratio = 1, max_inlier_ratio = 0;  ///< over the poor frames
+  double min_inlier_ratio = 1, max_inlier_ratio = 0;  ///< over the `few_inliers` frames
 };
 /// The stretches of `frames` (in the order run) with at least `min_poor` poor frames, a
 /// stretch ending at a good frame; `track` gives the thresholds the verdicts came from.
