@@ -162,23 +162,35 @@ TEST(Runner, StretchesOfPoorTrackingAreFoundWithTheirCause) {
   add(P, 0.39, 0.1);  // 23-27: five poor to the end of the list
   for (int i = 0; i < 4; ++i) add(P, 0.25, 0.1);
 
+  const auto expect_stretch = [](const PoorTrackingStretch& got, const PoorTrackingStretch& want) {
+    EXPECT_EQ(got.first_index, want.first_index);
+    EXPECT_EQ(got.last_index, want.last_index);
+    EXPECT_EQ(got.poor, want.poor);
+    EXPECT_EQ(got.lost, want.lost);
+    EXPECT_EQ(got.few_inliers, want.few_inliers);
+    EXPECT_EQ(got.unconstrained, want.unconstrained);
+    EXPECT_DOUBLE_EQ(got.min_inlier_ratio, want.min_inlier_ratio);
+    EXPECT_DOUBLE_EQ(got.max_inlier_ratio, want.max_inlier_ratio);
+  };
   const std::vector<PoorTrackingStretch> s = poor_tracking_stretches(frames, track, 5);
   ASSERT_EQ(s.size(), 2u);
-  EXPECT_EQ(s[0].first_index, 16u);
-  EXPECT_EQ(s[0].last_index, 21u);
-  EXPECT_EQ(s[0].poor, 5);
-  EXPECT_EQ(s[0].lost, 1);
-  EXPECT_EQ(s[0].few_inliers, 3);
-  EXPECT_EQ(s[0].unconstrained, 2);
-  EXPECT_DOUBLE_EQ(s[0].min_inlier_ratio, 0.2);  // of the frames with too few inliers
-  EXPECT_DOUBLE_EQ(s[0].max_inlier_ratio, 0.35);
-  EXPECT_EQ(s[1].first_index, 23u);
-  EXPECT_EQ(s[1].last_index, 27u);
-  EXPECT_EQ(s[1].poor, 5);
-  EXPECT_EQ(s[1].few_inliers, 5);
-  EXPECT_EQ(s[1].unconstrained, 0);
-  EXPECT_DOUBLE_EQ(s[1].min_inlier_ratio, 0.25);
-  EXPECT_DOUBLE_EQ(s[1].max_inlier_ratio, 0.39);
+  // The inlier range is that of the frames with too few inliers.
+  expect_stretch(s[0], {.first_index = 16,
+                        .last_index = 21,
+                        .poor = 5,
+                        .lost = 1,
+                        .few_inliers = 3,
+                        .unconstrained = 2,
+                        .min_inlier_ratio = 0.2,
+                        .max_inlier_ratio = 0.35});
+  expect_stretch(s[1], {.first_index = 23,
+                        .last_index = 27,
+                        .poor = 5,
+                        .lost = 0,
+                        .few_inliers = 5,
+                        .unconstrained = 0,
+                        .min_inlier_ratio = 0.25,
+                        .max_inlier_ratio = 0.39});
   EXPECT_EQ(poor_tracking_stretches(frames, track, 4).size(), 3u) << "11-14 counts from 4";
   EXPECT_EQ(poor_tracking_stretches(frames, track, 6).size(), 0u);
   EXPECT_TRUE(poor_tracking_stretches({}, track, 1).empty());

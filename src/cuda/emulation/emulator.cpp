@@ -26,10 +26,10 @@
 #if __has_include(<valgrind/memcheck.h>)
 #include <valgrind/memcheck.h>
 #define HIVOX_WITH_VALGRIND 1
-#define HIVOX_STACK_REGISTER(low, high) VALGRIND_STACK_REGISTER(low, high)
 #else
 #define HIVOX_WITH_VALGRIND 0
-#define HIVOX_STACK_REGISTER(low, high) 0
+#define VALGRIND_STACK_REGISTER(low, high) 0
+#define VALGRIND_MAKE_MEM_UNDEFINED(p, bytes) 0
 #endif
 
 #include "cuda.h"
@@ -81,8 +81,8 @@ class StackPool {
       mprotect(base, page(), PROT_NONE);
       // Under valgrind, a switch between two fibers' stacks is then a switch of stacks, not a
       // frame hundreds of kilobytes deep that leaves the other fiber's frames undefined.
-      static_cast<void>(HIVOX_STACK_REGISTER(static_cast<char*>(base) + page(),
-                                             static_cast<char*>(base) + page() + kBytes));
+      static_cast<void>(VALGRIND_STACK_REGISTER(static_cast<char*>(base) + page(),
+                                                static_cast<char*>(base) + page() + kBytes));
     }
     // The colour of a stack follows from its address (the mapping is page-aligned), so that a
     // stack taken again from the free list keeps its own.
@@ -422,9 +422,7 @@ void fill_new(void* p, std::size_t bytes, bool large) {
     if (!HIVOX_WITH_VALGRIND)
       die("HIVOX_EMULATION_FILL=undefined needs valgrind's headers (valgrind/memcheck.h) at build "
           "time");
-#if HIVOX_WITH_VALGRIND
     static_cast<void>(VALGRIND_MAKE_MEM_UNDEFINED(p, bytes));
-#endif
     return;
   }
   if (std::string_view(v) != "random") {
@@ -680,8 +678,7 @@ CUresult vm_reserve(CUdeviceptr* ptr, std::size_t size, std::size_t, CUdeviceptr
   const uintptr_t start = reinterpret_cast<uintptr_t>(raw);
   const uintptr_t aligned = (start + kGranularity - 1) / kGranularity * kGranularity;
   if (aligned > start) munmap(raw, aligned - start);
-  if (start + kGranularity > aligned)
-    munmap(reinterpret_cast<void*>(aligned + size), start + kGranularity - aligned);
+  munmap(reinterpret_cast<void*>(aligned + size), start + kGranularity - aligned);  // > 0 bytes
   void* p = reinterpret_cast<void*>(aligned);
   device_memory().add(p, size);
   *ptr = reinterpret_cast<CUdeviceptr>(p);
