@@ -61,9 +61,11 @@ __device__ inline void add_unique(const BlockKeySet& set, int level, const Vec3i
   atomicAdd(count, 1);  // the set is full: counted, dropped by the caller
 }
 
-/// The bitwise or of `value` over the warp's 32 lanes, every one of which calls it.
+/// The bitwise or of `value` over the warp's 32 lanes, every one of which calls it: one
+/// instruction from compute capability 8.0 on (and in the CPU emulation, which stands for such a
+/// GPU), shuffles before.
 __device__ inline unsigned warp_or(unsigned value) {
-#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+#if (defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800) || defined(HIVOX_CUDA_EMULATION)
   return __reduce_or_sync(0xffffffffu, value);
 #else
   for (unsigned d = 16; d > 0; d >>= 1) value |= __shfl_xor_sync(0xffffffffu, value, d);
@@ -74,27 +76,24 @@ __device__ inline unsigned warp_or(unsigned value) {
 /// A block's surface summary (BlockSurface) built by its threads, one voxel each, in shared
 /// memory: clear() by one thread, a barrier, add() by each (whole warps), a barrier, then get().
 struct SharedSurface {
-  unsigned observed, surface;
-  __device__ void clear() { observed = surface = 0; }
+  unsigned octants;  ///< bits 0-7: observed octants; bits 8-15: octants at or behind a surface
+  __device__ void clear() { octants = 0; }
   /// Takes in voxel `i` of the block when observed (`weight` > 0) with TSDF `tsdf`. Every lane
-  /// of the warp calls it: the warp's octants are or-ed together first, and its first lane adds
-  /// them (two atomics a warp; one a lane, all on the same two words, waited in turn).
+  /// of the warp calls it: the warp's octants are or-ed together first (both masks in one word:
+  /// one or), and its first lane adds them (one atomic a warp; one a lane, all on the same word,
+  /// would wait in turn).
   __device__ void add(int i, int weight, int tsdf) {
-    unsigned seen = 0, below = 0;
+    unsigned bits = 0;
     if (weight != 0) {
       const Vec3i q = voxel_coords(i);
-      seen = voxel_octants(q.x, q.y, q.z);
-      if (tsdf <= 0) below = seen;
+      const unsigned seen = voxel_octants(q.x, q.y, q.z);
+      bits = tsdf <= 0 ? seen | seen << 8 : seen;
     }
-    seen = warp_or(seen);
-    below = warp_or(below);
-    if (lane_index() == 0) {
-      if (seen != 0) atomicOr(&observed, seen);
-      if (below != 0) atomicOr(&surface, below);
-    }
+    bits = warp_or(bits);
+    if (lane_index() == 0 && bits != 0) atomicOr(&octants, bits);
   }
   __device__ BlockSurface get() const {
-    return BlockSurface{static_cast<uint8_t>(observed), static_cast<uint8_t>(surface)};
+    return BlockSurface{static_cast<uint8_t>(octants & 0xFFu), static_cast<uint8_t>(octants >> 8)};
   }
 };
 

@@ -94,8 +94,8 @@ TEST(CudaEmulation, BarriersOrderASharedMemoryTreeSum) {
 /// Per thread: the warp's sum of lane numbers by shuffles down and by a butterfly of xor
 /// shuffles, lane 5's value broadcast, the ballot of the even lanes, and a slot taken with one
 /// atomic per thread.
-__global__ void warp_ops(int* sums, int* butterfly, int* broadcast, unsigned* ballots, int* counter,
-                         int* slots) {
+__global__ void warp_ops(int* sums, int* butterfly, int* broadcast, unsigned* ballots,
+                         unsigned* ors, int* counter, int* slots) {
   const int lane = static_cast<int>(threadIdx.x & 31u);
   int x = lane, y = lane;
   for (int o = 16; o > 0; o >>= 1) {
@@ -107,6 +107,7 @@ __global__ void warp_ops(int* sums, int* butterfly, int* broadcast, unsigned* ba
   butterfly[i] = y;
   broadcast[i] = __shfl_sync(0xFFFFFFFFu, lane * 10, 5);
   ballots[i] = __ballot_sync(0xFFFFFFFFu, lane % 2 == 0);
+  ors[i] = __reduce_or_sync(0xFFFFFFFFu, lane % 3 == 0 ? 1u << (lane / 3) : 0u);
   slots[atomicAdd(counter, 1)] = i;
 }
 
@@ -116,14 +117,15 @@ TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
   int* butterfly = device_array<int>(kN);
   int* broadcast = device_array<int>(kN);
   unsigned* ballots = device_array<unsigned>(kN);
+  unsigned* ors = device_array<unsigned>(kN);
   int* counter = device_array<int>(1);
   int* slots = device_array<int>(kN);
   ASSERT_EQ(cudaMemset(counter, 0, sizeof(int)), cudaSuccess);
-  launch(warp_ops, kBlocks, kThreads, sums, butterfly, broadcast, ballots, counter, slots);
+  launch(warp_ops, kBlocks, kThreads, sums, butterfly, broadcast, ballots, ors, counter, slots);
   ASSERT_EQ(cudaGetLastError(), cudaSuccess);
   const std::vector<int> s = download(sums, kN), x = download(butterfly, kN),
                          b = download(broadcast, kN);
-  const std::vector<unsigned> v = download(ballots, kN);
+  const std::vector<unsigned> v = download(ballots, kN), o = download(ors, kN);
   std::vector<int> taken = download(slots, kN);
   for (int i = 0; i < kN; ++i) {
     // Lane 0 holds the whole warp's sum 0 + 1 + ... + 31; lane l the sum of a shrinking tree.
@@ -133,13 +135,14 @@ TEST(CudaEmulation, WarpOperationsGiveTheLanesTheirValues) {
     EXPECT_EQ(x[i], 496) << "thread " << i;  // the butterfly gives every lane the sum
     EXPECT_EQ(b[i], 50) << "thread " << i;
     EXPECT_EQ(v[i], 0x55555555u) << "thread " << i;
+    EXPECT_EQ(o[i], 0x7FFu) << "thread " << i;  // lanes 0, 3, ..., 30 set bits 0 to 10
   }
   EXPECT_EQ(download(counter, 1)[0], kN);
   std::sort(taken.begin(), taken.end());
   for (int i = 0; i < kN; ++i) ASSERT_EQ(taken[i], i);  // every slot once
-  for (void* p :
-       {static_cast<void*>(sums), static_cast<void*>(butterfly), static_cast<void*>(broadcast),
-        static_cast<void*>(ballots), static_cast<void*>(counter), static_cast<void*>(slots)})
+  for (void* p : {static_cast<void*>(sums), static_cast<void*>(butterfly),
+                  static_cast<void*>(broadcast), static_cast<void*>(ballots),
+                  static_cast<void*>(ors), static_cast<void*>(counter), static_cast<void*>(slots)})
     cudaFree(p);
 }
 

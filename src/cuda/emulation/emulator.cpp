@@ -832,7 +832,7 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
   }
   // Every lane of the mask is here: each gets its result.
   arrived &= ~mask;
-  uint64_t ballot = 0;
+  uint64_t ballot = 0, ored = 0;
   for (unsigned l = 0; l < 32; ++l) {
     if ((mask >> l & 1u) == 0) continue;
     const Thread& t = b.threads[static_cast<std::size_t>(base) + l];
@@ -841,6 +841,7 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
           "(%08x, %08x)",
           blockIdx.x, blockIdx.y, blockIdx.z, id / 32, lane, l, mask, t.mask);
     if (t.value != 0) ballot |= uint64_t{1} << l;
+    ored |= t.value;
   }
   for (unsigned l = 0; l < 32; ++l) {
     if ((mask >> l & 1u) == 0) continue;
@@ -849,6 +850,9 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
     switch (op) {
       case WarpOp::Ballot:
         t.result = ballot;
+        break;
+      case WarpOp::ReduceOr:
+        t.result = ored;
         break;
       case WarpOp::Shuffle:
         src = t.arg;
@@ -860,7 +864,7 @@ uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg) {
         src = l ^ t.arg;
         break;
     }
-    if (op != WarpOp::Ballot) {
+    if (op != WarpOp::Ballot && op != WarpOp::ReduceOr) {
       if ((mask >> src & 1u) == 0)
         die("block (%u,%u,%u) warp %d: lane %u reads lane %u, outside the mask %08x", blockIdx.x,
             blockIdx.y, blockIdx.z, id / 32, l, src, mask);

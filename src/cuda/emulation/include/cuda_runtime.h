@@ -43,11 +43,11 @@ namespace hivox::cuda::emulation {
 /// launch's when the graph is launched).
 void launch_on(cudaStream_t stream, dim3 grid, dim3 block, std::function<void()> thread);
 
-enum class WarpOp : uint8_t { Shuffle, ShuffleDown, ShuffleXor, Ballot };
+enum class WarpOp : uint8_t { Shuffle, ShuffleDown, ShuffleXor, Ballot, ReduceOr };
 
 /// A warp operation of the running thread: waits until every lane of `mask` is in it, then
-/// returns this lane's result (the value of lane `arg`, of lane + `arg`, of lane ^ `arg`, or the
-/// ballot).
+/// returns this lane's result (the value of lane `arg`, of lane + `arg`, of lane ^ `arg`, the
+/// ballot, or the bitwise or of the lanes' values).
 uint64_t warp_op(WarpOp op, unsigned mask, uint64_t value, unsigned arg);
 
 /// This thread's lane in its warp.
@@ -105,6 +105,12 @@ inline unsigned __activemask() {
 inline unsigned __ballot_sync(unsigned mask, int predicate) {
   return static_cast<unsigned>(hivox::cuda::emulation::warp_op(
       hivox::cuda::emulation::WarpOp::Ballot, mask, predicate != 0 ? 1 : 0, 0));
+}
+/// The bitwise or of `value` over the lanes of `mask` (compute capability 8.0 and later): one
+/// warp operation, as on such a GPU, where a loop of shuffles would take five.
+inline unsigned __reduce_or_sync(unsigned mask, unsigned value) {
+  return static_cast<unsigned>(
+      hivox::cuda::emulation::warp_op(hivox::cuda::emulation::WarpOp::ReduceOr, mask, value, 0));
 }
 // Shuffles over whole warps (`width` 32, the only one the loop uses).
 template <typename T>
