@@ -49,7 +49,8 @@ struct ReconstructionParams {
   /// Refine the hierarchy after the frame's model raycast instead of before it: the model the
   /// next frame tracks against is then the map before this frame's splits and merges (they
   /// show in the next raycast). On a device the refinement, whose decisions wait for the host,
-  /// then runs while the raycast does instead of before it.
+  /// then runs while the raycast does instead of before it. Not yet on a GPU: there a run on
+  /// real data failed with an illegal memory access in the raycast (docs/cuda.md).
   bool refine_after_raycast = false;
 
   /// Validates every part (a device other than the CPU is checked where the loop is made).
