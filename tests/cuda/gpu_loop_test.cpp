@@ -800,13 +800,21 @@ TEST(GpuLoop, ADeviceThatFillsDropsAndCountsBlocksAndGoesOn) {
     const TriangleMesh mesh = gpu.extract_mesh();  // on the host: the device has no room for it
     EXPECT_EQ(mesh.positions_w, host.positions_w);
     EXPECT_EQ(mesh.triangles, host.triangles);
-    // A render likewise: the host's raycast of the map, as the CPU makes it.
+    // A render likewise: the host's raycast of the map where the device has no room for its
+    // images (the emulation's device is left exactly full: the CPU's raycast, to the bit). On a
+    // GPU the memory taken leaves up to 16 MiB free, which the images may fit: then it is the
+    // device's render, the CPU's raycast within the device render's tolerance (H200, 9c82ac7:
+    // not to the bit).
     const Pose& T_wc = gpu.trajectory().back().T_wc;
     const RaycastResult render = gpu.render(rig.depth_camera, T_wc, p.fusion.depth_range);
     Raycaster raycaster(p.raycast);
     const RaycastResult& cpu =
         raycaster.raycast(*map, rig.depth_camera, T_wc, p.fusion.depth_range);
+#if defined(HIVOX_CUDA_EMULATION)
     EXPECT_TRUE(same_depths(cpu, render));
+#else
+    expect_same_raycast(cpu, render);
+#endif
     EXPECT_GT(hit_count(render), static_cast<int64_t>(render.depth_m.size() / 10));
   }
   // With the memory back, the map grows again.
