@@ -901,7 +901,7 @@ TEST(GpuLoop, MeshesOnTheDeviceAsTheCpuDoes) {
   }
   {
     // With little device memory free the mesher has fewer threads (its scratch takes at most a
-    // quarter of what is free: ~2400 threads here against one a block), each meshing several
+    // quarter of what is free: ~2600 threads here against one a block), each meshing several
     // blocks in turn with its scratch and look-up cache reused: the same mesh, made on the device
     // (only the mesh crosses the bus, not the map). On an H200 a tracked map's device mesh once
     // differed from the host's by a vertex, and under compute-sanitizer, which takes device
