@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
-# tests; with the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE),
+# tests; the run known to fault on the device, its GPU core dump read by cuda-gdb; with the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE),
 # the two alternated (a change made without a GPU against what it changed); meshing and a render
 # on the device against the host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against
 # the default, alternated (the ray kernel's register caps, split marches, Gauss-Newton on the
@@ -79,6 +79,25 @@ export HIVOX_BIN=$build/hivox
 
 step test_cuda_loop "$build/tests/test_cuda_loop"
 step test_cuda_kernels "$build/tests/test_cuda_kernels"
+
+# The run that faulted on the H200 (refinement after the raycast on fr1/rpy: an illegal memory
+# access between frames 110 and 120, none under memcheck), with CUDA's core dump on a device
+# exception, then cuda-gdb's reading of the dump: the kernel, the faulting line (the build's
+# -lineinfo), the exception and its address. A dump without memory: a few MiB.
+gdb=$(command -v cuda-gdb || ls /usr/local/cuda*/bin/cuda-gdb 2> /dev/null | head -n 1)
+core="$out/fault.cudacore"
+if [ -n "$fr1" ]; then
+  CUDA_ENABLE_COREDUMP_ON_EXCEPTION=1 CUDA_ENABLE_LIGHTWEIGHT_COREDUMP=1 \
+    CUDA_ENABLE_CPU_COREDUMP_ON_EXCEPTION=0 CUDA_COREDUMP_FILE="$core" \
+    step fault_refine_after "$build/bench/hivox_gpu_loop" "$fr1" --levels 3 \
+    --refine-after-raycast --frames 120
+  if [ -f "$core" ] && [ -n "$gdb" ]; then
+    step fault_where "$gdb" -batch -ex "target cudacore $core" -ex "info cuda kernels" -ex bt \
+      -ex "info cuda warps" -ex "x/4i \$errorpc" "$build/bench/hivox_gpu_loop"
+    head -n 60 "$out/fault_where.log"
+    rm -f "$core"
+  fi
+fi
 
 loop="$build/bench/hivox_gpu_loop"
 desk="synthetic:desk?frames=150&noise=kinect"
