@@ -7,8 +7,8 @@
 # the default, alternated (the ray kernel's register caps, split marches, Gauss-Newton on the
 # host, allocation threads of several pixels, tracking as a graph, refinement after the raycast,
 # frames up beside it), one round on both before the second; compute-sanitizer's initcheck on
-# the mesh tests; the rest (more register caps, the coarse grid off, frames decoded as the loop
-# goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu is installed); and
+# the mesh tests; the rest (more register caps, the coarse grid off, split marches of up to 8 and
+# 32 rays a warp, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu is installed); and
 # last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
@@ -170,6 +170,10 @@ for data in fr1 desk; do
   bench "${data}_l3_regs80" "$src" 3 --raycast-registers 80
   bench "${data}_l3_regs128" "$src" 3 --raycast-registers 128
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
+  # Split marches where more of a warp's rays march (1, the opt-in's round above, changed nothing
+  # on the H200): the warp takes them one after another, each across its 32 lanes.
+  bench "${data}_l3_split8" "$src" 3 --split-marches 8
+  bench "${data}_l3_split32" "$src" 3 --split-marches 32
   bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
