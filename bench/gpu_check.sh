@@ -8,8 +8,8 @@
 # host, allocation threads of several pixels, tracking as a graph, refinement after the raycast,
 # frames up beside it), one round on both before the second; compute-sanitizer's initcheck on
 # the mesh tests; the rest (more register caps, the coarse grid off, split marches of up to 8 and
-# 32 rays a warp, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu is installed); and
-# last compute-sanitizer's memcheck on the newest tests.
+# 32 rays a warp, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the
+# ray kernel (where ncu is installed); and last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
