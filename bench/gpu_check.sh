@@ -97,6 +97,10 @@ if [ -n "$fr1" ]; then
     head -n 60 "$out/fault_where.log"
     rm -f "$core"
   fi
+  # The same with the pool as one plain allocation of its whole capacity: where this one runs
+  # through, the fault read memory the growing pool had not committed.
+  HIVOX_CUDA_VIRTUAL_MEMORY=off step fault_refine_after_plain_pool "$build/bench/hivox_gpu_loop" \
+    "$fr1" --levels 3 --refine-after-raycast --frames 120
 fi
 
 loop="$build/bench/hivox_gpu_loop"

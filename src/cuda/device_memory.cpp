@@ -4,7 +4,8 @@
 #include <cuda_runtime_api.h>
 
 #include <algorithm>
-
+#include <cstdlib>
+#include <string_view>
 #include <type_traits>
 
 #include "hivox/core/error.h"
@@ -101,6 +102,17 @@ struct VirtualMemory {
   }
 };
 
+/// HIVOX_CUDA_VIRTUAL_MEMORY (read at each reservation): "off" takes the map's pool as one plain
+/// allocation of its whole capacity, as on a driver without virtual memory management (a check
+/// that a fault depends on memory committed in steps, and the fallback's test); unset or "on":
+/// virtual memory where the device has it.
+bool virtual_memory_allowed() {
+  const char* v = std::getenv("HIVOX_CUDA_VIRTUAL_MEMORY");
+  if (v == nullptr || *v == '\0' || std::string_view(v) == "on") return true;
+  if (std::string_view(v) == "off") return false;
+  fail(ErrorCode::InvalidArgument, "HIVOX_CUDA_VIRTUAL_MEMORY={}: the values are on and off", v);
+}
+
 CUmemAllocationProp allocation_prop(int device) {
   CUmemAllocationProp prop{};
   prop.type = CU_MEM_ALLOCATION_TYPE_PINNED;
@@ -143,7 +155,7 @@ void GrowingBuffer::reserve(std::size_t bytes, int device) {
   release();
   device_ = device;
   const VirtualMemory& vm = VirtualMemory::get();
-  virtual_ = vm.supported(device);
+  virtual_ = virtual_memory_allowed() && vm.supported(device);
   if (!virtual_) {
     base_ = allocate_device(std::max<std::size_t>(bytes, 1));
     reserved_ = committed_ = bytes;

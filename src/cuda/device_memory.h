@@ -200,7 +200,7 @@ class PinnedBuffer {
 /// Address space reserved on the current device, memory committed as `commit(n)` asks for the
 /// first n bytes: in the driver's allocation granularity (2 MiB on current GPUs), one mapping a
 /// call. Falls back to one plain allocation of the whole capacity where the driver has no virtual
-/// memory management.
+/// memory management, or HIVOX_CUDA_VIRTUAL_MEMORY=off asks for it.
 class GrowingBuffer {
  public:
   GrowingBuffer() = default;

@@ -407,6 +407,74 @@ TEST(GpuLoop, SeveralPixelsAThreadAllocateWhatOnePixelDoes) {
   }
 }
 
+// The pool as one plain allocation of its whole capacity (HIVOX_CUDA_VIRTUAL_MEMORY=off, as on a
+// driver without virtual memory management) against the pool committed as it grows: the same map
+// file and model to the bit over frames that split and merge, with the whole capacity held from
+// the start in the one and not in the other.
+TEST(GpuLoop, ThePoolAsOnePlainAllocationGivesWhatTheGrowingPoolGives) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=12&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  p.map.max_blocks = 1 << 16;
+  // A block's voxels and colours: what the whole capacity takes at least.
+  const int64_t capacity_bytes = int64_t{p.map.max_blocks} * kBlockVoxels *
+                                 static_cast<int64_t>(sizeof(TsdfVoxel) + sizeof(ColorVoxel));
+  test::TempDir dir;
+  std::vector<std::string> maps;
+  std::vector<RaycastResult> models;
+  for (const bool plain : {false, true}) {
+    SCOPED_TRACE(plain ? "one plain allocation" : "committed as it grows");
+    if (plain) setenv("HIVOX_CUDA_VIRTUAL_MEMORY", "off", 1);
+    std::unique_ptr<cuda::GpuReconstruction> gpu;
+    try {
+      gpu = std::make_unique<cuda::GpuReconstruction>(p, rig);
+    } catch (...) {
+      unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
+      throw;
+    }
+    unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
+    int64_t splits = 0, merges = 0;
+    for (std::size_t i = 0; i < frames_to_run(data.size(), 6); ++i) {
+      const RgbdFrame f = data.read(i);
+      const FrameStats& s = gpu->integrate(f, *f.T_wc_gt);
+      splits += s.splits;
+      merges += s.merges;
+    }
+    std::printf("[ pool     ] %s: %lld blocks, %lld splits, %lld merges, the map %.1f MiB\n",
+                plain ? "one allocation" : "growing", static_cast<long long>(gpu->blocks_in_use()),
+                static_cast<long long>(splits), static_cast<long long>(merges),
+                static_cast<double>(gpu->map_memory_bytes()) / 1048576.0);
+    EXPECT_GT(splits, 0);
+    if (plain) {
+      EXPECT_GE(gpu->map_memory_bytes(), capacity_bytes);
+    } else {
+      EXPECT_LT(gpu->map_memory_bytes(), capacity_bytes / 2);
+    }
+    const std::filesystem::path file = dir.path() / (plain ? "plain.hvx" : "growing.hvx");
+    write_map_file(file, *gpu->download_map(), p.fusion, MapSession{});
+    maps.push_back(test::file_bytes(file));
+    models.push_back(gpu->download_model());
+  }
+  EXPECT_TRUE(maps[0] == maps[1]) << "the maps";
+  EXPECT_TRUE(same_depths(models[0], models[1])) << "the models";
+}
+
+// HIVOX_CUDA_VIRTUAL_MEMORY takes on or off; anything else is refused, naming it.
+TEST(GpuLoop, AVirtualMemorySettingNotOnOrOffIsRefused) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=1"));
+  setenv("HIVOX_CUDA_VIRTUAL_MEMORY", "maybe", 1);
+  std::string message;
+  try {
+    cuda::GpuReconstruction gpu(params_for(1, 0.005f, 0.02f), data.info().rig);
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
+  EXPECT_NE(message.find("HIVOX_CUDA_VIRTUAL_MEMORY=maybe"), std::string::npos) << message;
+}
+
 TEST(GpuLoop, TracksAsTheCpuDoes) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
