@@ -198,8 +198,8 @@ ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
   # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45):
   # where a frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
-  step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --launch-skip 3000 \
-    --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
+  step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --print-units base \
+    --launch-skip 3000 --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
   python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
   for regs in 0 96; do
     step "ncu_rays_regs$regs" "$ncu" --kernel-name regex:cast_rays --launch-skip 40 \
