@@ -1,16 +1,17 @@
 #!/usr/bin/env bash
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
-# tests; the run known to fault on the device, its GPU core dump read by cuda-gdb; with the loop of an earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE),
-# the two alternated (a change made without a GPU against what it changed); meshing and a render
-# on the device against the host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against
-# the default, alternated (the ray kernel's register caps, split marches, Gauss-Newton on the
-# host, allocation threads of several pixels, tracking as a graph, refinement after the raycast,
-# frames up beside it), one round on both before the second; compute-sanitizer's initcheck on
-# the mesh tests; the rest (more register caps, the coarse grid off, split marches of up to 8 and
-# 32 rays a warp, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on every
-# kernel of a few frames (OUT/ncu_kernels.txt: their time a frame) and on the ray kernel (where
-# ncu is installed); and last compute-sanitizer's memcheck on the newest tests.
+# tests; the run known to fault on the device, its GPU core dump read by cuda-gdb, and again with
+# the pool as one plain allocation; ncu's time a frame for every kernel; with the loop of an
+# earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change
+# made without a GPU against what it changed); meshing and a render on the device against the
+# host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default, alternated
+# (the ray kernel's register caps, split marches, Gauss-Newton on the host, allocation threads of
+# several pixels, tracking as a graph, refinement after the raycast, frames up beside it), one
+# round on both before the second; compute-sanitizer's initcheck on the mesh tests; the rest
+# (more register caps, the coarse grid off, split marches of up to 8 and 32 rays a warp, frames
+# decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu
+# is installed); and last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
@@ -106,6 +107,14 @@ fi
 
 loop="$build/bench/hivox_gpu_loop"
 desk="synthetic:desk?frames=150&noise=kinect"
+# Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45): where a
+# frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
+ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
+if [ -n "$ncu" ] && [ -n "$fr1" ]; then
+  step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --print-units base \
+    --launch-skip 3000 --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
+  python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
+fi
 # run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
 # (none without DATA: fr1/rpy not given).
 run_loop() {
@@ -196,11 +205,6 @@ done
 # waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
 ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
-  # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45):
-  # where a frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
-  step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --print-units base \
-    --launch-skip 3000 --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
-  python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
   for regs in 0 96; do
     step "ncu_rays_regs$regs" "$ncu" --kernel-name regex:cast_rays --launch-skip 40 \
       --launch-count 3 --section LaunchStats --section Occupancy --section SpeedOfLight \
