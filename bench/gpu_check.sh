@@ -113,7 +113,9 @@ ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
   step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --print-units base \
     --launch-skip 3000 --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
-  python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
+  if [ -f "$out/ncu_kernels.log" ]; then
+    python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
+  fi
 fi
 # run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
 # (none without DATA: fr1/rpy not given).
