@@ -180,6 +180,36 @@ bool same_depths(const RaycastResult& a, const RaycastResult& b) {
          std::equal(a.depth_m.data(), a.depth_m.data() + a.depth_m.size(), b.depth_m.data());
 }
 
+/// What a device run leaves: its map as its file's bytes (the file holds the blocks in a
+/// canonical order, whatever pool blocks they took) and its last model raycast.
+struct DeviceResult {
+  std::string map_file;
+  RaycastResult model;
+};
+DeviceResult device_result(const cuda::GpuReconstruction& gpu, const ReconstructionParams& p) {
+  test::TempDir dir;
+  const std::filesystem::path file = dir.path() / "map.hvx";
+  write_map_file(file, *gpu.download_map(), p.fusion, MapSession{});
+  return {test::file_bytes(file), gpu.download_model()};
+}
+/// Two runs that must agree to the bit: the same map and model.
+void expect_same_results(const DeviceResult& a, const DeviceResult& b) {
+  EXPECT_TRUE(a.map_file == b.map_file) << "the maps";
+  EXPECT_TRUE(same_depths(a.model, b.model)) << "the models";
+}
+
+/// An environment variable set while it lives, unset after.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) { setenv(name, value, 1); }
+  ~ScopedEnv() { unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+};
+
 /// The GPU's model raycast against the CPU's raycast of the CPU map at the same pose.
 void expect_same_raycast(const RaycastResult& cpu, const RaycastResult& gpu) {
   ASSERT_EQ(cpu.depth_m.width(), gpu.depth_m.width());
@@ -375,9 +405,7 @@ TEST(GpuLoop, SeveralPixelsAThreadAllocateWhatOnePixelDoes) {
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=12&noise=kinect"));
   const CameraRig& rig = data.info().rig;
   const ReconstructionParams p = params_for(1, 0.005f, 0.02f);
-  test::TempDir dir;
-  std::vector<std::string> maps;
-  std::vector<RaycastResult> models;
+  std::vector<DeviceResult> results;
   std::vector<int64_t> valid_pixels;
   for (const int pixels : {1, 2, 4}) {
     SCOPED_TRACE(fmt::format("{} pixels a thread", pixels));
@@ -394,16 +422,13 @@ TEST(GpuLoop, SeveralPixelsAThreadAllocateWhatOnePixelDoes) {
     std::printf("[ alloc    ] %d pixels a thread: %lld valid pixels, %lld blocks made\n", pixels,
                 static_cast<long long>(valid), static_cast<long long>(fresh));
     EXPECT_GT(gpu.blocks_in_use(), 10000);
-    const std::filesystem::path file = dir.path() / fmt::format("{}.hvx", pixels);
-    write_map_file(file, *gpu.download_map(), p.fusion, MapSession{});
-    maps.push_back(test::file_bytes(file));
-    models.push_back(gpu.download_model());
+    results.push_back(device_result(gpu, p));
     valid_pixels.push_back(valid);
   }
-  for (std::size_t i = 1; i < maps.size(); ++i) {
+  for (std::size_t i = 1; i < results.size(); ++i) {
+    SCOPED_TRACE(fmt::format("{} and 1 pixel a thread", i == 1 ? 2 : 4));
     EXPECT_EQ(valid_pixels[i], valid_pixels[0]);
-    EXPECT_TRUE(maps[i] == maps[0]) << "the maps of " << (i == 1 ? 2 : 4) << " and 1 pixel";
-    EXPECT_TRUE(same_depths(models[i], models[0])) << (i == 1 ? 2 : 4) << " and 1 pixel";
+    expect_same_results(results[i], results[0]);
   }
 }
 
@@ -420,20 +445,14 @@ TEST(GpuLoop, ThePoolAsOnePlainAllocationGivesWhatTheGrowingPoolGives) {
   // A block's voxels and colours: what the whole capacity takes at least.
   const int64_t capacity_bytes = int64_t{p.map.max_blocks} * kBlockVoxels *
                                  static_cast<int64_t>(sizeof(TsdfVoxel) + sizeof(ColorVoxel));
-  test::TempDir dir;
-  std::vector<std::string> maps;
-  std::vector<RaycastResult> models;
+  std::vector<DeviceResult> results;
   for (const bool plain : {false, true}) {
     SCOPED_TRACE(plain ? "one plain allocation" : "committed as it grows");
-    if (plain) setenv("HIVOX_CUDA_VIRTUAL_MEMORY", "off", 1);
     std::unique_ptr<cuda::GpuReconstruction> gpu;
-    try {
+    {
+      const ScopedEnv setting("HIVOX_CUDA_VIRTUAL_MEMORY", plain ? "off" : "on");
       gpu = std::make_unique<cuda::GpuReconstruction>(p, rig);
-    } catch (...) {
-      unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
-      throw;
     }
-    unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
     int64_t splits = 0, merges = 0;
     for (std::size_t i = 0; i < frames_to_run(data.size(), 6); ++i) {
       const RgbdFrame f = data.read(i);
@@ -451,27 +470,22 @@ TEST(GpuLoop, ThePoolAsOnePlainAllocationGivesWhatTheGrowingPoolGives) {
     } else {
       EXPECT_LT(gpu->map_memory_bytes(), capacity_bytes / 2);
     }
-    const std::filesystem::path file = dir.path() / (plain ? "plain.hvx" : "growing.hvx");
-    write_map_file(file, *gpu->download_map(), p.fusion, MapSession{});
-    maps.push_back(test::file_bytes(file));
-    models.push_back(gpu->download_model());
+    results.push_back(device_result(*gpu, p));
   }
-  EXPECT_TRUE(maps[0] == maps[1]) << "the maps";
-  EXPECT_TRUE(same_depths(models[0], models[1])) << "the models";
+  expect_same_results(results[0], results[1]);
 }
 
 // HIVOX_CUDA_VIRTUAL_MEMORY takes on or off; anything else is refused, naming it.
 TEST(GpuLoop, AVirtualMemorySettingNotOnOrOffIsRefused) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=1"));
-  setenv("HIVOX_CUDA_VIRTUAL_MEMORY", "maybe", 1);
+  const ScopedEnv setting("HIVOX_CUDA_VIRTUAL_MEMORY", "maybe");
   std::string message;
   try {
     cuda::GpuReconstruction gpu(params_for(1, 0.005f, 0.02f), data.info().rig);
   } catch (const Error& e) {
     message = e.what();
   }
-  unsetenv("HIVOX_CUDA_VIRTUAL_MEMORY");
   EXPECT_NE(message.find("HIVOX_CUDA_VIRTUAL_MEMORY=maybe"), std::string::npos) << message;
 }
 
@@ -748,7 +762,6 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
   const CameraRig& rig = data.info().rig;
   const Pose first = *data.read(0).T_wc_gt;
   const std::size_t frames = frames_to_run(30, 8);
-  test::TempDir dir;
   for (const bool refine_after : {false, true}) {
     SCOPED_TRACE(refine_after ? "refining after the raycast" : "refining before it");
     ReconstructionParams p = params_for(3, 0.002f, 0.024f);
@@ -771,12 +784,7 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
       EXPECT_TRUE(plain.trajectory()[i].T_wc.matrix() == beside.trajectory()[i].T_wc.matrix())
           << "frame " << i;
     }
-    write_map_file(dir.path() / "plain.hvx", *plain.download_map(), p.fusion, MapSession{});
-    write_map_file(dir.path() / "beside.hvx", *beside.download_map(), p.fusion, MapSession{});
-    EXPECT_EQ(test::file_bytes(dir.path() / "plain.hvx"),
-              test::file_bytes(dir.path() / "beside.hvx"))
-        << "the maps (their files hold the blocks in a canonical order)";
-    EXPECT_TRUE(same_depths(plain.download_model(), beside.download_model()));
+    expect_same_results(device_result(plain, p), device_result(beside, p));
     EXPECT_GT(beside.blocks_in_use(), 1000);
   }
 }
