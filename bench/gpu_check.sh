@@ -82,34 +82,34 @@ export HIVOX_BIN=$build/hivox
 step test_cuda_loop "$build/tests/test_cuda_loop"
 step test_cuda_kernels "$build/tests/test_cuda_kernels"
 
+loop="$build/bench/hivox_gpu_loop"
+desk="synthetic:desk?frames=150&noise=kinect"
+ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
+gdb=$(command -v cuda-gdb || ls /usr/local/cuda*/bin/cuda-gdb 2> /dev/null | head -n 1)
+
 # The run that faulted on the H200 (refinement after the raycast on fr1/rpy: an illegal memory
 # access between frames 110 and 120, none under memcheck), with CUDA's core dump on a device
 # exception, then cuda-gdb's reading of the dump: the kernel, the faulting line (the build's
-# -lineinfo), the exception and its address. A dump without memory: a few MiB.
-gdb=$(command -v cuda-gdb || ls /usr/local/cuda*/bin/cuda-gdb 2> /dev/null | head -n 1)
-core="$out/fault.cudacore"
+# -lineinfo), the exception and its address. A dump without memory: a few MiB. Then the same
+# run with the pool as one plain allocation of its whole capacity: where that one runs through,
+# the fault read memory the growing pool had not committed.
 if [ -n "$fr1" ]; then
+  faulted=("$loop" "$fr1" --levels 3 --refine-after-raycast --frames 120)
+  core="$out/fault.cudacore"
   CUDA_ENABLE_COREDUMP_ON_EXCEPTION=1 CUDA_ENABLE_LIGHTWEIGHT_COREDUMP=1 \
     CUDA_ENABLE_CPU_COREDUMP_ON_EXCEPTION=0 CUDA_COREDUMP_FILE="$core" \
-    step fault_refine_after "$build/bench/hivox_gpu_loop" "$fr1" --levels 3 \
-    --refine-after-raycast --frames 120
+    step fault_refine_after "${faulted[@]}"
   if [ -f "$core" ] && [ -n "$gdb" ]; then
     step fault_where "$gdb" -batch -ex "target cudacore $core" -ex "info cuda kernels" -ex bt \
-      -ex "info cuda warps" -ex "x/4i \$errorpc" "$build/bench/hivox_gpu_loop"
+      -ex "info cuda warps" -ex "x/4i \$errorpc" "$loop"
     head -n 60 "$out/fault_where.log"
     rm -f "$core"
   fi
-  # The same with the pool as one plain allocation of its whole capacity: where this one runs
-  # through, the fault read memory the growing pool had not committed.
-  HIVOX_CUDA_VIRTUAL_MEMORY=off step fault_refine_after_plain_pool "$build/bench/hivox_gpu_loop" \
-    "$fr1" --levels 3 --refine-after-raycast --frames 120
+  HIVOX_CUDA_VIRTUAL_MEMORY=off step fault_refine_after_plain_pool "${faulted[@]}"
 fi
 
-loop="$build/bench/hivox_gpu_loop"
-desk="synthetic:desk?frames=150&noise=kinect"
 # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45): where a
 # frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
-ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
   step ncu_kernels "$ncu" --metrics gpu__time_duration.sum --csv --page raw --print-units base \
     --launch-skip 3000 --launch-count 650 "$loop" "$fr1" --levels 3 --frames 80
@@ -205,7 +205,6 @@ for data in fr1 desk; do
 done
 # The ray kernel as ncu sees it, without and with a register cap: its registers, occupancy,
 # waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
-ncu=$(command -v ncu || ls /usr/local/cuda*/bin/ncu 2> /dev/null | head -n 1)
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
   for regs in 0 96; do
     step "ncu_rays_regs$regs" "$ncu" --kernel-name regex:cast_rays --launch-skip 40 \
