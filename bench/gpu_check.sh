@@ -2,16 +2,17 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
 # tests; the run known to fault on the device, its GPU core dump read by cuda-gdb, and again with
-# the pool as one plain allocation; ncu's time a frame for every kernel; with the loop of an
-# earlier build in the bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change
-# made without a GPU against what it changed); meshing and a render on the device against the
-# host; bench/gpu_loop on fr1/rpy and the desk with each opt-in against the default, alternated
-# (the ray kernel's register caps, split marches, Gauss-Newton on the host, allocation threads of
-# several pixels, tracking as a graph, refinement after the raycast, frames up beside it), one
-# round on both before the second; compute-sanitizer's initcheck on the mesh tests; the rest
-# (more register caps, the coarse grid off, split marches of up to 8 and 32 rays a warp, frames
-# decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel (where ncu
-# is installed); and last compute-sanitizer's memcheck on the newest tests.
+# the pool as one plain allocation; ncu's time a frame for every kernel, then the ray kernel's
+# stalls line by line; with the loop of an earlier build in the bundle (gpu_bundle.sh,
+# HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU against what it
+# changed); meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and
+# the desk with each opt-in no GPU has judged yet against the default, alternated (split marches
+# of up to 8 and 32 rays a warp, refinement after the raycast, frames up beside it, the two
+# together), one round on both before the second; compute-sanitizer's initcheck on the mesh
+# tests; the rest (the opt-ins measured before: register caps, split marches of 1, Gauss-Newton
+# on the host, allocation threads of several pixels, tracking as a graph; the coarse grid off,
+# frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel with
+# and without a register cap; and last compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
@@ -117,6 +118,22 @@ if [ -n "$ncu" ] && [ -n "$fr1" ]; then
     python3 "$(dirname "$0")/ncu_kernels.py" "$out/ncu_kernels.log" | tee "$out/ncu_kernels.txt"
   fi
 fi
+# The ray kernel, the largest, one launch after 40 frames: its registers, occupancy and waves,
+# what its warps stall on and where (ncu's source page, by the build's -lineinfo, as CSV: each
+# line's instructions, stall samples and memory traffic). Is its time the latency of its
+# slowest warps' look-ups, or the instructions' fetch?
+if [ -n "$ncu" ] && [ -n "$fr1" ]; then
+  rep="$out/rays"
+  step ncu_rays "$ncu" --kernel-name regex:cast_rays --launch-skip 40 --launch-count 1 \
+    --section LaunchStats --section Occupancy --section SpeedOfLight --section WarpStateStats \
+    --section SchedulerStats --section SourceCounters --import-source yes -o "$rep" \
+    "$loop" "$fr1" --levels 3 --frames 50
+  if [ -f "$rep.ncu-rep" ]; then
+    step ncu_rays_details "$ncu" --import "$rep.ncu-rep" --page details
+    step ncu_rays_source "$ncu" --import "$rep.ncu-rep" --page source --csv --print-source cuda
+    rm -f "$rep.ncu-rep"
+  fi
+fi
 # run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
 # (none without DATA: fr1/rpy not given).
 run_loop() {
@@ -144,24 +161,20 @@ if [ -x "$before" ]; then
 fi
 # A mesh and a render on the device against the host's way (the map downloaded), the desk.
 bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
-# Each opt-in against the default, alternated, 3 levels, fr1/rpy first (its marches are long):
-# the ray kernel capped at 96 and 64 registers a thread (one wave of its warps instead of two),
-# split marches (a warp with at most 1 marching ray splits it across its lanes), Gauss-Newton on
-# the host, allocation threads of 2x1 and 2x2 pixels, tracking's passes as one CUDA graph,
-# refinement after the raycast (beside it, on a stream of its own), frames up beside the
-# raycast, the two together. A first round on both, then the second, so that a short budget
-# still compares each once.
+# The opt-ins no GPU has judged yet against the default, alternated, 3 levels, fr1/rpy first
+# (its marches are long): split marches where up to 8 and 32 of a warp's rays march (each taken
+# across the warp's 32 lanes; up to 1 changed nothing on the H200: if these gain, the ray
+# kernel's tail is its marches), refinement after the raycast (beside it, on a stream of its
+# own), frames up beside the raycast, the two together. A first round on both, then the
+# second, so that a short budget still compares each once. The opt-ins measured before (register
+# caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels,
+# tracking as a graph: none faster) come after, with the rest.
 optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
   bench "${data}_l3_default_$round" "$src" 3
-  bench "${data}_l3_regs96_$round" "$src" 3 --raycast-registers 96
-  bench "${data}_l3_regs64_$round" "$src" 3 --raycast-registers 64
-  bench "${data}_l3_split1_$round" "$src" 3 --split-marches 1
-  bench "${data}_l3_gn_host_$round" "$src" 3 --gn-on-host
-  bench "${data}_l3_alloc2_$round" "$src" 3 --allocation-pixels 2
-  bench "${data}_l3_alloc4_$round" "$src" 3 --allocation-pixels 4
-  bench "${data}_l3_graph_$round" "$src" 3 --tracking-graph
+  bench "${data}_l3_split8_$round" "$src" 3 --split-marches 8
+  bench "${data}_l3_split32_$round" "$src" 3 --split-marches 32
   bench "${data}_l3_refine_after_$round" "$src" 3 --refine-after-raycast
   bench "${data}_l3_upload_beside_$round" "$src" 3 --upload-beside
   bench "${data}_l3_both_beside_$round" "$src" 3 --refine-after-raycast --upload-beside
@@ -178,18 +191,21 @@ if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > 
 fi
 optins fr1 b
 optins desk b
-# The rest, on each: more register caps, the coarse occupancy grid off, the loop with its frames
-# decoded as it goes (in turn and ahead: wall_fps in the json), opt-ins together, and the fixed
-# grid (the hierarchy's target is 1.2x the fixed grid's time).
+# The rest, on each: the opt-ins measured before, the coarse occupancy grid off, the loop with
+# its frames decoded as it goes (in turn and ahead: wall_fps in the json), opt-ins together, and
+# the fixed grid (the hierarchy's target is 1.2x the fixed grid's time).
 for data in fr1 desk; do
   src=$(data_of $data)
+  bench "${data}_l3_regs96" "$src" 3 --raycast-registers 96
+  bench "${data}_l3_regs64" "$src" 3 --raycast-registers 64
+  bench "${data}_l3_split1" "$src" 3 --split-marches 1
+  bench "${data}_l3_gn_host" "$src" 3 --gn-on-host
+  bench "${data}_l3_alloc2" "$src" 3 --allocation-pixels 2
+  bench "${data}_l3_alloc4" "$src" 3 --allocation-pixels 4
+  bench "${data}_l3_graph" "$src" 3 --tracking-graph
   bench "${data}_l3_regs80" "$src" 3 --raycast-registers 80
   bench "${data}_l3_regs128" "$src" 3 --raycast-registers 128
   bench "${data}_l3_no_grid" "$src" 3 --no-coarse-grid
-  # Split marches where more of a warp's rays march (1, the opt-in's round above, changed nothing
-  # on the H200): the warp takes them one after another, each across its 32 lanes.
-  bench "${data}_l3_split8" "$src" 3 --split-marches 8
-  bench "${data}_l3_split32" "$src" 3 --split-marches 32
   bench "${data}_l3_read_in_turn" "$src" 3 --read-threads 0
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
