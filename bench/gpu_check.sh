@@ -6,9 +6,9 @@
 # stalls line by line; with the loop of an earlier build in the bundle (gpu_bundle.sh,
 # HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU against what it
 # changed); meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and
-# the desk with each opt-in no GPU has judged yet against the default, alternated (split marches
-# of up to 8 and 32 rays a warp, refinement after the raycast, frames up beside it, the two
-# together), one round on both before the second; compute-sanitizer's initcheck on the mesh
+# the desk with each opt-in no GPU has judged yet against the default, alternated (the marches
+# queued for a second kernel, split marches of up to 8 and 32 rays a warp, refinement after the
+# raycast, frames up beside it, the two together), one round on both before the second; compute-sanitizer's initcheck on the mesh
 # tests; the rest (the opt-ins measured before: register caps, split marches of 1, Gauss-Newton
 # on the host, allocation threads of several pixels, tracking as a graph; the coarse grid off,
 # frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel with
@@ -162,10 +162,11 @@ fi
 # A mesh and a render on the device against the host's way (the map downloaded), the desk.
 bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # The opt-ins no GPU has judged yet against the default, alternated, 3 levels, fr1/rpy first
-# (its marches are long): split marches where up to 8 and 32 of a warp's rays march (each taken
-# across the warp's 32 lanes; up to 1 changed nothing on the H200: if these gain, the ray
-# kernel's tail is its marches), refinement after the raycast (beside it, on a stream of its
-# own), frames up beside the raycast, the two together. A first round on both, then the
+# (its marches are long): the raycast as two kernels, the marches queued and each taken across a
+# warp's lanes (bench/ray_cost's model: the tail of the ray kernel is its marches, in 20 % of
+# its warps); split marches where up to 8 and 32 of a warp's rays march (each taken across the
+# warp's 32 lanes; up to 1 changed nothing on the H200); refinement after the raycast (beside
+# it, on a stream of its own), frames up beside the raycast, the two together. A first round on both, then the
 # second, so that a short budget still compares each once. The opt-ins measured before (register
 # caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels,
 # tracking as a graph: none faster) come after, with the rest.
@@ -173,6 +174,7 @@ optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
   bench "${data}_l3_default_$round" "$src" 3
+  bench "${data}_l3_queued_$round" "$src" 3 --queued-marches
   bench "${data}_l3_split8_$round" "$src" 3 --split-marches 8
   bench "${data}_l3_split32_$round" "$src" 3 --split-marches 32
   bench "${data}_l3_refine_after_$round" "$src" 3 --refine-after-raycast

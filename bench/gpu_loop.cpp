@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, render = false, gn_on_host = false, no_coarse_grid = false,
-       graph = false, refine_after = false, upload_beside = false;
+       graph = false, refine_after = false, upload_beside = false, queued_marches = false;
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
@@ -110,6 +110,10 @@ int main(int argc, char** argv) {
   app.add_option("--split-marches", split_marches,
                  "split a warp's marches across its lanes where at most this many of its rays "
                  "march (GpuReconstruction::set_split_marches; 0: each ray its own)");
+  app.add_flag("--queued-marches", queued_marches,
+               "the raycast as two kernels: the rays searched at their hints, then each ray whose "
+               "search failed marched across a warp's lanes (GpuReconstruction::"
+               "set_queued_marches)");
   app.add_option("--raycast-registers", raycast_registers,
                  "at most this many registers a thread of the raycast's kernel: 128, 96, 80 or "
                  "64, more warps at once (GpuReconstruction::set_raycast_registers; 0: the "
@@ -197,13 +201,15 @@ int main(int argc, char** argv) {
     gpu->set_allocation_pixels(allocation_pixels);
     gpu->set_tracking_graph(graph);
     gpu->set_upload_beside_raycast(upload_beside);
+    gpu->set_queued_marches(queued_marches);
     const int registers = gpu->raycast_registers();
     std::printf(
-        "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d; "
+        "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d%s; "
         "refinement %s the raycast; frames up %s; the raycast's kernel takes %d registers a "
         "thread (at most %s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
-        split_marches, refine_after ? "after (beside)" : "before",
+        split_marches, queued_marches ? "; marches queued" : "",
+        refine_after ? "after (beside)" : "before",
         upload_beside ? "beside the raycast" : "after the raycast", registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
@@ -330,6 +336,7 @@ int main(int argc, char** argv) {
           << poses << "\", \"gauss_newton_on_device\": " << (gn_on_host ? "false" : "true")
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches
+          << ", \"queued_marches\": " << (queued_marches ? "true" : "false")
           << ", \"raycast_registers_at_most\": " << raycast_registers
           << ", \"raycast_registers\": " << registers
           << ", \"allocation_pixels\": " << allocation_pixels

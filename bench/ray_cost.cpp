@@ -13,6 +13,11 @@
 //   ray_cost ../shared/data/tum_fr1_rpy --frames 120 --at 119
 //   ray_cost synthetic:desk?frames=60 --levels 1 --top 10
 //
+// Each variant also models the device's ways with the marches (the rays whose search at their
+// hints fails): split across a warp's lanes where at most 1, 8 or 32 of its rays march
+// (set_split_marches), and the raycast as two kernels (set_queued_marches), the searches' warps
+// then timed by their searches alone and each march a warp's.
+//
 // Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step),
 // `no-grid` (unallocated space crossed block by block) and `level-hints` (the grid, and each
 // ray's first look-up starting at the level its pixel hit in the raycast before, as the device's
@@ -30,6 +35,7 @@
 #include <climits>
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -61,7 +67,8 @@ struct Ray {
   kernels::RayHints hints;
   kernels::RayOutcome outcome = kernels::RayOutcome::Miss;
   double ns = 1e30;
-  int64_t lookups = 0;  ///< of the hash tables (the ray's block cache starts empty)
+  double hint_ns = 1e30;  ///< its search at the hints alone (kernels::search_at_hints)
+  int64_t lookups = 0;    ///< of the hash tables (the ray's block cache starts empty)
   int64_t cross_level = 0, irregular = 0;  ///< cells sampled across levels, irregular ones
   float depth_m = 0;                       ///< the hit's
   int level = -1;                          ///< the hit's
@@ -154,6 +161,71 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       "%.0f %% of it); slowest warp %.1f us, 99th/90th/50th percentile %.1f/%.1f/%.2f us\n",
       v.name.c_str(), total / 1e6, total / v.rays.size(), simt / 1e6, 100.0 * total / lanes,
       warp_max[order[0]] / 1e3, pct(0.01) / 1e3, pct(0.1) / 1e3, pct(0.5) / 1e3);
+  // The raycast as two kernels (GpuReconstruction::set_queued_marches): every ray's search at
+  // its hints, then the rays that march (their march: the ray's time less its search), each
+  // warp of the first kernel waiting for its slowest search, the second kernel, a march a warp,
+  // for its slowest march.
+  {
+    std::vector<double> hint_warp(warp_max.size(), 0.0);
+    std::vector<double> marches;
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) {
+        const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
+        const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
+        hint_warp[w] = std::max(hint_warp[w], r.hint_ns);
+        if ((r.outcome == kernels::RayOutcome::Marched || r.outcome == kernels::RayOutcome::Miss) &&
+            r.z_max > 0.0f)
+          marches.push_back(std::max(r.ns - r.hint_ns, 0.0));
+      }
+    std::sort(hint_warp.begin(), hint_warp.end(), std::greater<>());
+    std::sort(marches.begin(), marches.end(), std::greater<>());
+    auto at = [](const std::vector<double>& d, double q) {
+      return d.empty() ? 0.0 : d[static_cast<std::size_t>(q * (d.size() - 1))];
+    };
+    // Split marches (cast_rays_kernel<true>): a warp where at most n rays march searches its
+    // rays' hints, then takes its marches one after another, each across the 32 lanes. A lane
+    // marches a 32nd of the stretch, so the march would take a 32nd of its time at best; /8 if
+    // the lanes' look-ups were four times what a 32nd of the march's are.
+    for (const int n : {1, 8, 32})
+      for (const double speedup : {32.0, 8.0}) {
+        std::vector<double> hint_max(warp_max.size(), 0.0), split_sum(warp_max.size(), 0.0);
+        std::vector<int> marching(warp_max.size(), 0);
+        for (int y = 0; y < cam.height; ++y)
+          for (int x = 0; x < cam.width; ++x) {
+            const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
+            const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
+            hint_max[w] = std::max(hint_max[w], r.hint_ns);
+            if ((r.outcome == kernels::RayOutcome::Marched ||
+                 r.outcome == kernels::RayOutcome::Miss) &&
+                r.z_max > 0.0f) {
+              ++marching[w];
+              split_sum[w] += std::max(r.ns - r.hint_ns, 0.0) / speedup;
+            }
+          }
+        std::vector<double> t(warp_max.size());
+        int split_warps = 0;
+        for (std::size_t w = 0; w < t.size(); ++w) {
+          const bool split = marching[w] > 0 && marching[w] <= n;
+          split_warps += split;
+          t[w] = split ? hint_max[w] + split_sum[w] : warp_max[w];
+        }
+        std::sort(t.begin(), t.end(), std::greater<>());
+        std::printf(
+            "  split marches of up to %d rays a warp, a march %.0fx faster split: %d warps split; "
+            "warps %.2f ms, slowest %.1f us, 99th/90th percentile %.1f/%.1f us\n",
+            n, speedup, split_warps, std::accumulate(t.begin(), t.end(), 0.0) / 1e6, t[0] / 1e3,
+            t[static_cast<std::size_t>(0.01 * (t.size() - 1))] / 1e3,
+            t[static_cast<std::size_t>(0.1 * (t.size() - 1))] / 1e3);
+      }
+    std::printf(
+        "  as two kernels: the searches at the hints' warps %.2f ms, slowest %.1f us, 99th/90th/"
+        "50th percentile %.1f/%.1f/%.2f us; %zu marches, slowest %.1f us, 10th/50th %.1f/%.2f "
+        "us (each across a warp's lanes, 32x to 8x faster: the slowest %.1f-%.1f us)\n",
+        std::accumulate(hint_warp.begin(), hint_warp.end(), 0.0) / 1e6, at(hint_warp, 0) / 1e3,
+        at(hint_warp, 0.01) / 1e3, at(hint_warp, 0.1) / 1e3, at(hint_warp, 0.5) / 1e3,
+        marches.size(), at(marches, 0) / 1e3, at(marches, 0.1) / 1e3, at(marches, 0.5) / 1e3,
+        at(marches, 0) / 32e3, at(marches, 0) / 8e3);
+  }
   std::printf("  outcomes:");
   for (int o = 0; o < 4; ++o)
     std::printf(" %s %lld (%.0f ns each)", outcome_name(static_cast<kernels::RayOutcome>(o)),
@@ -418,6 +490,14 @@ int main(int argc, char** argv) {
               kernels::cast_ray(view, cache, T.t, r.dir, r.hints, r.z_min, r.z_max, v.k, &hit);
           const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
           r.ns = std::min(r.ns, ns);
+          // The search at the hints alone: what the ray costs a kernel that leaves its march
+          // to another.
+          kernels::BlockLookupCache hint_cache;
+          kernels::RayHit hint_hit;
+          const Clock::time_point t1 = Clock::now();
+          kernels::search_at_hints(view, hint_cache, T.t, r.dir, r.hints, r.z_max, v.k, &hint_hit);
+          r.hint_ns = std::min(r.hint_ns,
+                               std::chrono::duration<double, std::nano>(Clock::now() - t1).count());
           r.lookups = cache.table_lookups;
           r.cross_level = cache.cross_level_cells;
           r.irregular = cache.irregular_cells;

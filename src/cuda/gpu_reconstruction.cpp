@@ -266,7 +266,8 @@ struct GpuReconstruction::Impl {
   PinnedBuffer<double> host_sums;
   PinnedBuffer<int32_t> host_valid_pixels;  ///< the frame's valid pixels, read with the sums
   bool gauss_newton_on_device = true;
-  RaycastLaunch ray_launch;             ///< see set_split_marches, set_raycast_registers
+  RaycastLaunch ray_launch;  ///< see set_split_marches, set_raycast_registers, set_queued_marches
+  Buffer<int32_t> march_queue;          ///< see set_queued_marches
   int allocation_pixels = 1;            ///< see set_allocation_pixels
   Buffer<kernels::IcpState> icp_state;  ///< Gauss-Newton on the device: its state
   PinnedBuffer<kernels::IcpState> host_icp_state;
@@ -1137,6 +1138,14 @@ void GpuReconstruction::set_split_marches(int at_most) {
     fail(ErrorCode::InvalidArgument, "split marches: at most {} rays a warp is not in [0, 32]",
          at_most);
   impl_->ray_launch.split_at_most = at_most;
+}
+void GpuReconstruction::set_queued_marches(bool on) {
+  Impl& m = *impl_;
+  const PinholeCamera& c = m.model[0].camera;
+  const auto pixels = static_cast<std::size_t>(c.width) * c.height;
+  if (on && m.march_queue.size() == 0) m.march_queue.reset(pixels + 2, &m.total_bytes);
+  m.ray_launch.march_queue = on ? m.march_queue.get() : nullptr;
+  m.ray_launch.march_queue_pixels = on ? static_cast<int64_t>(pixels) : 0;
 }
 void GpuReconstruction::set_raycast_registers(int at_most) {
   if (at_most != 0 && std::find(std::begin(kRaycastRegisterCaps), std::end(kRaycastRegisterCaps),

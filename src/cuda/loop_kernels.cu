@@ -35,6 +35,17 @@ unsigned grid_for(int64_t n, int threads = kThreads) {
   return static_cast<unsigned>(blocks < 1 ? 1 : blocks);
 }
 
+/// The current device's multiprocessors (32 where the driver does not say).
+int multiprocessors() {
+  static const int sms = [] {
+    int device = 0, n = 0;
+    cudaGetDevice(&device);
+    cudaDeviceGetAttribute(&n, cudaDevAttrMultiProcessorCount, device);
+    return n > 0 ? n : 32;
+  }();
+  return sms;
+}
+
 /// The allocation walk's visitor: a block's first look-up in the thread stamps it (listed as
 /// visible on its first visit this frame) or records it as missing; a block the thread has seen
 /// already needs neither again, so its look-up is skipped. It remembers the blocks it looked up
@@ -248,45 +259,55 @@ __device__ PixelRay pixel_ray(const PinholeCamera& cam, const Rigid3f& T_wc,
   return r;
 }
 
+/// One ray's march_from_hint split across the warp's 32 lanes, each lane marching a stretch
+/// (kernels::split_march_from_hint); the winning lane writes the ray's pixel and counts its hit,
+/// lane `owner` writes a miss. Every lane of the warp calls this with the same ray.
+__device__ void split_march_ray(const MapView& map, const Rigid3f& T_wc,
+                                const kernels::RayMarchConstants& k,
+                                const kernels::RaycastOutputView& out, AllocCounters* counters,
+                                const Vec3f& dir, float ray_hint, float z_min, float z_max,
+                                int32_t pixel, int owner, kernels::BlockLookupCache& cache) {
+  constexpr unsigned kWarp = 0xffffffffu;
+  const int lane = static_cast<int>(lane_index());
+  kernels::LaneMarch far, front;
+  auto march = [&](float from, float to, bool is_front) {
+    kernels::LaneMarch& m = is_front ? front : far;
+    m = kernels::march_lane(map, cache, T_wc.t, dir, from, to, k, lane, 32);
+    return kernels::split_march_result(__ballot_sync(kWarp, m.found),
+                                       __ballot_sync(kWarp, m.report.known),
+                                       __ballot_sync(kWarp, m.report.started_behind));
+  };
+  const kernels::SplitChoice c =
+      kernels::split_march_from_hint(kernels::hint_stretches(ray_hint, z_min, z_max, k), march);
+  if (c.winner < 0) {
+    if (lane == owner) kernels::write_ray(out, map, pixel, false, kernels::RayHit{});
+  } else if (lane == c.winner) {
+    kernels::write_ray(out, map, pixel, true, c.front ? front.hit : far.hit);
+    atomicAdd(&counters->raycast_hits, 1);
+  }
+}
+
 /// With split marches (cast_rays_kernel<true>): where at most `split_at_most` of the warp's rays
-/// march (their hint search failed), the warp takes them one after another, each lane marching
-/// a stretch (kernels::split_march_from_hint); the winning lane writes the ray's pixel. Returns
-/// false, doing nothing, where more rays march: each then marches its own. Every lane of the warp
-/// calls this (lanes outside the image march nothing of their own).
+/// march (their hint search failed), the warp takes them one after another, each across its
+/// lanes (split_march_ray). Returns false, doing nothing, where more rays march: each then
+/// marches its own. Every lane of the warp calls this (lanes outside the image march nothing of
+/// their own).
 __device__ bool split_marches(const MapView& map, const Rigid3f& T_wc,
                               const kernels::RayMarchConstants& k,
                               const kernels::RaycastOutputView& out, AllocCounters* counters,
                               const PixelRay& r, int32_t i, bool marches, int split_at_most,
-                              kernels::BlockLookupCache& cache, const kernels::RayHit& hit) {
+                              kernels::BlockLookupCache& cache) {
   constexpr unsigned kWarp = 0xffffffffu;
   unsigned pending = __ballot_sync(kWarp, marches);
   if (__popc(pending) > split_at_most) return false;
-  const int lane = static_cast<int>(lane_index());
   while (pending != 0u) {
     const int owner = __ffs(static_cast<int>(pending)) - 1;
     pending &= pending - 1u;
     const Vec3f dir{__shfl_sync(kWarp, r.dir.x, owner), __shfl_sync(kWarp, r.dir.y, owner),
                     __shfl_sync(kWarp, r.dir.z, owner)};
-    const float ray_hint = __shfl_sync(kWarp, r.hints.hint, owner);
-    const float z_min = __shfl_sync(kWarp, r.z_min, owner);
-    const float z_max = __shfl_sync(kWarp, r.z_max, owner);
-    const int32_t pixel = __shfl_sync(kWarp, i, owner);
-    kernels::LaneMarch far, front;
-    auto march = [&](float from, float to, bool is_front) {
-      kernels::LaneMarch& m = is_front ? front : far;
-      m = kernels::march_lane(map, cache, T_wc.t, dir, from, to, k, lane, 32);
-      return kernels::split_march_result(__ballot_sync(kWarp, m.found),
-                                         __ballot_sync(kWarp, m.report.known),
-                                         __ballot_sync(kWarp, m.report.started_behind));
-    };
-    const kernels::SplitChoice c =
-        kernels::split_march_from_hint(kernels::hint_stretches(ray_hint, z_min, z_max, k), march);
-    if (c.winner < 0) {
-      if (lane == owner) kernels::write_ray(out, map, pixel, false, hit);
-    } else if (lane == c.winner) {
-      kernels::write_ray(out, map, pixel, true, c.front ? front.hit : far.hit);
-      atomicAdd(&counters->raycast_hits, 1);
-    }
+    split_march_ray(map, T_wc, k, out, counters, dir, __shfl_sync(kWarp, r.hints.hint, owner),
+                    __shfl_sync(kWarp, r.z_min, owner), __shfl_sync(kWarp, r.z_max, owner),
+                    __shfl_sync(kWarp, i, owner), owner, cache);
   }
   return true;
 }
@@ -321,7 +342,7 @@ __device__ HIVOX_FORCEINLINE void cast_ray_of_thread(const MapView& map, Pinhole
   bool found = outcome != kernels::RayOutcome::Miss;
   const bool marches = in_image && !found && r.z_max > 0.0f;
   if constexpr (kSplit) {
-    if (split_marches(map, T_wc, k, out, counters, r, i, marches, split_at_most, cache, hit)) {
+    if (split_marches(map, T_wc, k, out, counters, r, i, marches, split_at_most, cache)) {
       // The marches are written; the rest of the warp's rays now.
       if (in_image && !marches) kernels::write_ray(out, map, i, found, hit);
       count_warp(found, &counters->raycast_hits);
@@ -355,6 +376,58 @@ __global__ void __launch_bounds__(kRaycastThreads, 65536 / (kRaycastThreads * kR
                             RayHintImages hint, kernels::RaycastOutputView out,
                             AllocCounters* counters, int split_at_most) {
   cast_ray_of_thread<kSplit>(map, cam, T_wc, tiles, k, hint, out, counters, split_at_most);
+}
+
+/// The first of the raycast's two kernels (RaycastLaunch::march_queue): each pixel's ray searched
+/// at its hints; a ray whose search fails and that has a range to march goes into `queue`
+/// (queue[0] counts them, queue[1] is march_queued_rays_kernel's, the pixels follow) for
+/// march_queued_rays_kernel; the others are written. Without the march's code, its threads take
+/// fewer registers than cast_rays_kernel's.
+__global__ void __launch_bounds__(kRaycastThreads)
+    search_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam, Rigid3f T_wc,
+                       kernels::RangeTiles tiles, kernels::RayMarchConstants k, RayHintImages hint,
+                       kernels::RaycastOutputView out, AllocCounters* counters, int32_t* queue) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  const bool in_image = x < cam.width && y < cam.height;
+  bool found = false;
+  if (in_image) {
+    const int32_t i = y * cam.width + x;
+    const PixelRay r = pixel_ray(cam, T_wc, tiles, k, hint, x, y);
+    kernels::BlockLookupCache cache;
+    kernels::RayHit hit;
+    found = kernels::search_at_hints(map, cache, T_wc.t, r.dir, r.hints, r.z_max, k, &hit) !=
+            kernels::RayOutcome::Miss;
+    if (!found && r.z_max > 0.0f)
+      queue[2 + atomicAdd(queue, 1)] = i;
+    else
+      kernels::write_ray(out, map, i, found, hit);
+  }
+  count_warp(found, &counters->raycast_hits);
+}
+
+/// The second of the raycast's two kernels: each warp takes the next queued ray (of queue[0],
+/// queue[1] counting those taken) until none is left, each across its 32 lanes
+/// (split_march_ray): a warp with a long march takes fewer. The same ray as
+/// search_rays_kernel's (pixel_ray).
+__global__ void __launch_bounds__(kRaycastThreads)
+    march_queued_rays_kernel(const __grid_constant__ MapView map, PinholeCamera cam, Rigid3f T_wc,
+                             kernels::RangeTiles tiles, kernels::RayMarchConstants k,
+                             RayHintImages hint, kernels::RaycastOutputView out,
+                             AllocCounters* counters, int32_t* queue) {
+  constexpr unsigned kWarp = 0xffffffffu;
+  const int32_t n = queue[0];
+  kernels::BlockLookupCache cache;
+  for (;;) {
+    int32_t q = 0;
+    if (lane_index() == 0) q = atomicAdd(&queue[1], 1);
+    q = __shfl_sync(kWarp, q, 0);
+    if (q >= n) break;
+    const int32_t i = queue[2 + q];
+    const PixelRay r = pixel_ray(cam, T_wc, tiles, k, hint, i % cam.width, i / cam.width);
+    split_march_ray(map, T_wc, k, out, counters, r.dir, r.hints.hint, r.z_min, r.z_max, i, 0,
+                    cache);
+  }
 }
 
 __global__ void warp_clear_kernel(uint32_t* nearest, int64_t n) {
@@ -705,8 +778,19 @@ void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera
   // diverge less (1 % faster than 16x2 on the H200).
   const dim3 threads(kRaycastThreadsX, kRaycastThreadsY);
   const dim3 grid = image_grid(camera.width, camera.height, threads);
-  launch(ray_kernel(how), grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
-         how.split_at_most);
+  if (how.march_queue != nullptr &&
+      static_cast<int64_t>(camera.width) * camera.height <= how.march_queue_pixels) {
+    check_status(cudaMemsetAsync(how.march_queue, 0, 2 * sizeof(int32_t)),
+                 "clearing the raycast's queue");
+    launch(search_rays_kernel, grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
+           how.march_queue);
+    // Warps enough for every multiprocessor to hold as many as fit; each takes a ray at a time.
+    launch(march_queued_rays_kernel, 4u * static_cast<unsigned>(multiprocessors()), kRaycastThreads,
+           map, camera, T_wc, tiles, k, hint, out, counters, how.march_queue);
+  } else {
+    launch(ray_kernel(how), grid, threads, map, camera, T_wc, tiles, k, hint, out, counters,
+           how.split_at_most);
+  }
   check_last("raycast");
 }
 
@@ -764,14 +848,8 @@ namespace {
 /// Blocks of an ICP pass: enough to fill the device a few times over, so that the last block's
 /// sum over their partial sums stays short.
 unsigned icp_blocks(int64_t pixels) {
-  static const int sms = [] {
-    int device = 0, n = 0;
-    cudaGetDevice(&device);
-    cudaDeviceGetAttribute(&n, cudaDevAttrMultiProcessorCount, device);
-    return n > 0 ? n : 32;
-  }();
   const unsigned needed = grid_for(pixels);
-  const unsigned most = 4u * static_cast<unsigned>(sms);
+  const unsigned most = 4u * static_cast<unsigned>(multiprocessors());
   return needed < most ? needed : most;
 }
 }  // namespace

@@ -85,7 +85,8 @@ struct RayHintImages {
   const int8_t* levels = nullptr;
 };
 
-/// How the rays are launched (GpuReconstruction's set_split_marches, set_raycast_registers).
+/// How the rays are launched (GpuReconstruction's set_split_marches, set_raycast_registers,
+/// set_queued_marches).
 struct RaycastLaunch {
   /// > 0: a warp where at most that many rays march splits each march across its lanes
   /// (kernels::split_march_from_hint).
@@ -93,6 +94,13 @@ struct RaycastLaunch {
   /// 0: at most 168 registers a thread (launch bounds: 12 warps a multiprocessor); else one of
   /// kRaycastRegisterCaps, more warps at once for some spilling.
   int registers_at_most = 0;
+  /// Device memory for two counts and then `march_queue_pixels` pixel indices (null: none). Where
+  /// the image has no more pixels than that, the rays are cast by two kernels: the first
+  /// searches every ray at its hints and queues the rays whose search fails, the second takes
+  /// each queued ray across a warp's 32 lanes (kernels::split_march_from_hint), the warps
+  /// sharing the queue out. split_at_most and registers_at_most are then not used.
+  int32_t* march_queue = nullptr;
+  int64_t march_queue_pixels = 0;
 };
 /// The register caps the ray kernel is built with (besides none).
 inline constexpr int kRaycastRegisterCaps[] = {128, 96, 80, 64};
@@ -105,8 +113,9 @@ int raycast_kernel_registers(const RaycastLaunch& how);
 /// `high_water` (an upper bound will do),
 /// with `k.occupancy`'s cells (when it has them, in device memory, covering every block) cleared
 /// and marked on the way, then one ray per pixel; counts hits into `counters->raycast_hits`.
-/// (Queuing the rays whose hints fail for a second, marching pass was slower: a warp of marching
-/// rays diverges on every step, where a warp of mostly hinted rays waits on a few.)
+/// (Queuing the rays whose hints fail for a second pass that marched a ray a thread was slower:
+/// a warp of marching rays diverges on every step, and one multiprocessor ran the longest warp
+/// for the whole kernel. With `how.march_queue` the second pass takes a ray a warp instead.)
 void raycast(const MapView& map, int32_t high_water, const PinholeCamera& camera,
              const Rigid3f& T_wc, float min_depth_m, float max_depth_m, kernels::RangeTiles tiles,
              const kernels::RayMarchConstants& k, const RayHintImages& hint,

@@ -371,6 +371,39 @@ TEST(GpuLoop, SplitMarchesRaycastAsTheCpuDoes) {
                  frames_to_run(40, 33), {.split_marches = 32});
 }
 
+// The model raycast as two kernels, the rays whose search at their hints fails queued and each
+// marched across a warp's lanes by the second, casts the rays one kernel casts with every
+// warp's marches split (SplitMarchesRaycastAsTheCpuDoes holds those to the CPU's): tracked with
+// each, the same poses, map and model to the bit. On the desk about 800 to 3100 rays a frame
+// march (the test fails with all but the first queued ray left unmarched: checked).
+TEST(GpuLoop, QueuedMarchesCastWhatSplitMarchesCast) {
+  HIVOX_REQUIRE_CUDA();
+  SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
+  const CameraRig& rig = data.info().rig;
+  const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
+  const Pose first = *data.read(0).T_wc_gt;
+  std::vector<DeviceResult> results;
+  std::vector<std::vector<StampedPose>> trajectories;
+  for (const bool queued : {false, true}) {
+    SCOPED_TRACE(queued ? "queued" : "split");
+    cuda::GpuReconstruction gpu(p, rig);
+    gpu.set_split_marches(32);
+    gpu.set_queued_marches(queued);
+    for (std::size_t i = 0; i < frames_to_run(data.size(), 8); ++i) {
+      const FrameStats& s = gpu.track_and_integrate(data.read(i), first);
+      EXPECT_TRUE(s.fused) << "frame " << i;
+    }
+    results.push_back(device_result(gpu, p));
+    trajectories.push_back(gpu.trajectory());
+    EXPECT_GT(hit_count(results.back().model), 10000);
+  }
+  ASSERT_EQ(trajectories[0].size(), trajectories[1].size());
+  for (std::size_t i = 0; i < trajectories[0].size(); ++i)
+    EXPECT_TRUE(trajectories[0][i].T_wc.matrix() == trajectories[1][i].T_wc.matrix())
+        << "frame " << i;
+  expect_same_results(results[1], results[0]);
+}
+
 // The model raycast's kernel capped at 64 registers a thread (the most spilled of its builds)
 // finds what the CPU finds.
 TEST(GpuLoop, RaycastsAsTheCpuDoesWithItsRegistersCapped) {

@@ -94,9 +94,22 @@ class GpuReconstruction {
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
   /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of
-  /// waiting for its longest: a warp's wait on its look-ups shrinks to its longest stretch's. A
-  /// CPU model cannot judge that gain (bench/ray_cost); not yet run on a GPU, so not the default.
+  /// waiting for its longest: a warp's wait on its look-ups shrinks to its longest stretch's. Up
+  /// to 1 gained nothing on an H200 (2026-11-27): the slowest warps hold many marching rays
+  /// (bench/ray_cost); 8 and 32 are not yet timed, so not the default.
   void set_split_marches(int at_most);
+  /// Whether the model raycast takes two kernels: the first searches every ray at its hints and
+  /// queues the rays whose search fails, the second takes each queued ray across a warp's 32
+  /// lanes (kernels::split_march_from_hint), its warps taking the next ray as they finish one.
+  /// Where a warp's rays march, the one kernel waits for the longest (split_marches takes them
+  /// one after another); here the marches (about 6 % of fr1/rpy's rays, in 20 % of the warps)
+  /// go to as many warps as there are, and the searches' kernel, without the march's code,
+  /// ends with its slowest search (bench/ray_cost models both). The hits are split marches'
+  /// (set_split_marches(32) gives the same model): a lane's stretch samples its ray at other
+  /// depths than a whole march, so hits move by a fraction of a voxel. A queue of the model's
+  /// pixels (300 KB at 320x240). Not yet timed on a GPU, so not the default; set_split_marches
+  /// and set_raycast_registers do not apply while it is on.
+  void set_queued_marches(bool on);
 
   /// At most how many registers a thread of the model raycast's kernel takes: 0 (the default),
   /// as many as the compiler likes (160 for sm_90 with CUDA 13, so 12 warps of it fit a
