@@ -212,6 +212,7 @@ for data in fr1 desk; do
   bench "${data}_l3_read_ahead8" "$src" 3 --read-threads 8
   bench "${data}_l3_all" "$src" 3 --split-marches 1 --no-coarse-grid
   bench "${data}_l1_default" "$src" 1
+  bench "${data}_l1_queued" "$src" 1 --queued-marches
   bench "${data}_l1_regs96" "$src" 1 --raycast-registers 96
   bench "${data}_l1_alloc4" "$src" 1 --allocation-pixels 4
   bench "${data}_l1_graph" "$src" 1 --tracking-graph
