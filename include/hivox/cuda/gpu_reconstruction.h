@@ -108,7 +108,8 @@ class GpuReconstruction {
   /// (set_split_marches(32) gives the same model): a lane's stretch samples its ray at other
   /// depths than a whole march, so hits move by a fraction of a voxel. A queue of the model's
   /// pixels (300 KB at 320x240). Not yet timed on a GPU, so not the default; set_split_marches
-  /// and set_raycast_registers do not apply while it is on.
+  /// and set_raycast_registers do not apply while it is on. Renders (render) march every ray
+  /// whole in one kernel, whatever this and set_split_marches say.
   void set_queued_marches(bool on);
 
   /// At most how many registers a thread of the model raycast's kernel takes: 0 (the default),
