@@ -161,71 +161,63 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       "%.0f %% of it); slowest warp %.1f us, 99th/90th/50th percentile %.1f/%.1f/%.2f us\n",
       v.name.c_str(), total / 1e6, total / v.rays.size(), simt / 1e6, 100.0 * total / lanes,
       warp_max[order[0]] / 1e3, pct(0.01) / 1e3, pct(0.1) / 1e3, pct(0.5) / 1e3);
-  // The raycast as two kernels (GpuReconstruction::set_queued_marches): every ray's search at
-  // its hints, then the rays that march (their march: the ray's time less its search), each
-  // warp of the first kernel waiting for its slowest search, the second kernel, a march a warp,
-  // for its slowest march.
-  {
-    std::vector<double> hint_warp(warp_max.size(), 0.0);
-    std::vector<double> marches;
-    for (int y = 0; y < cam.height; ++y)
-      for (int x = 0; x < cam.width; ++x) {
-        const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
-        const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
-        hint_warp[w] = std::max(hint_warp[w], r.hint_ns);
-        if ((r.outcome == kernels::RayOutcome::Marched || r.outcome == kernels::RayOutcome::Miss) &&
-            r.z_max > 0.0f)
-          marches.push_back(std::max(r.ns - r.hint_ns, 0.0));
+  // The device's ways with the rays that march (their search at their hints failed; a march's
+  // time: the ray's less its search), per warp: its slowest search, its marches and their time.
+  std::vector<double> hint_max(warp_max.size(), 0.0), march_sum(warp_max.size(), 0.0);
+  std::vector<int> marching(warp_max.size(), 0);
+  std::vector<double> marches;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
+      const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
+      hint_max[w] = std::max(hint_max[w], r.hint_ns);
+      const bool marched =
+          r.outcome == kernels::RayOutcome::Marched || r.outcome == kernels::RayOutcome::Miss;
+      if (marched && r.z_max > 0.0f) {
+        marches.push_back(std::max(r.ns - r.hint_ns, 0.0));
+        ++marching[w];
+        march_sum[w] += marches.back();
       }
-    std::sort(hint_warp.begin(), hint_warp.end(), std::greater<>());
-    std::sort(marches.begin(), marches.end(), std::greater<>());
-    auto at = [](const std::vector<double>& d, double q) {
-      return d.empty() ? 0.0 : d[static_cast<std::size_t>(q * (d.size() - 1))];
-    };
-    // Split marches (cast_rays_kernel<true>): a warp where at most n rays march searches its
-    // rays' hints, then takes its marches one after another, each across the 32 lanes. A lane
-    // marches a 32nd of the stretch, so the march would take a 32nd of its time at best; /8 if
-    // the lanes' look-ups were four times what a 32nd of the march's are.
-    for (const int n : {1, 8, 32})
-      for (const double speedup : {32.0, 8.0}) {
-        std::vector<double> hint_max(warp_max.size(), 0.0), split_sum(warp_max.size(), 0.0);
-        std::vector<int> marching(warp_max.size(), 0);
-        for (int y = 0; y < cam.height; ++y)
-          for (int x = 0; x < cam.width; ++x) {
-            const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
-            const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
-            hint_max[w] = std::max(hint_max[w], r.hint_ns);
-            if ((r.outcome == kernels::RayOutcome::Marched ||
-                 r.outcome == kernels::RayOutcome::Miss) &&
-                r.z_max > 0.0f) {
-              ++marching[w];
-              split_sum[w] += std::max(r.ns - r.hint_ns, 0.0) / speedup;
-            }
-          }
-        std::vector<double> t(warp_max.size());
-        int split_warps = 0;
-        for (std::size_t w = 0; w < t.size(); ++w) {
-          const bool split = marching[w] > 0 && marching[w] <= n;
-          split_warps += split;
-          t[w] = split ? hint_max[w] + split_sum[w] : warp_max[w];
-        }
-        std::sort(t.begin(), t.end(), std::greater<>());
-        std::printf(
-            "  split marches of up to %d rays a warp, a march %.0fx faster split: %d warps split; "
-            "warps %.2f ms, slowest %.1f us, 99th/90th percentile %.1f/%.1f us\n",
-            n, speedup, split_warps, std::accumulate(t.begin(), t.end(), 0.0) / 1e6, t[0] / 1e3,
-            t[static_cast<std::size_t>(0.01 * (t.size() - 1))] / 1e3,
-            t[static_cast<std::size_t>(0.1 * (t.size() - 1))] / 1e3);
+    }
+  auto slowest_first = [](std::vector<double> d) {
+    std::sort(d.begin(), d.end(), std::greater<>());
+    return d;
+  };
+  auto at = [](const std::vector<double>& d, double q) {
+    return d.empty() ? 0.0 : d[static_cast<std::size_t>(q * (d.size() - 1))];
+  };
+  // Split marches (cast_rays_kernel<true>): a warp where at most n rays march searches its rays'
+  // hints, then takes its marches one after another, each across the 32 lanes. A lane marches a
+  // 32nd of the stretch, so the march would take a 32nd of its time at best; /8 if the lanes'
+  // look-ups were four times what a 32nd of the march's are.
+  for (const int n : {1, 8, 32})
+    for (const double speedup : {32.0, 8.0}) {
+      std::vector<double> t(warp_max.size());
+      int split_warps = 0;
+      for (std::size_t w = 0; w < t.size(); ++w) {
+        const bool split = marching[w] > 0 && marching[w] <= n;
+        split_warps += split;
+        t[w] = split ? hint_max[w] + march_sum[w] / speedup : warp_max[w];
       }
-    std::printf(
-        "  as two kernels: the searches at the hints' warps %.2f ms, slowest %.1f us, 99th/90th/"
-        "50th percentile %.1f/%.1f/%.2f us; %zu marches, slowest %.1f us, 10th/50th %.1f/%.2f "
-        "us (each across a warp's lanes, 32x to 8x faster: the slowest %.1f-%.1f us)\n",
-        std::accumulate(hint_warp.begin(), hint_warp.end(), 0.0) / 1e6, at(hint_warp, 0) / 1e3,
-        at(hint_warp, 0.01) / 1e3, at(hint_warp, 0.1) / 1e3, at(hint_warp, 0.5) / 1e3,
-        marches.size(), at(marches, 0) / 1e3, at(marches, 0.1) / 1e3, at(marches, 0.5) / 1e3,
-        at(marches, 0) / 32e3, at(marches, 0) / 8e3);
-  }
+      t = slowest_first(std::move(t));
+      std::printf(
+          "  split marches of up to %d rays a warp, a march %.0fx faster split: %d warps split; "
+          "warps %.2f ms, slowest %.1f us, 99th/90th percentile %.1f/%.1f us\n",
+          n, speedup, split_warps, std::accumulate(t.begin(), t.end(), 0.0) / 1e6, at(t, 0) / 1e3,
+          at(t, 0.01) / 1e3, at(t, 0.1) / 1e3);
+    }
+  // The raycast as two kernels (GpuReconstruction::set_queued_marches): each warp of the first
+  // waits for its slowest search, the second, a march a warp, for its slowest march.
+  const std::vector<double> searches = slowest_first(hint_max);
+  marches = slowest_first(std::move(marches));
+  std::printf(
+      "  as two kernels: the searches at the hints' warps %.2f ms, slowest %.1f us, 99th/90th/"
+      "50th percentile %.1f/%.1f/%.2f us; %zu marches, slowest %.1f us, 10th/50th %.1f/%.2f "
+      "us (each across a warp's lanes, 32x to 8x faster: the slowest %.1f-%.1f us)\n",
+      std::accumulate(searches.begin(), searches.end(), 0.0) / 1e6, at(searches, 0) / 1e3,
+      at(searches, 0.01) / 1e3, at(searches, 0.1) / 1e3, at(searches, 0.5) / 1e3, marches.size(),
+      at(marches, 0) / 1e3, at(marches, 0.1) / 1e3, at(marches, 0.5) / 1e3, at(marches, 0) / 32e3,
+      at(marches, 0) / 8e3);
   std::printf("  outcomes:");
   for (int o = 0; o < 4; ++o)
     std::printf(" %s %lld (%.0f ns each)", outcome_name(static_cast<kernels::RayOutcome>(o)),
