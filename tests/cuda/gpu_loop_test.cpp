@@ -181,21 +181,25 @@ bool same_depths(const RaycastResult& a, const RaycastResult& b) {
 }
 
 /// What a device run leaves: its map as its file's bytes (the file holds the blocks in a
-/// canonical order, whatever pool blocks they took) and its last model raycast.
+/// canonical order, whatever pool blocks they took), its last model raycast and its poses.
 struct DeviceResult {
   std::string map_file;
   RaycastResult model;
+  std::vector<StampedPose> trajectory;
 };
 DeviceResult device_result(const cuda::GpuReconstruction& gpu, const ReconstructionParams& p) {
   test::TempDir dir;
   const std::filesystem::path file = dir.path() / "map.hvx";
   write_map_file(file, *gpu.download_map(), p.fusion, MapSession{});
-  return {test::file_bytes(file), gpu.download_model()};
+  return {test::file_bytes(file), gpu.download_model(), gpu.trajectory()};
 }
-/// Two runs that must agree to the bit: the same map and model.
+/// Two runs that must agree to the bit: the same map, model and poses.
 void expect_same_results(const DeviceResult& a, const DeviceResult& b) {
   EXPECT_TRUE(a.map_file == b.map_file) << "the maps";
   EXPECT_TRUE(same_depths(a.model, b.model)) << "the models";
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i)
+    EXPECT_TRUE(a.trajectory[i].T_wc.matrix() == b.trajectory[i].T_wc.matrix()) << "frame " << i;
 }
 
 /// An environment variable set while it lives, unset after.
@@ -383,7 +387,6 @@ TEST(GpuLoop, QueuedMarchesCastWhatSplitMarchesCast) {
   const ReconstructionParams p = params_for(3, 0.002f, 0.024f);
   const Pose first = *data.read(0).T_wc_gt;
   std::vector<DeviceResult> results;
-  std::vector<std::vector<StampedPose>> trajectories;
   for (const bool queued : {false, true}) {
     SCOPED_TRACE(queued ? "queued" : "split");
     cuda::GpuReconstruction gpu(p, rig);
@@ -394,13 +397,8 @@ TEST(GpuLoop, QueuedMarchesCastWhatSplitMarchesCast) {
       EXPECT_TRUE(s.fused) << "frame " << i;
     }
     results.push_back(device_result(gpu, p));
-    trajectories.push_back(gpu.trajectory());
     EXPECT_GT(hit_count(results.back().model), 10000);
   }
-  ASSERT_EQ(trajectories[0].size(), trajectories[1].size());
-  for (std::size_t i = 0; i < trajectories[0].size(); ++i)
-    EXPECT_TRUE(trajectories[0][i].T_wc.matrix() == trajectories[1][i].T_wc.matrix())
-        << "frame " << i;
   expect_same_results(results[1], results[0]);
 }
 
@@ -814,9 +812,8 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
       EXPECT_EQ(a.valid_pixels, b.valid_pixels) << "frame " << i;
       EXPECT_EQ(a.track_iterations, b.track_iterations) << "frame " << i;
       EXPECT_EQ(a.splits, b.splits) << "frame " << i;
-      EXPECT_TRUE(plain.trajectory()[i].T_wc.matrix() == beside.trajectory()[i].T_wc.matrix())
-          << "frame " << i;
     }
+    // The map, the model and the poses (the last frame fused at a given pose: in the trajectory).
     expect_same_results(device_result(plain, p), device_result(beside, p));
     EXPECT_GT(beside.blocks_in_use(), 1000);
   }
