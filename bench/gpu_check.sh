@@ -8,11 +8,12 @@
 # changed); meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and
 # the desk with each opt-in no GPU has judged yet against the default, alternated (the marches
 # queued for a second kernel, split marches of up to 8 and 32 rays a warp, refinement after the
-# raycast, frames up beside it, the two together), one round on both before the second; compute-sanitizer's initcheck on the mesh
-# tests; the rest (the opt-ins measured before: register caps, split marches of 1, Gauss-Newton
-# on the host, allocation threads of several pixels, tracking as a graph; the coarse grid off,
-# frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray kernel with
-# and without a register cap; and last compute-sanitizer's memcheck on the newest tests.
+# raycast, frames up beside it, the two together), one round on both before the second;
+# compute-sanitizer's initcheck on the mesh tests; the rest (the opt-ins measured before:
+# register caps, split marches of 1, Gauss-Newton on the host, allocation threads of several
+# pixels, tracking as a graph; the coarse grid off, frames decoded as the loop goes, opt-ins
+# together, the fixed grid); ncu on the ray kernel with a register cap; and last
+# compute-sanitizer's memcheck on the newest tests.
 # Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
 # printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
@@ -166,10 +167,10 @@ bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # warp's lanes (bench/ray_cost's model: the tail of the ray kernel is its marches, in 20 % of
 # its warps); split marches where up to 8 and 32 of a warp's rays march (each taken across the
 # warp's 32 lanes; up to 1 changed nothing on the H200); refinement after the raycast (beside
-# it, on a stream of its own), frames up beside the raycast, the two together. A first round on both, then the
-# second, so that a short budget still compares each once. The opt-ins measured before (register
-# caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels,
-# tracking as a graph: none faster) come after, with the rest.
+# it, on a stream of its own), frames up beside the raycast, the two together. A first round on
+# both, then the second, so that a short budget still compares each once. The opt-ins measured
+# before (register caps, split marches of 1, Gauss-Newton on the host, allocation threads of
+# several pixels, tracking as a graph: none faster) come after, with the rest.
 optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
@@ -222,14 +223,13 @@ for data in fr1 desk; do
     --refine-after-raycast
   bench "${data}_l1_all" "$src" 1 --split-marches 1 --no-coarse-grid
 done
-# The ray kernel as ncu sees it, without and with a register cap: its registers, occupancy,
-# waves and what its warps stall on (fr1/rpy, 3 levels, three launches after 40 frames).
+# The ray kernel capped at 96 registers as ncu sees it, against the uncapped ncu_rays above:
+# its registers, occupancy, waves and what its warps stall on (fr1/rpy, 3 levels, three launches
+# after 40 frames).
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
-  for regs in 0 96; do
-    step "ncu_rays_regs$regs" "$ncu" --kernel-name regex:cast_rays --launch-skip 40 \
-      --launch-count 3 --section LaunchStats --section Occupancy --section SpeedOfLight \
-      --section WarpStateStats "$loop" "$fr1" --levels 3 --frames 50 --raycast-registers "$regs"
-  done
+  step ncu_rays_regs96 "$ncu" --kernel-name regex:cast_rays --launch-skip 40 --launch-count 3 \
+    --section LaunchStats --section Occupancy --section SpeedOfLight --section WarpStateStats \
+    "$loop" "$fr1" --levels 3 --frames 50 --raycast-registers 96
 fi
 if [ "$sanitize" = 1 ]; then
   step memcheck_new_tests compute-sanitizer --tool memcheck --error-exitcode 3 \
