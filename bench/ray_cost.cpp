@@ -18,6 +18,11 @@
 // (set_split_marches), and the raycast as two kernels (set_queued_marches), the searches' warps
 // then timed by their searches alone and each march a warp's.
 //
+// `--split-accuracy 0 0.6` also marches every ray of the model camera without hints (as a
+// render's rays march), from the frame's pose and moved back by each distance given, whole and
+// split across a warp's 32 lanes, and compares both with a dense march (0.5 mm steps, nothing
+// skipped): which of the two finds the ray's first crossing where they differ.
+//
 // Variants: `grid` (the coarse occupancy grid: empty super-blocks crossed in one step),
 // `no-grid` (unallocated space crossed block by block) and `level-hints` (the grid, and each
 // ray's first look-up starting at the level its pixel hit in the raycast before, as the device's
@@ -33,6 +38,7 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <functional>
@@ -40,6 +46,8 @@
 #include <numeric>
 #include <string>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "fusion/fusion_kernels.h"
 #include "hivox/core/error.h"
@@ -380,6 +388,100 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
   }
 }
 
+/// The first crossing on a ray by a dense march (every `step_m` of ray parameter, every sample a
+/// fresh look-up, nothing skipped): the first sample at or behind a surface whose sample before
+/// was in front of it, or that follows unobserved space and is within the band behind a surface
+/// (where march_ray searches back). 0: none.
+float dense_first_crossing(const MapView& map, const Vec3f& o, const Vec3f& d, float z_min,
+                           float z_max, int min_weight, float step_m) {
+  kernels::BlockLookupCache cache;
+  bool prev_valid = false;
+  float prev_f = 0.0f;
+  for (float z = z_min; z <= z_max; z += step_m) {
+    kernels::TsdfSample s;
+    int level;
+    if (!kernels::sample_tsdf(map, cache, o + d * z, min_weight, &s, &level)) {
+      prev_valid = false;
+      continue;
+    }
+    if (s.f <= 0.0f && (prev_valid ? prev_f > 0.0f : s.f > -1.0f)) return z;
+    prev_valid = true;
+    prev_f = s.f;
+  }
+  return 0.0f;
+}
+
+/// How a march's hits compare with the dense march's first crossings.
+struct CrossingTally {
+  int64_t same = 0, missed = 0, later = 0, earlier = 0, extra = 0;
+  void add(bool hit, float depth_m, float first_m, float within_m) {
+    if (first_m == 0.0f) {
+      ++(hit ? extra : same);
+    } else if (!hit) {
+      ++missed;
+    } else if (std::abs(depth_m - first_m) <= within_m) {
+      ++same;
+    } else {
+      ++(depth_m > first_m ? later : earlier);
+    }
+  }
+  void print(const char* name) const {
+    std::printf(
+        "  %-6s marches: %lld as the dense march, %lld missed its crossing, %lld hit later, %lld "
+        "earlier, %lld hit where it found none\n",
+        name, static_cast<long long>(same), static_cast<long long>(missed),
+        static_cast<long long>(later), static_cast<long long>(earlier),
+        static_cast<long long>(extra));
+  }
+};
+
+/// Every ray of `cam` at `T_wc` marched without a hint (as a render's are) over its range tile,
+/// whole and split across 32 lanes (GpuReconstruction::set_split_marches and
+/// set_queued_marches' marches), each compared with a dense march of 0.5 mm steps: which of the
+/// two finds the first crossing where they differ.
+void report_split_accuracy(const VoxelBlockMap& map, const kernels::RayMarchConstants& k,
+                           const PinholeCamera& cam, int tile_px, const Pose& T_wc,
+                           const DepthRange& range, const char* name) {
+  const MapView view = map.view();
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(tile_px, cam);
+  std::vector<float> z_lo(static_cast<std::size_t>(tiles.count()), 3.4e38f),
+      z_hi(static_cast<std::size_t>(tiles.count()), 0.0f);
+  tiles.z_min = z_lo.data();
+  tiles.z_max = z_hi.data();
+  kernels::fill_range_tiles(map, cam, to_rigid3f(T_wc.inverse()), std::max(range.min_m, 1e-3f),
+                            range.max_m, tiles);
+  const Rigid3f T = to_rigid3f(T_wc);
+  std::vector<kernels::BlockLookupCache> lanes(32);
+  kernels::BlockLookupCache cache;
+  CrossingTally whole, split;
+  int64_t rays = 0, one_only = 0, apart = 0;
+  constexpr float kWithinM = 0.002f;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const int t = tiles.tile_of(x, y);
+      const float z_min = tiles.z_min[t], z_max = tiles.z_max[t];
+      if (!(z_min <= z_max)) continue;
+      ++rays;
+      const Vec3f dir = T.rotate(cam.ray(static_cast<float>(x), static_cast<float>(y)));
+      kernels::RayHit a, b;
+      const bool hit_a = kernels::march_from_hint(view, cache, T.t, dir, 0.0f, z_min, z_max, k, &a);
+      const bool hit_b =
+          kernels::split_march_on_cpu(view, lanes.data(), T.t, dir, 0.0f, z_min, z_max, k, 32, &b);
+      one_only += hit_a != hit_b;
+      apart += hit_a && hit_b && std::abs(a.depth_m - b.depth_m) > kWithinM;
+      const float first = dense_first_crossing(view, T.t, dir, z_min, z_max, k.min_weight, 0.0005f);
+      whole.add(hit_a, a.depth_m, first, kWithinM);
+      split.add(hit_b, b.depth_m, first, kWithinM);
+    }
+  std::printf(
+      "split marches without hints, %s (%dx%d): %lld rays, %lld hit by one march only, %lld hits "
+      "more than 2 mm apart; against a dense march:\n",
+      name, cam.width, cam.height, static_cast<long long>(rays), static_cast<long long>(one_only),
+      static_cast<long long>(apart));
+  whole.print("whole");
+  split.print("split");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -387,6 +489,7 @@ int main(int argc, char** argv) {
   std::string spec;
   int frames = 120, at = -1, levels = 3, rounds = 3, top = 5;
   std::string dump;
+  std::vector<double> split_accuracy;
   app.add_option("dataset", spec, "dataset folder or synthetic:NAME")->required();
   app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
   app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
@@ -396,6 +499,11 @@ int main(int argc, char** argv) {
   app.add_option("--dump", dump,
                  "write every ray's outcome and hit depth (last variant) here, one line a ray: "
                  "two builds' files are equal where a change keeps the raycast's result");
+  app.add_option("--split-accuracy", split_accuracy,
+                 "also march every ray of the model camera without hints, whole and split "
+                 "across a warp, from the frame's pose moved back by each of these metres, and "
+                 "compare both with a dense march")
+      ->expected(1, 8);
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -497,6 +605,15 @@ int main(int argc, char** argv) {
           r.level = r.outcome == kernels::RayOutcome::Miss ? -1 : hit.level;
         }
     for (const Variant& v : variants) report(v, cam, top);
+    for (const double back_m : split_accuracy) {
+      Pose from = T_wc;
+      from.translate(Eigen::Vector3d(0.0, 0.0, -back_m));
+      DepthRange range = p.fusion.depth_range;
+      range.max_m += static_cast<float>(back_m);
+      const std::string name = fmt::format("{:.2f} m back", back_m);
+      report_split_accuracy(map, variants.front().k, cam, p.raycast.tuning.range_tile_px, from,
+                            range, name.c_str());
+    }
     if (!dump.empty()) {
       FILE* out = std::fopen(dump.c_str(), "w");
       if (out == nullptr) fail(ErrorCode::Io, "--dump {}: cannot be written", dump);
