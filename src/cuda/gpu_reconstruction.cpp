@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <utility>
@@ -50,6 +51,9 @@ constexpr int kCounters = 2 * kMaxLevels + 2;
 /// Refinement's candidate lists come back with their counts up to this many entries (a few
 /// hundred are usual); the rest in a second copy.
 constexpr std::size_t kRefineListHead = 1024;
+/// Refinement's counts on the device: [0, 3) RefineLists::counts, then the merges and the
+/// splits whose check passed (refine_at_once).
+constexpr int kMergesOk = 3, kSplitsOk = 4, kRefineCounts = 5;
 
 /// Stack bytes a GPU thread gets (see Impl's constructor).
 constexpr std::size_t kStackBytes = 4096;
@@ -208,9 +212,10 @@ struct GpuReconstruction::Impl {
   MutableMapView view;
   // The pool's counters as last read from the device (read_pool_counters).
   int32_t high_water = 0;
-  int32_t free_count = 0;             ///< free pool blocks
-  int64_t blocks = 0;                 ///< in use
-  std::vector<int64_t> level_blocks;  ///< in use, per level (finest first)
+  int32_t free_count = 0;                         ///< free pool blocks
+  int64_t blocks = 0;                             ///< in use
+  std::vector<int64_t> level_blocks;              ///< in use, per level (finest first)
+  std::array<int64_t, kMaxLevels> free_excess{};  ///< free overflow entries, per level
   bool memory_full = false;  ///< the pool stopped growing once: the device's memory is full
   int64_t dropped = 0;       ///< blocks dropped so far (the continued map's included)
 
@@ -429,10 +434,7 @@ struct GpuReconstruction::Impl {
   /// plus the pops beyond the freed blocks.
   int64_t room_for(int64_t pops) {
     pops = std::clamp<int64_t>(pops, 0, free_count);
-    const int64_t holes = std::max<int64_t>(0, free_count - (map_params.max_blocks - high_water));
-    const int64_t committed =
-        commit_pool(static_cast<int64_t>(high_water) + std::max<int64_t>(0, pops - holes));
-    const int64_t fit = std::min(pops, holes + committed - high_water);
+    const int64_t fit = commit_for(pops);
     if (fit < pops) {
       memory_full = true;
       log::warn_once("cuda.memory_full",
@@ -444,9 +446,18 @@ struct GpuReconstruction::Impl {
     }
     return fit;
   }
+  /// room_for without its warning: how many of `pops` (at most free_count) the pool can give
+  /// with their memory committed, committing it.
+  int64_t commit_for(int64_t pops) {
+    const int64_t holes = std::max<int64_t>(0, free_count - (map_params.max_blocks - high_water));
+    const int64_t committed =
+        commit_pool(static_cast<int64_t>(high_water) + std::max<int64_t>(0, pops - holes));
+    return std::min(pops, holes + committed - high_water);
+  }
 
   /// The pool's counters from `c` (a copy of `counters`).
   void set_pool_counters(const int32_t* c) {
+    for (int l = 0; l < map_params.levels; ++l) free_excess[l] = c[kExcessCount + l];
     high_water = c[kHighWater];
     free_count = c[kBlockFreeCount];
     blocks = map_params.max_blocks - free_count;
@@ -538,7 +549,7 @@ struct GpuReconstruction::Impl {
       merge_list.reset(list, &total_bytes);
       parent_keys.reset(slots, &total_bytes);
       parent_list.reset(list, &total_bytes);
-      refine_counts.reset(3, &total_bytes);
+      refine_counts.reset(kRefineCounts, &total_bytes);
     }
   }
 
@@ -658,7 +669,7 @@ struct GpuReconstruction::Impl {
     k.unmeshable_min_weight = rp.unmeshable_min_weight;
     k.noise = rp.noise.value_or(rig.depth_noise);
     k.T_cw = to_rigid3f(T_wc.inverse());
-    check_status(cudaMemsetAsync(refine_counts.get(), 0, 3 * sizeof(int32_t), q),
+    check_status(cudaMemsetAsync(refine_counts.get(), 0, kRefineCounts * sizeof(int32_t), q),
                  "clearing counters");
     check_status(cudaMemsetAsync(parent_keys.get(), 0xFF, parent_keys.size() * sizeof(uint64_t), q),
                  "clearing the parent set");
@@ -673,7 +684,7 @@ struct GpuReconstruction::Impl {
     merge_candidates(view.read, std::min(visible_count, lists.parents.capacity), k, lists);
     // The counts and the lists' first entries in one round trip; longer lists, rarely, in a second.
     const std::size_t head = std::min<std::size_t>(kRefineListHead, split_list.size());
-    int32_t* counts = host_refine_counts.reserve(3);
+    int32_t* counts = host_refine_counts.reserve(kRefineCounts);
     BlockRef* split_head = host_splits.reserve(head);
     BlockKey* merge_head = host_merges.reserve(head);
     download_async(counts, refine_counts.get(), 3, "refinement (counts)", q);
@@ -696,7 +707,77 @@ struct GpuReconstruction::Impl {
     std::sort(merges.begin(), merges.end());
     std::vector<MergeJob> mj(merges.size());
     for (std::size_t i = 0; i < merges.size(); ++i) mj[i].parent = merges[i];
+    // Splits, in key order, once per block (the CPU's split_blocks).
+    std::sort(splits.begin(), splits.end(), [](const BlockRef& a, const BlockRef& b) {
+      return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
+    });
+    splits.erase(std::unique(splits.begin(), splits.end(),
+                             [](const BlockRef& a, const BlockRef& b) { return a.ptr == b.ptr; }),
+                 splits.end());
+    std::vector<SplitJob> sj(splits.size());
+    for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
     int32_t* c = host_map_counters.reserve(kCounters);
+    const bool at_once = refine_at_once(mj, sj, rp.split_weight_scale, q, after_raycast);
+    if (!at_once) {
+      refine_checked(mj, sj, rp.split_weight_scale, q, after_raycast, c, s);
+    } else if (!mj.empty() || !sj.empty()) {
+      download_async(counts + kMergesOk, refine_counts.get() + kMergesOk, 2,
+                     "refinement (the jobs done)", q);
+    }
+    // The pool's counters after the edits (a round trip).
+    download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", q);
+    wait_for_queue(q, "refinement (the pool's counters)");
+    set_pool_counters(c);
+    if (at_once && (!mj.empty() || !sj.empty())) {
+      s.merges = counts[kMergesOk];
+      s.splits = counts[kSplitsOk];
+    }
+    s.refine_ms = stage.lap_ms();
+  }
+
+  /// Refinement's writes queued at once, without reading the checks back (two round trips a
+  /// refinement fewer than refine_checked), where the pool and the overflow lists have room for
+  /// every job as the host last read them: a merge takes a block before it frees 8, a split 8
+  /// blocks and 8 overflow entries of the level below, none counting what the merges free. The
+  /// jobs whose check fails are skipped on the device, and their count comes back with the pool's
+  /// counters. Returns false, doing nothing, where room may lack (refine_checked then decides job
+  /// by job). The same jobs in the same order as refine_checked: the same map.
+  bool refine_at_once(const std::vector<MergeJob>& mj, std::vector<SplitJob>& sj,
+                      float weight_scale, cudaStream_t q,
+                      const std::function<void()>& after_raycast) {
+    if (mj.empty() && sj.empty()) return true;
+    kernels::SplitRoom room{free_count - static_cast<int64_t>(mj.size()), free_excess};
+    for (const SplitJob& j : sj)
+      if (!room.take(j.parent.level)) return false;
+    const auto pops = static_cast<int64_t>(mj.size() + kBlockChildren * sj.size());
+    if (pops > free_count || commit_for(pops) < pops) return false;
+    by_parent_level(sj);
+    if (!mj.empty()) {
+      ensure(merge_jobs, mj.size());
+      send_jobs(mj, merge_jobs, host_merge_jobs, q, "merging (the jobs)");
+      merge_lookup(view.read, merge_jobs.get(), static_cast<int32_t>(mj.size()),
+                   refine_counts.get() + kMergesOk);
+    }
+    if (!sj.empty()) {
+      ensure(split_jobs, sj.size());
+      send_jobs(sj, split_jobs, host_split_jobs, q, "splitting (the jobs)");
+    }
+    after_raycast();
+    if (!mj.empty()) merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
+    if (!sj.empty()) {
+      // After the merges: a merged parent's children are no longer blocks to split.
+      split_check(view.read, split_jobs.get(), static_cast<int32_t>(sj.size()),
+                  refine_counts.get() + kSplitsOk);
+      split_levels(sj, weight_scale);
+    }
+    return true;
+  }
+
+  /// Refinement's writes job by job: each check read back, the jobs that pass and fit queued
+  /// (those the pool or the overflow lists lack room for wait, counted in `s`).
+  void refine_checked(std::vector<MergeJob>& mj, std::vector<SplitJob>& sj, float weight_scale,
+                      cudaStream_t q, const std::function<void()>& after_raycast, int32_t* c,
+                      FrameStats& s) {
     if (!mj.empty()) {
       check_jobs(mj, merge_jobs, host_merge_jobs, c, q, "merging (looking up)",
                  [&](MergeJob* jobs, int32_t n) { merge_lookup(view.read, jobs, n); });
@@ -712,65 +793,58 @@ struct GpuReconstruction::Impl {
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
     }
-
-    // Splits, in key order, once per block (the CPU's split_blocks).
-    std::sort(splits.begin(), splits.end(), [](const BlockRef& a, const BlockRef& b) {
-      return BlockKey{a.pos, a.level} < BlockKey{b.pos, b.level};
-    });
-    splits.erase(std::unique(splits.begin(), splits.end(),
-                             [](const BlockRef& a, const BlockRef& b) { return a.ptr == b.ptr; }),
-                 splits.end());
-    std::vector<SplitJob> sj(splits.size());
-    for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
-    if (!sj.empty()) {
-      check_jobs(sj, split_jobs, host_split_jobs, c, q, "splitting (checking)",
-                 [&](SplitJob* jobs, int32_t n) { split_check(view.read, jobs, n); });
-      kernels::SplitRoom room{c[kBlockFreeCount], {}};
-      for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
-      std::vector<SplitJob> go;
-      for (const SplitJob& j : sj) {
-        if (room.take(j.parent.level))
-          go.push_back(j);
-        else
-          ++s.refine_waiting;
-      }
-      // The children's memory (room_for commits it); splits beyond it wait too.
-      set_pool_counters(c);
-      const auto fit = static_cast<std::size_t>(
-          room_for(static_cast<int64_t>(go.size()) * kBlockChildren) / kBlockChildren);
-      if (fit < go.size()) {
-        s.refine_waiting += static_cast<int64_t>(go.size() - fit);
-        go.resize(fit);
-      }
-      if (s.refine_waiting > 0 && !memory_full)
-        log::warn_once("cuda.split_waiting",
-                       "device map: voxel block pool or hash overflow list too small for all "
-                       "splits: splits wait and are counted in stats; raise --max-blocks");
-      // One parent level at a time, finest first (a split reads its level while it writes the
-      // next finer one).
-      std::stable_sort(go.begin(), go.end(), [](const SplitJob& a, const SplitJob& b) {
-        return a.parent.level < b.parent.level;
-      });
-      if (!go.empty()) {
-        send_jobs(go, split_jobs, host_split_jobs, q, "splitting (the jobs)");
-        after_raycast();
-        std::size_t begin = 0;
-        while (begin < go.size()) {
-          std::size_t end = begin;
-          while (end < go.size() && go[end].parent.level == go[begin].parent.level) ++end;
-          split_apply_level(view, split_jobs.get() + begin, static_cast<int32_t>(end - begin),
-                            rp.split_weight_scale);
-          begin = end;
-        }
-        split_finish(view, split_jobs.get(), static_cast<int32_t>(go.size()));
-      }
-      s.splits = static_cast<int64_t>(go.size());
+    if (sj.empty()) return;
+    check_jobs(sj, split_jobs, host_split_jobs, c, q, "splitting (checking)",
+               [&](SplitJob* jobs, int32_t n) { split_check(view.read, jobs, n); });
+    kernels::SplitRoom room{c[kBlockFreeCount], {}};
+    for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
+    std::vector<SplitJob> go;
+    for (const SplitJob& j : sj) {
+      if (room.take(j.parent.level))
+        go.push_back(j);
+      else
+        ++s.refine_waiting;
     }
-    // The pool's counters after the edits (a round trip).
-    download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", q);
-    wait_for_queue(q, "refinement (the pool's counters)");
+    // The children's memory (room_for commits it); splits beyond it wait too.
     set_pool_counters(c);
-    s.refine_ms = stage.lap_ms();
+    const auto fit = static_cast<std::size_t>(
+        room_for(static_cast<int64_t>(go.size()) * kBlockChildren) / kBlockChildren);
+    if (fit < go.size()) {
+      s.refine_waiting += static_cast<int64_t>(go.size() - fit);
+      go.resize(fit);
+    }
+    if (s.refine_waiting > 0 && !memory_full)
+      log::warn_once("cuda.split_waiting",
+                     "device map: voxel block pool or hash overflow list too small for all "
+                     "splits: splits wait and are counted in stats; raise --max-blocks");
+    by_parent_level(go);
+    if (!go.empty()) {
+      send_jobs(go, split_jobs, host_split_jobs, q, "splitting (the jobs)");
+      after_raycast();
+      split_levels(go, weight_scale);
+    }
+    s.splits = static_cast<int64_t>(go.size());
+  }
+
+  /// One parent level at a time, finest first (a split reads its level while it writes the next
+  /// finer one): `jobs` in that order, key order within a level.
+  static void by_parent_level(std::vector<SplitJob>& jobs) {
+    std::stable_sort(jobs.begin(), jobs.end(), [](const SplitJob& a, const SplitJob& b) {
+      return a.parent.level < b.parent.level;
+    });
+  }
+  /// Splits `jobs` (by_parent_level's order, on the device in split_jobs), level by level, and
+  /// returns their parents' blocks.
+  void split_levels(const std::vector<SplitJob>& jobs, float weight_scale) {
+    std::size_t begin = 0;
+    while (begin < jobs.size()) {
+      std::size_t end = begin;
+      while (end < jobs.size() && jobs[end].parent.level == jobs[begin].parent.level) ++end;
+      split_apply_level(view, split_jobs.get() + begin, static_cast<int32_t>(end - begin),
+                        weight_scale);
+      begin = end;
+    }
+    split_finish(view, split_jobs.get(), static_cast<int32_t>(jobs.size()));
   }
 
   /// The frame's depth (and colour) on the device; returns the fusion's input views. Beside

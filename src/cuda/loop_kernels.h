@@ -241,10 +241,11 @@ struct MergeJob {
   BlockSurface surface;
   int32_t ok = 0;
 };
-/// Looks the jobs' parents and children up; `ok` where the merge is still possible.
-void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n);
-/// Merges (the CPU's merge_blocks passes: fill the parents, publish them and empty the
-/// children's entries, return the children's blocks and unlinked entries).
+/// Looks the jobs' parents and children up; `ok` where the merge is still possible, counted into
+/// `*ok_count` when given.
+void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n, int32_t* ok_count = nullptr);
+/// Merges the jobs `ok` (the CPU's merge_blocks passes: fill the parents, publish them and empty
+/// the children's entries, return the children's blocks and unlinked entries).
 void merge_apply(const MutableMapView& map, MergeJob* jobs, int32_t n);
 
 /// One split: the parent, the blocks its interpolation reads, its children's blocks and entries.
@@ -257,11 +258,13 @@ struct SplitJob {
   BlockSurface child_surface[8];
   int32_t ok = 0;
 };
-/// `ok` where the parent is still the allocated block the job names.
-void split_check(const MapView& map, SplitJob* jobs, int32_t n);
-/// Splits jobs [0, n), all parents of one level (the CPU's passes 1 to 3 for that level).
+/// `ok` where the parent is still the allocated block the job names, counted into `*ok_count`
+/// when given.
+void split_check(const MapView& map, SplitJob* jobs, int32_t n, int32_t* ok_count = nullptr);
+/// Splits the jobs `ok` of [0, n), all parents of one level (the CPU's passes 1 to 3 for that
+/// level).
 void split_apply_level(const MutableMapView& map, SplitJob* jobs, int32_t n, float weight_scale);
-/// Returns the split parents' blocks to the pool and moves the level counts.
+/// Returns the split parents' blocks (of the jobs `ok`) to the pool and moves the level counts.
 void split_finish(const MutableMapView& map, const SplitJob* jobs, int32_t n);
 
 // ---- meshing (mesh_passes.cu): the passes of mesh/mesh_passes.h ------------------------------

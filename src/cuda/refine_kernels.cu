@@ -146,7 +146,7 @@ __global__ void __launch_bounds__(kBlockChildren * 32)
   if (slot < lists.capacity) lists.merges[slot] = p;
 }
 
-__global__ void merge_lookup_kernel(MapView map, MergeJob* jobs, int32_t n) {
+__global__ void merge_lookup_kernel(MapView map, MergeJob* jobs, int32_t n, int32_t* ok_count) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   MergeJob& m = jobs[i];
@@ -163,6 +163,7 @@ __global__ void merge_lookup_kernel(MapView map, MergeJob* jobs, int32_t n) {
     if (ok) m.child_block[c] = lv.entries[m.child_entry[c]].ptr;
   }
   m.ok = ok;
+  if (ok && ok_count != nullptr) atomicAdd(ok_count, 1);
 }
 
 /// One CUDA block per merge, one thread per voxel: the first thread takes the parent's block,
@@ -171,6 +172,7 @@ __global__ void merge_lookup_kernel(MapView map, MergeJob* jobs, int32_t n) {
 __global__ void __launch_bounds__(kBlockVoxels)
     merge_fill_kernel(MutableMapView map, MergeJob* jobs) {
   MergeJob& m = jobs[blockIdx.x];
+  if (m.ok == 0) return;  // the whole CUDA block
   __shared__ int32_t block;
   __shared__ SharedSurface summary;
   if (threadIdx.x == 0) {
@@ -194,7 +196,7 @@ __global__ void __launch_bounds__(kBlockVoxels)
 
 __global__ void merge_publish_kernel(MutableMapView map, MergeJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
+  if (i >= n || jobs[i].ok == 0) return;
   MergeJob& m = jobs[i];
   const int pl = m.parent.level;
   map.meta[m.block] = BlockMeta{m.parent.pos, m.entry, static_cast<int16_t>(pl), 0, m.surface};
@@ -211,7 +213,7 @@ __global__ void merge_publish_kernel(MutableMapView map, MergeJob* jobs, int32_t
 
 __global__ void merge_return_kernel(MutableMapView map, const MergeJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
+  if (i >= n || jobs[i].ok == 0) return;
   const MergeJob& m = jobs[i];
   for (int c = 0; c < kBlockChildren; ++c) {
     kernels::return_block(map, m.child_block[c]);
@@ -222,7 +224,7 @@ __global__ void merge_return_kernel(MutableMapView map, const MergeJob* jobs, in
   atomicAdd(&map.level_block_count[m.parent.level - 1], -kBlockChildren);
 }
 
-__global__ void split_check_kernel(MapView map, SplitJob* jobs, int32_t n) {
+__global__ void split_check_kernel(MapView map, SplitJob* jobs, int32_t n, int32_t* ok_count) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   SplitJob& s = jobs[i];
@@ -230,11 +232,12 @@ __global__ void split_check_kernel(MapView map, SplitJob* jobs, int32_t n) {
   s.ok = b.level > 0 && b.level < map.levels && b.entry >= 0 && b.ptr >= 0 &&
          map.level[b.level].entries[b.entry].ptr == b.ptr &&
          map.level[b.level].entries[b.entry].pos == b.pos;
+  if (s.ok != 0 && ok_count != nullptr) atomicAdd(ok_count, 1);
 }
 
 __global__ void split_sources_kernel(MapView map, SplitJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
+  if (i >= n || jobs[i].ok == 0) return;
   SplitJob& s = jobs[i];
   kernels::split_sources(map, s.parent, s.parents, s.neighbour_children);
 }
@@ -244,6 +247,7 @@ __global__ void split_sources_kernel(MapView map, SplitJob* jobs, int32_t n) {
 __global__ void __launch_bounds__(kBlockVoxels)
     split_fill_kernel(MutableMapView map, SplitJob* jobs, float weight_scale) {
   SplitJob& s = jobs[blockIdx.x / kBlockChildren];
+  if (s.ok == 0) return;  // the whole CUDA block
   const int c = static_cast<int>(blockIdx.x % kBlockChildren);
   const BlockRef& p = s.parent;
   __shared__ int32_t block;
@@ -269,7 +273,7 @@ __global__ void __launch_bounds__(kBlockVoxels)
 
 __global__ void split_publish_kernel(MutableMapView map, SplitJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
+  if (i >= n || jobs[i].ok == 0) return;
   const SplitJob& s = jobs[i];
   const BlockRef& p = s.parent;
   const MutableLevelView& child_level = map.level[p.level - 1];
@@ -284,7 +288,7 @@ __global__ void split_publish_kernel(MutableMapView map, SplitJob* jobs, int32_t
 
 __global__ void split_finish_kernel(MutableMapView map, const SplitJob* jobs, int32_t n) {
   const int32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
+  if (i >= n || jobs[i].ok == 0) return;
   const BlockRef& p = jobs[i].parent;
   kernels::return_block(map, p.ptr);
   atomicAdd(&map.level_block_count[p.level], -1);
@@ -310,9 +314,9 @@ void merge_candidates(const MapView& map, int32_t max_parents, const RefineConst
   check_last("refinement (merge candidates)");
 }
 
-void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n) {
+void merge_lookup(const MapView& map, MergeJob* jobs, int32_t n, int32_t* ok_count) {
   if (n <= 0) return;
-  launch(merge_lookup_kernel, grid_for(n), kThreads, map, jobs, n);
+  launch(merge_lookup_kernel, grid_for(n), kThreads, map, jobs, n, ok_count);
   check_last("merging (looking up)");
 }
 
@@ -324,9 +328,9 @@ void merge_apply(const MutableMapView& map, MergeJob* jobs, int32_t n) {
   check_last("merging");
 }
 
-void split_check(const MapView& map, SplitJob* jobs, int32_t n) {
+void split_check(const MapView& map, SplitJob* jobs, int32_t n, int32_t* ok_count) {
   if (n <= 0) return;
-  launch(split_check_kernel, grid_for(n), kThreads, map, jobs, n);
+  launch(split_check_kernel, grid_for(n), kThreads, map, jobs, n, ok_count);
   check_last("splitting (checking)");
 }
 
