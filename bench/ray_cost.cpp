@@ -388,8 +388,8 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
   }
 }
 
-/// The first crossing on a ray by a dense march (every `step_m` of ray parameter, every sample a
-/// fresh look-up, nothing skipped): the first sample at or behind a surface whose sample before
+/// The first crossing on a ray by a dense march (a sample every `step_m` of ray parameter,
+/// nothing skipped): the first sample at or behind a surface whose sample before
 /// was in front of it, or that follows unobserved space and is within the band behind a surface
 /// (where march_ray searches back). 0: none.
 float dense_first_crossing(const MapView& map, const Vec3f& o, const Vec3f& d, float z_min,
