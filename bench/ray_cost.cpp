@@ -388,6 +388,21 @@ void report_walk(const MapView& map, const RgbdFrame& f, const CameraRig& rig,
   }
 }
 
+/// Range tiles as the device fills them: every block of `map` projected for `cam` at `T_wc`
+/// within `range`, the tiles' depths in `z_min` and `z_max`.
+kernels::RangeTiles filled_tiles(const VoxelBlockMap& map, const PinholeCamera& cam, int tile_px,
+                                 const Pose& T_wc, const DepthRange& range,
+                                 std::vector<float>* z_min, std::vector<float>* z_max) {
+  kernels::RangeTiles tiles = kernels::RangeTiles::covering(tile_px, cam);
+  z_min->assign(static_cast<std::size_t>(tiles.count()), 3.4e38f);
+  z_max->assign(static_cast<std::size_t>(tiles.count()), 0.0f);
+  tiles.z_min = z_min->data();
+  tiles.z_max = z_max->data();
+  kernels::fill_range_tiles(map, cam, to_rigid3f(T_wc.inverse()), std::max(range.min_m, 1e-3f),
+                            range.max_m, tiles);
+  return tiles;
+}
+
 /// The first crossing on a ray by a dense march (a sample every `step_m` of ray parameter,
 /// nothing skipped): the first sample at or behind a surface whose sample before
 /// was in front of it, or that follows unobserved space and is within the band behind a surface
@@ -443,13 +458,8 @@ void report_split_accuracy(const VoxelBlockMap& map, const kernels::RayMarchCons
                            const PinholeCamera& cam, int tile_px, const Pose& T_wc,
                            const DepthRange& range, const char* name) {
   const MapView view = map.view();
-  kernels::RangeTiles tiles = kernels::RangeTiles::covering(tile_px, cam);
-  std::vector<float> z_lo(static_cast<std::size_t>(tiles.count()), 3.4e38f),
-      z_hi(static_cast<std::size_t>(tiles.count()), 0.0f);
-  tiles.z_min = z_lo.data();
-  tiles.z_max = z_hi.data();
-  kernels::fill_range_tiles(map, cam, to_rigid3f(T_wc.inverse()), std::max(range.min_m, 1e-3f),
-                            range.max_m, tiles);
+  std::vector<float> z_lo, z_hi;
+  const kernels::RangeTiles tiles = filled_tiles(map, cam, tile_px, T_wc, range, &z_lo, &z_hi);
   const Rigid3f T = to_rigid3f(T_wc);
   std::vector<kernels::BlockLookupCache> lanes(32);
   kernels::BlockLookupCache cache;
@@ -541,16 +551,10 @@ int main(int argc, char** argv) {
     report_levels(map);
     report_walk(view, f, rig, p);
 
-    // Range tiles as the device fills them.
-    const float min_m = std::max(p.fusion.depth_range.min_m, 1e-3f);
-    kernels::RangeTiles tiles = kernels::RangeTiles::covering(p.raycast.tuning.range_tile_px, cam);
-    std::vector<float> z_lo(static_cast<std::size_t>(tiles.count()), 3.4e38f),
-        z_hi(static_cast<std::size_t>(tiles.count()), 0.0f);
-    tiles.z_min = z_lo.data();
-    tiles.z_max = z_hi.data();
+    std::vector<float> z_lo, z_hi;
+    const kernels::RangeTiles tiles = filled_tiles(map, cam, p.raycast.tuning.range_tile_px, T_wc,
+                                                   p.fusion.depth_range, &z_lo, &z_hi);
     const Rigid3f T = to_rigid3f(T_wc);
-    kernels::fill_range_tiles(map, cam, to_rigid3f(T_wc.inverse()), min_m,
-                              p.fusion.depth_range.max_m, tiles);
     std::vector<int32_t> cells;
     std::vector<Variant> variants;
     variants.push_back(

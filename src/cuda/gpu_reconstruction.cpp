@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
-#include <functional>
 #include <limits>
 #include <optional>
 #include <utility>
@@ -210,7 +209,7 @@ struct GpuReconstruction::Impl {
   GrowingArray<ColorVoxel> color;
   GrowingArray<BlockMeta> meta;
   MutableMapView view;
-  // The pool's counters as last read from the device (read_pool_counters).
+  // The pool's counters as last read from the device (set_pool_counters).
   int32_t high_water = 0;
   int32_t free_count = 0;                         ///< free pool blocks
   int64_t blocks = 0;                             ///< in use
@@ -691,11 +690,6 @@ struct GpuReconstruction::Impl {
     download_async(split_head, split_list.get(), head, "refinement (split list)", q);
     download_async(merge_head, merge_list.get(), head, "refinement (merge list)", q);
     wait_for_queue(q, "refinement (candidates)");
-    // The passes that write the map start after the model raycast (when it runs beside them);
-    // the look-ups and checks before them only read it.
-    const auto after_raycast = [&] {
-      if (q != nullptr) ray_end.order_before(q, "refinement");
-    };
     std::vector<BlockRef> splits(static_cast<std::size_t>(std::min(counts[0], capacity)));
     std::vector<BlockKey> merges(static_cast<std::size_t>(std::min(counts[2], capacity)));
     std::copy_n(split_head, std::min(head, splits.size()), splits.data());
@@ -717,18 +711,17 @@ struct GpuReconstruction::Impl {
     std::vector<SplitJob> sj(splits.size());
     for (std::size_t i = 0; i < splits.size(); ++i) sj[i].parent = splits[i];
     int32_t* c = host_map_counters.reserve(kCounters);
-    const bool at_once = refine_at_once(mj, sj, rp.split_weight_scale, q, after_raycast);
-    if (!at_once) {
-      refine_checked(mj, sj, rp.split_weight_scale, q, after_raycast, c, s);
-    } else if (!mj.empty() || !sj.empty()) {
+    const bool at_once = refine_at_once(mj, sj, rp.split_weight_scale, q);
+    if (at_once)
       download_async(counts + kMergesOk, refine_counts.get() + kMergesOk, 2,
                      "refinement (the jobs done)", q);
-    }
+    else
+      refine_checked(mj, sj, rp.split_weight_scale, q, c, s);
     // The pool's counters after the edits (a round trip).
     download_async(c, counters.get(), kCounters, "refinement (the pool's counters)", q);
     wait_for_queue(q, "refinement (the pool's counters)");
     set_pool_counters(c);
-    if (at_once && (!mj.empty() || !sj.empty())) {
+    if (at_once) {
       s.merges = counts[kMergesOk];
       s.splits = counts[kSplitsOk];
     }
@@ -743,8 +736,7 @@ struct GpuReconstruction::Impl {
   /// counters. Returns false, doing nothing, where room may lack (refine_checked then decides job
   /// by job). The same jobs in the same order as refine_checked: the same map.
   bool refine_at_once(const std::vector<MergeJob>& mj, std::vector<SplitJob>& sj,
-                      float weight_scale, cudaStream_t q,
-                      const std::function<void()>& after_raycast) {
+                      float weight_scale, cudaStream_t q) {
     if (mj.empty() && sj.empty()) return true;
     kernels::SplitRoom room{free_count - static_cast<int64_t>(mj.size()), free_excess};
     for (const SplitJob& j : sj)
@@ -762,7 +754,7 @@ struct GpuReconstruction::Impl {
       ensure(split_jobs, sj.size());
       send_jobs(sj, split_jobs, host_split_jobs, q, "splitting (the jobs)");
     }
-    after_raycast();
+    after_raycast(q);
     if (!mj.empty()) merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
     if (!sj.empty()) {
       // After the merges: a merged parent's children are no longer blocks to split.
@@ -776,8 +768,7 @@ struct GpuReconstruction::Impl {
   /// Refinement's writes job by job: each check read back, the jobs that pass and fit queued
   /// (those the pool or the overflow lists lack room for wait, counted in `s`).
   void refine_checked(std::vector<MergeJob>& mj, std::vector<SplitJob>& sj, float weight_scale,
-                      cudaStream_t q, const std::function<void()>& after_raycast, int32_t* c,
-                      FrameStats& s) {
+                      cudaStream_t q, int32_t* c, FrameStats& s) {
     if (!mj.empty()) {
       check_jobs(mj, merge_jobs, host_merge_jobs, c, q, "merging (looking up)",
                  [&](MergeJob* jobs, int32_t n) { merge_lookup(view.read, jobs, n); });
@@ -789,15 +780,15 @@ struct GpuReconstruction::Impl {
         mj.resize(static_cast<std::size_t>(room));
       }
       send_jobs(mj, merge_jobs, host_merge_jobs, q, "merging (the jobs)");
-      after_raycast();
+      after_raycast(q);
       merge_apply(view, merge_jobs.get(), static_cast<int32_t>(mj.size()));
       s.merges = static_cast<int64_t>(mj.size());
     }
     if (sj.empty()) return;
     check_jobs(sj, split_jobs, host_split_jobs, c, q, "splitting (checking)",
                [&](SplitJob* jobs, int32_t n) { split_check(view.read, jobs, n); });
-    kernels::SplitRoom room{c[kBlockFreeCount], {}};
-    for (int l = 0; l < map_params.levels; ++l) room.free_excess[l] = c[kExcessCount + l];
+    set_pool_counters(c);
+    kernels::SplitRoom room{free_count, free_excess};
     std::vector<SplitJob> go;
     for (const SplitJob& j : sj) {
       if (room.take(j.parent.level))
@@ -806,7 +797,6 @@ struct GpuReconstruction::Impl {
         ++s.refine_waiting;
     }
     // The children's memory (room_for commits it); splits beyond it wait too.
-    set_pool_counters(c);
     const auto fit = static_cast<std::size_t>(
         room_for(static_cast<int64_t>(go.size()) * kBlockChildren) / kBlockChildren);
     if (fit < go.size()) {
@@ -820,10 +810,16 @@ struct GpuReconstruction::Impl {
     by_parent_level(go);
     if (!go.empty()) {
       send_jobs(go, split_jobs, host_split_jobs, q, "splitting (the jobs)");
-      after_raycast();
+      after_raycast(q);
       split_levels(go, weight_scale);
     }
     s.splits = static_cast<int64_t>(go.size());
+  }
+
+  /// Refinement's passes that write the map, on queue `q`, start after the model raycast when
+  /// they run beside it (`q` not null); the look-ups and checks before them only read it.
+  void after_raycast(cudaStream_t q) {
+    if (q != nullptr) ray_end.order_before(q, "refinement");
   }
 
   /// One parent level at a time, finest first (a split reads its level while it writes the next
