@@ -327,12 +327,17 @@ void validate_of(const Room& s) {
     fail(ErrorCode::InvalidArgument, "room: min_w must be finite and below max_w on every axis");
 }
 
-// Ray against an AABB: [t_enter, t_exit] within [0, t_max], using the inverse direction.
-bool ray_box(const Aabb& box, const Vec3& o, const Vec3& inv_d, double t_max, double* t_enter) {
+// Ray against an AABB: [t_enter, t_exit] within [0, t_max], using the inverse direction. On
+// plain arrays: the BVH walk calls this for every node a ray visits, and in builds that keep
+// Eigen's asserts (the sanitizer builds, -O1) each indexed read was a call.
+bool ray_box(const Aabb& box, const double o[3], const double inv_d[3], double t_max,
+             double* t_enter) {
+  const double* lo = box.min_w.data();
+  const double* hi = box.max_w.data();
   double t0 = 0.0, t1 = t_max;
   for (int i = 0; i < 3; ++i) {
-    double ta = (box.min_w[i] - o[i]) * inv_d[i];
-    double tb = (box.max_w[i] - o[i]) * inv_d[i];
+    double ta = (lo[i] - o[i]) * inv_d[i];
+    double tb = (hi[i] - o[i]) * inv_d[i];
     if (ta > tb) std::swap(ta, tb);
     // NaN (0 * inf when the origin lies on a slab plane of a parallel ray) keeps the interval.
     if (ta > t0) t0 = ta;
@@ -545,7 +550,8 @@ std::optional<Hit> SyntheticScene::intersect(const Eigen::Vector3d& origin_w,
     }
   }
   if (!bvh_.empty()) {
-    const Vec3 inv_d = d.cwiseInverse();
+    const double o[3] = {origin_w.x(), origin_w.y(), origin_w.z()};
+    const double inv_d[3] = {1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z()};
     struct Pending {
       int node;
       double t_enter;
@@ -553,7 +559,7 @@ std::optional<Hit> SyntheticScene::intersect(const Eigen::Vector3d& origin_w,
     std::array<Pending, 64> stack;
     int top = 0;
     double t_root = 0;
-    if (ray_box(bvh_[0].box, origin_w, inv_d, best, &t_root)) stack[top++] = {0, t_root};
+    if (ray_box(bvh_[0].box, o, inv_d, best, &t_root)) stack[top++] = {0, t_root};
     while (top > 0) {
       const Pending pending = stack[--top];
       if (pending.t_enter > best) continue;  // a nearer hit was found since it was pushed
@@ -569,8 +575,8 @@ std::optional<Hit> SyntheticScene::intersect(const Eigen::Vector3d& origin_w,
         continue;
       }
       double tl = 0, tr = 0;
-      const bool hit_l = ray_box(bvh_[node.left].box, origin_w, inv_d, best, &tl);
-      const bool hit_r = ray_box(bvh_[node.right].box, origin_w, inv_d, best, &tr);
+      const bool hit_l = ray_box(bvh_[node.left].box, o, inv_d, best, &tl);
+      const bool hit_r = ray_box(bvh_[node.right].box, o, inv_d, best, &tr);
       if (hit_l && hit_r) {
         // Nearer child on top of the stack.
         if (tl <= tr) {
