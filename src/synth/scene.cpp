@@ -328,8 +328,8 @@ void validate_of(const Room& s) {
 }
 
 // Ray against an AABB: [t_enter, t_exit] within [0, t_max], using the inverse direction. On
-// plain arrays: the BVH walk calls this for every node a ray visits, and in builds that keep
-// Eigen's asserts (the sanitizer builds, -O1) each indexed read was a call.
+// plain arrays: the BVH walk calls this for every node a ray visits, and under the sanitizers
+// clang left each of Eigen's indexed reads a call (8 % of a tracking test under ASan + UBSan).
 bool ray_box(const Aabb& box, const double o[3], const double inv_d[3], double t_max,
              double* t_enter) {
   const double* lo = box.min_w.data();
