@@ -2,7 +2,7 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
 # short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
 # tests; the run known to fault on the device, its GPU core dump read by cuda-gdb, and again with
-# the pool as one plain allocation; ncu's time a frame for every kernel, then the ray kernel's
+# the pool as one plain allocation, and with the refinement in order after the raycast; ncu's time a frame for every kernel, then the ray kernel's
 # stalls line by line; with the loop of an earlier build in the bundle (gpu_bundle.sh,
 # HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU against what it
 # changed); meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and
@@ -108,6 +108,10 @@ if [ -n "$fr1" ]; then
     rm -f "$core"
   fi
   HIVOX_CUDA_VIRTUAL_MEMORY=off step fault_refine_after_plain_pool "${faulted[@]}"
+  # The same refinement in order after the raycast on the loop's stream, not beside it: where
+  # this one runs through, the fault needs the overlap (the emulation never interleaves the two
+  # streams' kernels); where it faults too, the order of the edits.
+  step fault_refine_after_in_order "${faulted[@]}" --refine-in-order
 fi
 
 # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45): where a

@@ -84,7 +84,8 @@ int main(int argc, char** argv) {
   float voxel_m = 0.002f;
   std::string poses = "track";
   bool cpu = false, mesh = false, render = false, gn_on_host = false, no_coarse_grid = false,
-       graph = false, refine_after = false, upload_beside = false, queued_marches = false;
+       graph = false, refine_after = false, refine_in_order = false, upload_beside = false,
+       queued_marches = false;
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
@@ -126,6 +127,9 @@ int main(int argc, char** argv) {
   app.add_flag("--refine-after-raycast", refine_after,
                "refine after each frame's model raycast, on a stream of its own beside it "
                "(ReconstructionParams::refine_after_raycast; --cpu does the same)");
+  app.add_flag("--refine-in-order", refine_in_order,
+               "with --refine-after-raycast: the refinement after the raycast on the loop's "
+               "stream, not beside it (GpuReconstruction::set_refine_beside_raycast(false))");
   app.add_flag("--upload-beside", upload_beside,
                "frames go up and their tracking pyramids are made on a stream of their own, "
                "beside the raycast (GpuReconstruction::set_upload_beside_raycast)");
@@ -201,6 +205,7 @@ int main(int argc, char** argv) {
     gpu->set_allocation_pixels(allocation_pixels);
     gpu->set_tracking_graph(graph);
     gpu->set_upload_beside_raycast(upload_beside);
+    gpu->set_refine_beside_raycast(!refine_in_order);
     gpu->set_queued_marches(queued_marches);
     const int registers = gpu->raycast_registers();
     std::printf(
@@ -209,7 +214,7 @@ int main(int argc, char** argv) {
         "thread (at most %s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
         split_marches, queued_marches ? "; marches queued" : "",
-        refine_after ? "after (beside)" : "before",
+        refine_after ? (refine_in_order ? "after (in order)" : "after (beside)") : "before",
         upload_beside ? "beside the raycast" : "after the raycast", registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
@@ -342,6 +347,7 @@ int main(int argc, char** argv) {
           << ", \"allocation_pixels\": " << allocation_pixels
           << ", \"tracking_graph\": " << (graph ? "true" : "false")
           << ", \"refine_after_raycast\": " << (refine_after ? "true" : "false")
+          << ", \"refine_beside_raycast\": " << (refine_in_order ? "false" : "true")
           << ", \"upload_beside_raycast\": " << (upload_beside ? "true" : "false")
           << ", \"handover\": " << k << ", \"frames_timed\": " << g.frames
           << ", \"read_threads\": " << read_threads << ", \"wall_fps\": " << wall_fps

@@ -252,6 +252,7 @@ struct GpuReconstruction::Impl {
   Buffer<Rgb8> color_image;
   Buffer<uint32_t> packed_color;
   bool upload_beside = false;  ///< see set_upload_beside_raycast
+  bool refine_beside = true;   ///< see set_refine_beside_raycast
   Stream frame_stream;         ///< the frames' uploads and pyramids, with upload_beside
   QueueMark frame_ready;       ///< the frame up and its pyramid made, on frame_stream
 
@@ -633,9 +634,9 @@ struct GpuReconstruction::Impl {
   }
 
   /// Refines (see refine) and raycasts the model at `T_wc`, the frame just fused, in the order
-  /// the parameters ask for. Refinement after the raycast goes on a stream of its own: its waits
-  /// for the host's decisions overlap the raycast, and its passes that write the map wait for
-  /// the raycast's end (ray_end).
+  /// the parameters ask for. Refinement after the raycast goes on a stream of its own
+  /// (refine_beside): its waits for the host's decisions overlap the raycast, and its passes
+  /// that write the map wait for the raycast's end (ray_end). Else on the loop's stream after it.
   void refine_and_raycast(const Pose& T_wc, int32_t visible_count, FrameStats& s) {
     // Every `every_n_frames`-th call refines.
     const bool due = map_params.levels >= 2 && (refine_calls++ % params.refine.every_n_frames) == 0;
@@ -646,6 +647,10 @@ struct GpuReconstruction::Impl {
     }
     raycast_model(T_wc, true);
     if (!due) return;
+    if (!refine_beside) {
+      refine(T_wc, visible_count, nullptr, s);
+      return;
+    }
     const cudaStream_t q = refine_stream.get("refinement's stream");
     const LaunchesOn on(q);
     refine(T_wc, visible_count, q, s);
@@ -1241,6 +1246,9 @@ void GpuReconstruction::set_upload_beside_raycast(bool on) {
   if (on && m.depth_images[1].size() == 0)
     m.depth_images[1].reset(m.depth_images[0].size(), &m.total_bytes);
   m.upload_beside = on;
+}
+void GpuReconstruction::set_refine_beside_raycast(bool on) {
+  impl_->refine_beside = on;
 }
 void GpuReconstruction::set_allocation_pixels(int per_thread) {
   if (per_thread != 1 && per_thread != 2 && per_thread != 4)

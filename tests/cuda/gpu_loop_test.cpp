@@ -786,7 +786,8 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
 /// Frames uploaded and their pyramids made beside the raycast (set_upload_beside_raycast): a
 /// matter of scheduling, so the default's poses, iterations, map and model to the bit, tracked
 /// with colour, refining before the raycast and after it (then three streams at once), and a
-/// frame at a given pose last.
+/// frame at a given pose last. Refining after the raycast, the refinement in order after it on
+/// the loop's stream instead of beside it (set_refine_beside_raycast(false)) is scheduling too.
 TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
   HIVOX_REQUIRE_CUDA();
   SyntheticDataset data(parse_synthetic_spec("synthetic:desk?frames=40&noise=kinect"));
@@ -799,23 +800,35 @@ TEST(GpuLoop, UploadsBesideTheRaycastWithTheSameResults) {
     p.refine_after_raycast = refine_after;
     cuda::GpuReconstruction plain(p, rig), beside(p, rig);
     beside.set_upload_beside_raycast(true);
+    std::vector<cuda::GpuReconstruction*> runs{&plain, &beside};
+    std::unique_ptr<cuda::GpuReconstruction> in_order;
+    if (refine_after) {
+      in_order = std::make_unique<cuda::GpuReconstruction>(p, rig);
+      in_order->set_refine_beside_raycast(false);
+      runs.push_back(in_order.get());
+    }
     // One run after the other: a run's waits for the device in between the other's frames
     // would end the other's raycast before its next upload, and hide the overlap.
-    for (cuda::GpuReconstruction* gpu : {&plain, &beside}) {
+    for (cuda::GpuReconstruction* gpu : runs) {
       for (std::size_t i = 0; i < frames; ++i) gpu->track_and_integrate(data.read(i), first);
       const RgbdFrame last = data.read(frames);
       gpu->integrate(last, *last.T_wc_gt);
     }
-    for (std::size_t i = 0; i < frames; ++i) {
-      const FrameStats &a = plain.frames()[i], &b = beside.frames()[i];
-      EXPECT_TRUE(b.fused) << "frame " << i;
-      EXPECT_EQ(a.valid_pixels, b.valid_pixels) << "frame " << i;
-      EXPECT_EQ(a.track_iterations, b.track_iterations) << "frame " << i;
-      EXPECT_EQ(a.splits, b.splits) << "frame " << i;
+    const DeviceResult expected = device_result(plain, p);
+    for (std::size_t r = 1; r < runs.size(); ++r) {
+      SCOPED_TRACE(r == 1 ? "frames up beside the raycast" : "refinement in order after it");
+      for (std::size_t i = 0; i < frames; ++i) {
+        const FrameStats &a = plain.frames()[i], &b = runs[r]->frames()[i];
+        EXPECT_TRUE(b.fused) << "frame " << i;
+        EXPECT_EQ(a.valid_pixels, b.valid_pixels) << "frame " << i;
+        EXPECT_EQ(a.track_iterations, b.track_iterations) << "frame " << i;
+        EXPECT_EQ(a.splits, b.splits) << "frame " << i;
+      }
+      // The map, the model and the poses (the last frame fused at a given pose: in the
+      // trajectory).
+      expect_same_results(expected, device_result(*runs[r], p));
+      EXPECT_GT(runs[r]->blocks_in_use(), 1000);
     }
-    // The map, the model and the poses (the last frame fused at a given pose: in the trajectory).
-    expect_same_results(device_result(plain, p), device_result(beside, p));
-    EXPECT_GT(beside.blocks_in_use(), 1000);
   }
 }
 

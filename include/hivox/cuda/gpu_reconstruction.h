@@ -91,6 +91,13 @@ class GpuReconstruction {
   /// rays at its own frame's depth), 1.2 MB more at 640x480. Scheduling only: the same poses and
   /// map. Off by default: not yet timed on a GPU.
   void set_upload_beside_raycast(bool on);
+  /// With ReconstructionParams::refine_after_raycast: whether the refinement goes on a stream of
+  /// its own beside the model raycast (the default), its look-ups overlapping the raycast and its
+  /// writes waiting on the device for the raycast's end, or after the raycast on the loop's
+  /// stream, one after the other. The same splits and merges in the same order on the same map:
+  /// only the device's schedule differs. For timing what the overlap saves, and for telling a
+  /// fault that needs the overlap from one that needs the order.
+  void set_refine_beside_raycast(bool on);
   /// How the model raycast marches the rays whose hints fail: `at_most` 0 (the default), each in
   /// its own thread; > 0, a warp where at most that many rays march splits each of their marches
   /// across its 32 lanes, one ray after another (kernels::split_march_from_hint), instead of
