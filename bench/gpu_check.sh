@@ -1,24 +1,24 @@
 #!/usr/bin/env bash
-# What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a
-# short session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu
-# tests; the run known to fault on the device, its GPU core dump read by cuda-gdb, and again with
-# the pool as one plain allocation, and with the refinement in order after the raycast; ncu's time a frame for every kernel, then the ray kernel's
-# stalls line by line; with the loop of an earlier build in the bundle (gpu_bundle.sh,
-# HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU against what it
-# changed); meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and
-# the desk with each opt-in no GPU has judged yet against the default, alternated (the marches
-# queued for a second kernel, split marches of up to 8 and 32 rays a warp, refinement after the
-# raycast, frames up beside it, the two together), one round on both before the second;
-# compute-sanitizer's initcheck on the mesh tests; the rest (the opt-ins measured before:
-# register caps, split marches of 1, Gauss-Newton on the host, allocation threads of several
-# pixels, tracking as a graph; the coarse grid off, frames decoded as the loop goes, opt-ins
-# together, the fixed grid); ncu on the ray kernel with a register cap; and last
-# compute-sanitizer's memcheck on the newest tests.
-# Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
+# What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a short
+# session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu tests; the
+# run known to fault on the device, its GPU core dump read by cuda-gdb, and again with the pool as
+# one plain allocation and with the refinement in order after the raycast; ncu's time a frame for
+# every kernel, then the ray kernel's stalls line by line; with the loop of an earlier build in the
+# bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU
+# against what it changed); meshing and a render on the device against the host; bench/gpu_loop on
+# fr1/rpy and the desk with each opt-in no GPU has judged yet against the default, alternated (the
+# marches queued for a second kernel, split marches of up to 8 and 32 rays a warp, refinement after
+# the raycast, frames up beside it, the two together), one round on both before the second;
+# compute-sanitizer's initcheck on the mesh tests; the rest (the opt-ins measured before: register
+# caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels, tracking
+# as a graph; the coarse grid off, frames decoded as the loop goes, opt-ins together, the fixed
+# grid); ncu on the ray kernel with a register cap; and last compute-sanitizer's memcheck on the
+# newest tests. Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
 # OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
-# printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean
-# frame time against the default's (after against before). A device machine that returns only a few files: give an OUT outside the
-# returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf $OUT/check.tgz -C /tmp check`.
+# printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean frame
+# time against the default's (after against before). A device machine that returns only a few files:
+# give an OUT outside the returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf
+# $OUT/check.tgz -C /tmp check`.
 #
 #   bench/gpu_check.sh BUILD OUT [FR1_RPY_FOLDER]    # BUILD: a -DHIVOX_WITH_CUDA=ON build
 #

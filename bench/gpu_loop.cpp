@@ -124,12 +124,14 @@ int main(int argc, char** argv) {
                  "look-ups of blocks it has seen (GpuReconstruction::set_allocation_pixels)");
   app.add_flag("--no-coarse-grid", no_coarse_grid,
                "raycasts cross unallocated space block by block (no coarse occupancy grid)");
-  app.add_flag("--refine-after-raycast", refine_after,
-               "refine after each frame's model raycast, on a stream of its own beside it "
-               "(ReconstructionParams::refine_after_raycast; --cpu does the same)");
+  CLI::Option* after =
+      app.add_flag("--refine-after-raycast", refine_after,
+                   "refine after each frame's model raycast, on a stream of its own beside it "
+                   "(ReconstructionParams::refine_after_raycast; --cpu does the same)");
   app.add_flag("--refine-in-order", refine_in_order,
                "with --refine-after-raycast: the refinement after the raycast on the loop's "
-               "stream, not beside it (GpuReconstruction::set_refine_beside_raycast(false))");
+               "stream, not beside it (GpuReconstruction::set_refine_beside_raycast(false))")
+      ->needs(after);
   app.add_flag("--upload-beside", upload_beside,
                "frames go up and their tracking pyramids are made on a stream of their own, "
                "beside the raycast (GpuReconstruction::set_upload_beside_raycast)");

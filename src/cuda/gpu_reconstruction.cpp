@@ -647,11 +647,7 @@ struct GpuReconstruction::Impl {
     }
     raycast_model(T_wc, true);
     if (!due) return;
-    if (!refine_beside) {
-      refine(T_wc, visible_count, nullptr, s);
-      return;
-    }
-    const cudaStream_t q = refine_stream.get("refinement's stream");
+    const cudaStream_t q = refine_beside ? refine_stream.get("refinement's stream") : nullptr;
     const LaunchesOn on(q);
     refine(T_wc, visible_count, q, s);
   }
