@@ -259,6 +259,10 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("min_updates", &RefineParams::min_updates)
       .def_readwrite("split_unmeshable_cells", &RefineParams::split_unmeshable_cells)
       .def_readwrite("unmeshable_min_weight", &RefineParams::unmeshable_min_weight)
+      .def_readwrite("merge_noise_ratio", &RefineParams::merge_noise_ratio)
+      .def_readwrite("settled_weight", &RefineParams::settled_weight)
+      .def_readwrite("min_samples", &RefineParams::min_samples)
+      .def_readwrite("split_weight_scale", &RefineParams::split_weight_scale)
       .def("validate", &RefineParams::validate)
       .def("__repr__", [](const RefineParams& p) {
         return fmt::format("hivox.RefineParams({})", p.to_string(std::nullopt));

@@ -27,6 +27,12 @@ def test_params_take_keywords_print_and_validate():
     with pytest.raises(hivox.Error, match="levels"):
         hivox.MapParams(levels=9).validate()
     assert isinstance(hivox.__version__, str) and hivox.__version__.count(".") == 2
+    r = hivox.RefineParams(split_weight_scale=1.0, settled_weight=8.0, min_samples=2,
+                           merge_noise_ratio=0.5)
+    assert (r.split_weight_scale, r.settled_weight, r.min_samples) == (1.0, 8.0, 2)
+    assert r.merge_noise_ratio == pytest.approx(0.5)
+    with pytest.raises(hivox.Error, match="split_weight_scale must be in"):
+        hivox.RefineParams(split_weight_scale=0.0).validate()
 
 
 def test_the_device_is_chosen_by_name():
