@@ -2,7 +2,8 @@
 # What a machine with a CUDA GPU should run on the CUDA loop, most important first, so that a short
 # session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu tests; the
 # run known to fault on the device, its GPU core dump read by cuda-gdb, and again with the pool as
-# one plain allocation and with the refinement in order after the raycast; ncu's time a frame for
+# one plain allocation and with the refinement in order after the raycast; the raycast with its
+# marches queued for a second kernel against the default, once each; ncu's time a frame for
 # every kernel, then the ray kernel's stalls line by line; with the loop of an earlier build in the
 # bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU
 # against what it changed); meshing and a render on the device against the host; bench/gpu_loop on
@@ -114,6 +115,26 @@ if [ -n "$fr1" ]; then
   step fault_refine_after_in_order "${faulted[@]}" --refine-in-order
 fi
 
+# run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
+# (none without DATA: fr1/rpy not given).
+run_loop() {
+  local binary=$1 name=$2 data=$3 levels=$4
+  shift 4
+  [ -z "$data" ] && return
+  step "$name" "$binary" "$data" --levels "$levels" "$@" --json "$out/$name.json"
+}
+# bench NAME DATA LEVELS [FLAGS...]: a run of the bundle's loop.
+bench() { run_loop "$loop" "$@"; }
+# data_of fr1|desk: what the loop runs on (fr1/rpy's folder, empty when not given).
+data_of() { if [ "$1" = fr1 ]; then echo "$fr1"; else echo "$desk"; fi; }
+# Before the profiles, the opt-in the 1000 fps target waits on: the raycast with its marches
+# queued for a second kernel against the default, once on each (round c; rounds a and b follow
+# with the other opt-ins), so that the shortest session still times it.
+for data in fr1 desk; do
+  bench "${data}_l3_default_c" "$(data_of $data)" 3
+  bench "${data}_l3_queued_c" "$(data_of $data)" 3 --queued-marches
+done
+
 # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45): where a
 # frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
 if [ -n "$ncu" ] && [ -n "$fr1" ]; then
@@ -139,18 +160,6 @@ if [ -n "$ncu" ] && [ -n "$fr1" ]; then
     rm -f "$rep.ncu-rep"
   fi
 fi
-# run_loop BINARY NAME DATA LEVELS [FLAGS...]: one run of a loop, its numbers in OUT/NAME.json
-# (none without DATA: fr1/rpy not given).
-run_loop() {
-  local binary=$1 name=$2 data=$3 levels=$4
-  shift 4
-  [ -z "$data" ] && return
-  step "$name" "$binary" "$data" --levels "$levels" "$@" --json "$out/$name.json"
-}
-# bench NAME DATA LEVELS [FLAGS...]: a run of the bundle's loop.
-bench() { run_loop "$loop" "$@"; }
-# data_of fr1|desk: what the loop runs on (fr1/rpy's folder, empty when not given).
-data_of() { if [ "$1" = fr1 ]; then echo "$fr1"; else echo "$desk"; fi; }
 # A bundle with the loop of the build before a change (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE): the
 # two alternated first, 3 levels and the fixed grid.
 before="$build/bench/hivox_gpu_loop_before"
