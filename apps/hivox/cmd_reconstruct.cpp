@@ -393,7 +393,8 @@ void add_fusion_options(CLI::App* cmd, ReconstructOptions& o) {
   cmd->add_flag("--refine-after-raycast", p.refine_after_raycast,
                 "refine the hierarchy after each frame's model raycast, not before (on a device "
                 "the refinement then overlaps the raycast; the next frame tracks against the map "
-                "before the splits and merges)");
+                "before the splits and merges; with --device cuda it has faulted on a GPU: "
+                "docs/cuda.md)");
   cmd->add_option("--on-bad-frame", o.on_bad_frame,
                   "a frame that cannot be read (missing or corrupt file): 'stop' the run there "
                   "(the frames before it are written, exit status 4) or 'skip' it with a "

@@ -327,6 +327,11 @@ struct GpuReconstruction::Impl {
       check_status(cudaDeviceSetLimit(cudaLimitStackSize, kStackBytes), "setting the stack size");
     upload_map(host);
     allocate_frame_buffers();
+    if (params.refine_after_raycast)
+      log::warn_once("cuda.refine_after",
+                     "refinement after the raycast (--refine-after-raycast) is not yet sound on a "
+                     "GPU: on an H200, fr1/rpy ended with an illegal memory access in the raycast "
+                     "(docs/cuda.md); leave it off for runs that matter");
   }
 
   void upload_map(const VoxelBlockMap& host) {

@@ -733,7 +733,13 @@ TEST(GpuLoop, RefinesBesideTheRaycastAsTheCpuRefinesAfterIt) {
   const CameraRig& rig = data.info().rig;
   ReconstructionParams p = params_for(3, 0.002f, 0.024f);
   p.refine_after_raycast = true;
+  // The opt-in faulted on an H200 (docs/cuda.md): a device loop made with it says so, once.
+  testing::internal::CaptureStderr();
   cuda::GpuReconstruction gpu(p, rig);
+  const std::string warned = testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(test::contains(warned, "--refine-after-raycast") &&
+              test::contains(warned, "not yet sound on a GPU"))
+      << warned;
   p.device = Device::cpu();
   Reconstruction cpu(p, rig);
   const Pose first = *data.read(0).T_wc_gt;
