@@ -130,10 +130,13 @@ data_of() { if [ "$1" = fr1 ]; then echo "$fr1"; else echo "$desk"; fi; }
 # Before the profiles, the opt-in the 1000 fps target waits on: the raycast with its marches
 # queued for a second kernel against the default, once on each (round c; rounds a and b follow
 # with the other opt-ins), so that the shortest session still times it.
-for data in fr1 desk; do
-  bench "${data}_l3_default_c" "$(data_of $data)" 3
-  bench "${data}_l3_queued_c" "$(data_of $data)" 3 --queued-marches
-done
+# queued DATA ROUND: the default and the queued marches, 3 levels, on fr1|desk.
+queued() {
+  bench "${1}_l3_default_$2" "$(data_of "$1")" 3
+  bench "${1}_l3_queued_$2" "$(data_of "$1")" 3 --queued-marches
+}
+queued fr1 c
+queued desk c
 
 # Every kernel's time a frame (fr1/rpy, 3 levels, about ten frames after the first ~45): where a
 # frame's device time goes, for the 1000 fps target (bench/ncu_kernels.py's table).
@@ -187,8 +190,7 @@ bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
-  bench "${data}_l3_default_$round" "$src" 3
-  bench "${data}_l3_queued_$round" "$src" 3 --queued-marches
+  queued "$data" "$round"
   bench "${data}_l3_split8_$round" "$src" 3 --split-marches 8
   bench "${data}_l3_split32_$round" "$src" 3 --split-marches 32
   bench "${data}_l3_refine_after_$round" "$src" 3 --refine-after-raycast
