@@ -3,13 +3,15 @@
 # session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu tests; the
 # run known to fault on the device, its GPU core dump read by cuda-gdb, and again with the pool as
 # one plain allocation and with the refinement in order after the raycast; the raycast with its
-# marches queued for a second kernel against the default, once each; ncu's time a frame for
+# marches queued for a second kernel, alone and with the tracking model raycast at a quarter of
+# the frame's resolution, against the default, once each; ncu's time a frame for
 # every kernel, then the ray kernel's stalls line by line; with the loop of an earlier build in the
 # bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU
 # against what it changed); meshing and a render on the device against the host; bench/gpu_loop on
 # fr1/rpy and the desk with each opt-in no GPU has judged yet against the default, alternated (the
-# marches queued for a second kernel, split marches of up to 8 and 32 rays a warp, refinement after
-# the raycast, frames up beside it, the two together), one round on both before the second;
+# marches queued for a second kernel, alone and with the model at a quarter, the model at a
+# quarter alone, split marches of up to 8 and 32 rays a warp, refinement after the raycast,
+# frames up beside it, the two together), one round on both before the second;
 # compute-sanitizer's initcheck on the mesh tests; the rest (the opt-ins measured before: register
 # caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels, tracking
 # as a graph; the coarse grid off, frames decoded as the loop goes, opt-ins together, the fixed
@@ -130,10 +132,13 @@ data_of() { if [ "$1" = fr1 ]; then echo "$fr1"; else echo "$desk"; fi; }
 # Before the profiles, the opt-in the 1000 fps target waits on: the raycast with its marches
 # queued for a second kernel against the default, once on each (round c; rounds a and b follow
 # with the other opt-ins), so that the shortest session still times it.
-# queued DATA ROUND: the default and the queued marches, 3 levels, on fr1|desk.
+# queued DATA ROUND: the default and the queued marches, 3 levels, on fr1|desk; then the queued
+# marches with the tracking model raycast at a quarter of the frame's resolution instead of a
+# half (4x fewer rays; on the CPU the ATE moves by 1-5 %: BENCHMARKS.md, nineteenth session).
 queued() {
   bench "${1}_l3_default_$2" "$(data_of "$1")" 3
   bench "${1}_l3_queued_$2" "$(data_of "$1")" 3 --queued-marches
+  bench "${1}_l3_queued_model4_$2" "$(data_of "$1")" 3 --queued-marches --model-subsample 4
 }
 queued fr1 c
 queued desk c
@@ -181,18 +186,21 @@ bench desk_l3_mesh "$desk" 3 --poses gt --mesh --render
 # The opt-ins no GPU has judged yet against the default, alternated, 3 levels, fr1/rpy first
 # (its marches are long): the raycast as two kernels, the marches queued and each taken across a
 # warp's lanes (bench/ray_cost's model: the tail of the ray kernel is its marches, in 20 % of
-# its warps); split marches where up to 8 and 32 of a warp's rays march (each taken across the
-# warp's 32 lanes; up to 1 changed nothing on the H200); refinement after the raycast (beside
-# it, on a stream of its own), frames up beside the raycast, the two together. A first round on
-# both, then the second, so that a short budget still compares each once. The opt-ins measured
-# before (register caps, split marches of 1, Gauss-Newton on the host, allocation threads of
-# several pixels, tracking as a graph: none faster) come after, with the rest.
+# its warps), alone and with the tracking model raycast at a quarter of the frame's resolution;
+# the model at a quarter alone; split marches where up to 8 and 32 of a warp's rays march (each
+# taken across the warp's 32 lanes; up to 1 changed nothing on the H200); refinement after the
+# raycast (beside it, on a stream of its own), frames up beside the raycast, the two together. A
+# first round on both, then the second, so that a short budget still compares each once. The
+# opt-ins measured before (register caps, split marches of 1, Gauss-Newton on the host,
+# allocation threads of several pixels, tracking as a graph: none faster) come after, with the
+# rest.
 optins() {
   local data=$1 round=$2 src
   src=$(data_of "$data")
   queued "$data" "$round"
   bench "${data}_l3_split8_$round" "$src" 3 --split-marches 8
   bench "${data}_l3_split32_$round" "$src" 3 --split-marches 32
+  bench "${data}_l3_model4_$round" "$src" 3 --model-subsample 4
   bench "${data}_l3_refine_after_$round" "$src" 3 --refine-after-raycast
   bench "${data}_l3_upload_beside_$round" "$src" 3 --upload-beside
   bench "${data}_l3_both_beside_$round" "$src" 3 --refine-after-raycast --upload-beside

@@ -89,6 +89,7 @@ int main(int argc, char** argv) {
   int split_marches = 0;
   int raycast_registers = 0;
   int allocation_pixels = 1;
+  int model_subsample = TrackParams{}.model_subsample;
   int64_t max_blocks = 1 << 20;
   std::string json;
   app.add_option("dataset", spec, "dataset folder or synthetic:... spec")->required();
@@ -101,6 +102,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"track", "gt"}));
   app.add_option("--warmup", warmup, "timed frames left out of the means");
   app.add_option("--max-blocks", max_blocks, "block pool capacity");
+  app.add_option("--model-subsample", model_subsample,
+                 "the tracking model's raycast at 1/N of the frame's resolution (1, 2 or 4)");
   app.add_flag("--cpu", cpu, "also run the CPU loop on the same frames (same handover)");
   app.add_flag("--gn-on-host", gn_on_host,
                "tracking's Gauss-Newton steps on the host, each pass's sums read back "
@@ -167,6 +170,7 @@ int main(int argc, char** argv) {
     params.map.levels = levels;
     params.map.voxel_size_m = voxel_m;
     params.map.max_blocks = max_blocks;
+    params.track.model_subsample = model_subsample;
     params.raycast.tuning.coarse_skipping = !no_coarse_grid;
     params.refine_after_raycast = refine_after;
     const std::size_t k =
@@ -212,12 +216,12 @@ int main(int argc, char** argv) {
     const int registers = gpu->raycast_registers();
     std::printf(
         "device: %s; Gauss-Newton on the %s; coarse occupancy grid %s; split marches %d%s; "
-        "refinement %s the raycast; frames up %s; the raycast's kernel takes %d registers a "
-        "thread (at most %s)\n",
+        "refinement %s the raycast; frames up %s; the model raycast at 1/%d; the raycast's "
+        "kernel takes %d registers a thread (at most %s)\n",
         cuda::device_name(0).c_str(), gn_on_host ? "host" : "device", no_coarse_grid ? "off" : "on",
         split_marches, queued_marches ? "; marches queued" : "",
         refine_after ? (refine_in_order ? "after (in order)" : "after (beside)") : "before",
-        upload_beside ? "beside the raycast" : "after the raycast", registers,
+        upload_beside ? "beside the raycast" : "after the raycast", model_subsample, registers,
         raycast_registers > 0 ? std::to_string(raycast_registers).c_str()
                               : "the compiler's choice");
     std::vector<StampedPose> gt;
@@ -344,6 +348,7 @@ int main(int argc, char** argv) {
           << ", \"coarse_grid\": " << (no_coarse_grid ? "false" : "true")
           << ", \"split_marches\": " << split_marches
           << ", \"queued_marches\": " << (queued_marches ? "true" : "false")
+          << ", \"model_subsample\": " << model_subsample
           << ", \"raycast_registers_at_most\": " << raycast_registers
           << ", \"raycast_registers\": " << registers
           << ", \"allocation_pixels\": " << allocation_pixels

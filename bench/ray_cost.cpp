@@ -31,7 +31,9 @@
 // lane with the most; the counts are exact where the times are noisy. The device's allocation
 // walk over the frame's band (find_blocks) is counted likewise, a pixel. With levels, the rays
 // that sampled a cell across levels (a corner stored at another level) are counted apart: what
-// they cost against the others, and the share of the warps' time in warps that hold one.
+// they cost against the others, and the share of the warps' time in warps that hold one. The
+// marching rays are split by where they ended against their hint (or had none), with their
+// marches' time. `--subsample 4` models the raycast at a quarter of the frame's resolution.
 
 #include <CLI/CLI.hpp>
 
@@ -232,6 +234,37 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
                 static_cast<long long>(by_outcome[o]),
                 by_outcome[o] > 0 ? ns_by_outcome[o] / by_outcome[o] : 0.0);
   std::printf("\n");
+  {
+    // The marching rays (their search at the hints failed, or they had none) by where they
+    // ended against their hint: their count, their marches' time and the slowest march. A ray
+    // without a hint has neither the frame's depth nor the warped previous raycast at its pixel
+    // (on fr1/rpy: the depth image's invalid border, and the strip the camera turned towards).
+    const char* names[] = {
+        "no hint, hit", "no hint, miss", "hint, miss",  "hit within 2.4 cm of it",
+        "within 5 cm",  "within 20 cm",  "beyond 20 cm"};
+    int64_t count[7] = {};
+    double sum[7] = {}, most[7] = {};
+    for (const Ray& r : v.rays) {
+      const bool hit = r.outcome == kernels::RayOutcome::Marched;
+      if (!(hit || r.outcome == kernels::RayOutcome::Miss) || r.z_max <= 0.0f) continue;
+      const float off = std::abs(r.depth_m - r.hints.hint);
+      const int b = r.hints.hint <= 0.0f ? (hit ? 0 : 1)
+                    : !hit               ? 2
+                    : off <= 0.024f      ? 3
+                    : off <= 0.05f       ? 4
+                    : off <= 0.2f        ? 5
+                                         : 6;
+      const double t = std::max(r.ns - r.hint_ns, 0.0);
+      ++count[b];
+      sum[b] += t;
+      most[b] = std::max(most[b], t);
+    }
+    std::printf("  marches by their end:");
+    for (int b = 0; b < 7; ++b)
+      std::printf("%s %s %lld (%.2f ms, slowest %.1f us)", b > 0 ? ";" : "", names[b],
+                  static_cast<long long>(count[b]), sum[b] / 1e6, most[b] / 1e3);
+    std::printf("\n");
+  }
   // Each look-up the cache does not answer is a chain of dependent reads on a GPU; a warp waits
   // for its lane with the most.
   std::printf("  table look-ups: %.2f a ray (",
@@ -504,6 +537,9 @@ int main(int argc, char** argv) {
   app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
   app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
   app.add_option("--levels", levels, "resolution levels (1 = fixed 2 mm grid)");
+  int subsample = 2;
+  app.add_option("--subsample", subsample,
+                 "the model raycast at 1/N of the frame's resolution (1, 2 or 4)");
   app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
   app.add_option("--top", top, "slowest warps to describe");
   app.add_option("--dump", dump,
@@ -525,6 +561,7 @@ int main(int argc, char** argv) {
       fail(ErrorCode::InvalidArgument, "--at {}: the raycast needs a frame before it", at);
     ReconstructionParams p;
     p.map.levels = levels;
+    p.track.model_subsample = subsample;
     p.device = Device::cpu();
     Reconstruction loop(p, rig);
     const PinholeCamera cam = rig.depth_camera.subsampled(p.track.model_subsample);
