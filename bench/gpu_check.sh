@@ -3,24 +3,24 @@
 # session gets the most out of its minutes (a run cut short keeps what it wrote): the gpu tests; the
 # run known to fault on the device, its GPU core dump read by cuda-gdb, and again with the pool as
 # one plain allocation and with the refinement in order after the raycast; the raycast with its
-# marches queued for a second kernel, alone and with the tracking model raycast at a quarter of
-# the frame's resolution, against the default, once each; ncu's time a frame for
-# every kernel, then the ray kernel's stalls line by line; with the loop of an earlier build in the
-# bundle (gpu_bundle.sh, HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU
-# against what it changed); meshing and a render on the device against the host; bench/gpu_loop on
-# fr1/rpy and the desk with each opt-in no GPU has judged yet against the default, alternated (the
-# marches queued for a second kernel, alone and with the model at a quarter, the model at a
-# quarter alone, split marches of up to 8 and 32 rays a warp, refinement after the raycast,
-# frames up beside it, the two together), one round on both before the second;
-# compute-sanitizer's initcheck on the mesh tests; the rest (the opt-ins measured before: register
-# caps, split marches of 1, Gauss-Newton on the host, allocation threads of several pixels, tracking
-# as a graph; the coarse grid off, frames decoded as the loop goes, opt-ins together, the fixed
-# grid); ncu on the ray kernel with a register cap; and last compute-sanitizer's memcheck on the
-# newest tests. Each step's log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and
-# OUT/summary.txt lists every step with its exit status and time; a failed step's failures are
-# printed as well. OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean frame
-# time against the default's (after against before). A device machine that returns only a few files:
-# give an OUT outside the returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf
+# marches queued for a second kernel, alone and with the tracking model raycast at a quarter of the
+# frame's resolution, against the default, once each; ncu's time a frame for every kernel, then the
+# ray kernel's stalls line by line; with the loop of an earlier build in the bundle (gpu_bundle.sh,
+# HIVOX_BUNDLE_BEFORE), the two alternated (a change made without a GPU against what it changed);
+# meshing and a render on the device against the host; bench/gpu_loop on fr1/rpy and the desk with
+# each opt-in no GPU has judged yet against the default, alternated (the marches queued for a second
+# kernel, alone and with the model at a quarter, the model at a quarter alone, split marches of up
+# to 8 and 32 rays a warp, refinement after the raycast, frames up beside it, the two together), one
+# round on both before the second; compute-sanitizer's initcheck on the mesh tests and on the run
+# that faulted; the rest (the opt-ins measured before: register caps, split marches of 1,
+# Gauss-Newton on the host, allocation threads of several pixels, tracking as a graph; the coarse
+# grid off, frames decoded as the loop goes, opt-ins together, the fixed grid); ncu on the ray
+# kernel with a register cap; and last compute-sanitizer's memcheck on the newest tests. Each step's
+# log goes to OUT/NAME.log, each benchmark's numbers to OUT/NAME.json, and OUT/summary.txt lists
+# every step with its exit status and time; a failed step's failures are printed as well.
+# OUT/times.txt lists every run's numbers, OUT/ratios.txt each variant's mean frame time against the
+# default's (after against before). A device machine that returns only a few files: give an OUT
+# outside the returned folder and pack it, `bench/gpu_check.sh B /tmp/check ...; tar czf
 # $OUT/check.tgz -C /tmp check`.
 #
 #   bench/gpu_check.sh BUILD OUT [FR1_RPY_FOLDER]    # BUILD: a -DHIVOX_WITH_CUDA=ON build
@@ -214,6 +214,13 @@ if [ "${HIVOX_CHECK_SKIP_MEMCHECK:-0}" != 1 ] && command -v compute-sanitizer > 
   sanitize=1
   step initcheck_mesh_tests compute-sanitizer --tool initcheck --error-exitcode 3 \
     "$build/tests/test_cuda_loop" --gtest_filter='*MeshesOnTheDevice*:*AReconstructionAndARun*'
+  # The run that faulted, under initcheck: memcheck ran it through clean (no read outside an
+  # allocation, 2026-11-29), and clang's ASan found nothing on the CPU's or the emulation's way
+  # through it, so a read of device memory never written is the suspect left.
+  if [ -n "$fr1" ]; then
+    step initcheck_fault compute-sanitizer --tool initcheck --error-exitcode 3 --print-limit 50 \
+      "${faulted[@]}"
+  fi
 fi
 optins fr1 b
 optins desk b
