@@ -240,7 +240,7 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
     // without a hint has neither the frame's depth nor the warped previous raycast at its pixel
     // (on fr1/rpy: the depth image's invalid border, and the strip the camera turned towards).
     const char* names[] = {
-        "no hint, hit", "no hint, miss", "hint, miss",  "hit within 2.4 cm of it",
+        "no hint, hit", "no hint, miss", "hint, miss",  "hit within a band of it",
         "within 5 cm",  "within 20 cm",  "beyond 20 cm"};
     int64_t count[7] = {};
     double sum[7] = {}, most[7] = {};
@@ -250,7 +250,7 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       const float off = std::abs(r.depth_m - r.hints.hint);
       const int b = r.hints.hint <= 0.0f ? (hit ? 0 : 1)
                     : !hit               ? 2
-                    : off <= 0.024f      ? 3
+                    : off <= v.k.mu_m    ? 3
                     : off <= 0.05f       ? 4
                     : off <= 0.2f        ? 5
                                          : 6;
@@ -531,13 +531,13 @@ int main(int argc, char** argv) {
   CLI::App app{"The CUDA raycast's per-warp cost, modelled on the CPU with the shared ray code"};
   std::string spec;
   int frames = 120, at = -1, levels = 3, rounds = 3, top = 5;
+  int subsample = TrackParams{}.model_subsample;
   std::string dump;
   std::vector<double> split_accuracy;
   app.add_option("dataset", spec, "dataset folder or synthetic:NAME")->required();
   app.add_option("--frames", frames, "frames fused (the last is measured unless --at)");
   app.add_option("--at", at, "the frame whose raycast is measured (default: the last)");
   app.add_option("--levels", levels, "resolution levels (1 = fixed 2 mm grid)");
-  int subsample = 2;
   app.add_option("--subsample", subsample,
                  "the model raycast at 1/N of the frame's resolution (1, 2 or 4)");
   app.add_option("--rounds", rounds, "times each ray is cast per variant (the minimum is kept)");
