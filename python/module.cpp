@@ -144,6 +144,8 @@ py::dict frame_stats_dict(const FrameStats& s) {
   d["dropped_blocks"] = s.dropped_blocks;
   d["splits"] = s.splits;
   d["merges"] = s.merges;
+  d["track_iterations"] = s.track_iterations;
+  d["track_inlier_ratio"] = s.track_inlier_ratio;
   return d;
 }
 
@@ -268,6 +270,45 @@ PYBIND11_MODULE(hivox, m) {
         return fmt::format("hivox.RefineParams({})", p.to_string(std::nullopt));
       });
 
+  py::class_<TrackParams> track(m, "TrackParams");
+  keyword_init(track);
+  track.def_readwrite("bilateral_radius_px", &TrackParams::bilateral_radius_px)
+      .def_readwrite("bilateral_sigma_px", &TrackParams::bilateral_sigma_px)
+      .def_readwrite("bilateral_sigma_depth_m", &TrackParams::bilateral_sigma_depth_m)
+      .def_readwrite("max_depth_jump_ratio", &TrackParams::max_depth_jump_ratio)
+      .def_readwrite("iterations", &TrackParams::iterations,
+                     "Gauss-Newton iterations per pyramid level, finest first (a list: assign a "
+                     "new one; its length is the number of levels)")
+      .def_readwrite("max_distance_m", &TrackParams::max_distance_m)
+      .def_readwrite("max_normal_angle_deg", &TrackParams::max_normal_angle_deg)
+      .def_property(
+          "loss", [](const TrackParams& p) { return std::string(to_string(p.loss)); },
+          [](TrackParams& p, const std::string& name) { p.loss = parse_robust_loss(name); },
+          "robust loss of the residuals: 'none', 'huber' or 'tukey'")
+      .def_readwrite("robust_scale", &TrackParams::robust_scale)
+      .def_readwrite("residual_floor_m", &TrackParams::residual_floor_m)
+      .def_readwrite("constant_velocity", &TrackParams::constant_velocity)
+      .def_readwrite("model_subsample", &TrackParams::model_subsample,
+                     "the model is raycast at 1/N of the frame's resolution (1, 2 or 4)")
+      .def_readwrite("convergence_step", &TrackParams::convergence_step)
+      .def_readwrite("lost_inlier_ratio", &TrackParams::lost_inlier_ratio)
+      .def_readwrite("poor_inlier_ratio", &TrackParams::poor_inlier_ratio)
+      .def_readwrite("lost_rms_m", &TrackParams::lost_rms_m)
+      .def_readwrite("poor_condition", &TrackParams::poor_condition)
+      .def_readwrite("lost_jump_m", &TrackParams::lost_jump_m)
+      .def_readwrite("lost_jump_deg", &TrackParams::lost_jump_deg)
+      .def("validate", &TrackParams::validate)
+      .def("__repr__", [](const TrackParams& p) { return repr_of("TrackParams", p); });
+
+  py::class_<RaycastParams> raycast(m, "RaycastParams");
+  keyword_init(raycast);
+  raycast.def_readwrite("step_fraction", &RaycastParams::step_fraction)
+      .def_readwrite("min_weight", &RaycastParams::min_weight)
+      .def_readwrite("hint_margin_mu", &RaycastParams::hint_margin_mu)
+      .def_readwrite("hint_agreement_mu", &RaycastParams::hint_agreement_mu)
+      .def("validate", &RaycastParams::validate)
+      .def("__repr__", [](const RaycastParams& p) { return repr_of("RaycastParams", p); });
+
   py::class_<MeshParams> mesh(m, "MeshParams");
   keyword_init(mesh);
   mesh.def_readwrite("min_weight", &MeshParams::min_weight)
@@ -282,7 +323,10 @@ PYBIND11_MODULE(hivox, m) {
   rec_params.def_readwrite("map", &ReconstructionParams::map)
       .def_readwrite("fusion", &ReconstructionParams::fusion)
       .def_readwrite("refine", &ReconstructionParams::refine)
+      .def_readwrite("track", &ReconstructionParams::track)
+      .def_readwrite("raycast", &ReconstructionParams::raycast)
       .def_readwrite("raycast_every_frame", &ReconstructionParams::raycast_every_frame)
+      .def_readwrite("previous_raycast_hints", &ReconstructionParams::previous_raycast_hints)
       .def_readwrite("refine_after_raycast", &ReconstructionParams::refine_after_raycast)
       .def_property(
           "device", [](const ReconstructionParams& p) { return p.device.to_string(); },

@@ -33,6 +33,18 @@ def test_params_take_keywords_print_and_validate():
     assert r.merge_noise_ratio == pytest.approx(0.5)
     with pytest.raises(hivox.Error, match="split_weight_scale must be in"):
         hivox.RefineParams(split_weight_scale=0.0).validate()
+    t = hivox.TrackParams(iterations=[3, 5], model_subsample=4, loss="tukey")
+    assert (t.iterations, t.model_subsample, t.loss) == ([3, 5], 4, "tukey")
+    assert "2 levels (iterations 3/5 finest first), tukey loss" in repr(t)
+    assert "model 1/4 resolution" in repr(t)
+    with pytest.raises(hivox.Error, match="unknown robust loss 'cauchy'"):
+        t.loss = "cauchy"
+    with pytest.raises(hivox.Error, match="model_subsample must be 1, 2 or 4, got 3"):
+        hivox.TrackParams(model_subsample=3).validate()
+    c = hivox.RaycastParams(step_fraction=0.5, hint_margin_mu=1.0)
+    assert "step 0.50 mu, min weight 1, hints from 1 mu ahead" in repr(c)
+    with pytest.raises(hivox.Error, match="step_fraction must be in"):
+        hivox.RaycastParams(step_fraction=1.5).validate()
 
 
 def test_the_device_is_chosen_by_name():
@@ -191,6 +203,30 @@ def test_tracking_follows_the_camera(refine_after_raycast):
         assert s["tracking"] != "lost"
         assert np.linalg.norm(s["T_wc"][:3, 3] - f["T_wc_gt"][:3, 3]) < 0.01
     assert rec.stats["tracking"]["lost"] == 0
+
+
+def test_tracking_takes_its_parameters():
+    # The tracker's parameters set from Python reach the loop: two pyramid levels of at most two
+    # iterations each, the model raycast at a quarter of the frame's resolution; a bad one is
+    # refused when the reconstruction is made.
+    data = hivox.open_dataset("synthetic:desk?frames=300&width=160&height=120&noise=none")
+    p = hivox.ReconstructionParams(map=hivox.MapParams(voxel_size_m=0.008, truncation_m=0.064),
+                                   track=hivox.TrackParams(iterations=[2, 2], model_subsample=4))
+    assert p.track.iterations == [2, 2] and "model 1/4 resolution" in repr(p)
+    rec = hivox.Reconstruction(p, data.camera, noise_free=True)
+    first = data.read(0)
+    rec.track_and_integrate(first["depth"], first["color"], first["T_wc_gt"])
+    iterations = []
+    for i in range(1, 6):
+        f = data.read(i)
+        s = rec.track_and_integrate(f["depth"], f["color"])
+        iterations.append(s["track_iterations"])
+        assert s["tracking"] == "good" and s["track_inlier_ratio"] > 0.4
+        assert np.linalg.norm(s["T_wc"][:3, 3] - f["T_wc_gt"][:3, 3]) < 0.01
+    assert max(iterations) <= 4 and min(iterations) >= 1, iterations
+    p.track.max_distance_m = 0.0
+    with pytest.raises(hivox.Error, match="max_distance_m must be > 0"):
+        hivox.Reconstruction(p, data.camera)
 
 
 @pytest.mark.skipif(not os.path.isdir(os.path.join(os.environ.get("HIVOX_DATA_DIR", ""),
