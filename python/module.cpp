@@ -248,12 +248,26 @@ PYBIND11_MODULE(hivox, m) {
           "max_depth_m", [](const FusionParams& p) { return p.depth_range.max_m; },
           [](FusionParams& p, float v) { p.depth_range.max_m = v; })
       .def_readwrite("integrate_color", &FusionParams::integrate_color)
+      .def_property(
+          "depth_sampling",
+          [](const FusionParams& p) { return std::string(to_string(p.depth_sampling)); },
+          [](FusionParams& p, const std::string& name) {
+            p.depth_sampling = parse_depth_sampling(name);
+          },
+          "how a voxel reads the depth image: 'bilinear' or 'nearest'")
       .def("validate", &FusionParams::validate)
       .def("__repr__", [](const FusionParams& p) { return repr_of("FusionParams", p); });
 
   py::class_<RefineParams> refine(m, "RefineParams");
   keyword_init(refine);
-  refine.def_readwrite("split_threshold", &RefineParams::split_threshold)
+  refine
+      .def_property(
+          "criterion", [](const RefineParams& p) { return std::string(to_string(p.criterion)); },
+          [](RefineParams& p, const std::string& name) {
+            p.criterion = parse_refine_criterion(name);
+          },
+          "complexity criterion: 'detail' or 'det-cov' (the paper's)")
+      .def_readwrite("split_threshold", &RefineParams::split_threshold)
       .def_readwrite("merge_threshold", &RefineParams::merge_threshold)
       .def_readwrite("split_noise_factor", &RefineParams::split_noise_factor)
       .def_readwrite("every_n_frames", &RefineParams::every_n_frames)

@@ -33,6 +33,14 @@ def test_params_take_keywords_print_and_validate():
     assert r.merge_noise_ratio == pytest.approx(0.5)
     with pytest.raises(hivox.Error, match="split_weight_scale must be in"):
         hivox.RefineParams(split_weight_scale=0.0).validate()
+    r = hivox.RefineParams(criterion="det-cov")
+    assert r.criterion == "det-cov" and "criterion det-cov" in repr(r)
+    with pytest.raises(hivox.Error, match="refine criterion must be 'detail' or 'det-cov'"):
+        r.criterion = "curvature"
+    f = hivox.FusionParams(depth_sampling="nearest")
+    assert f.depth_sampling == "nearest" and "nearest" in repr(f)
+    with pytest.raises(hivox.Error, match="got 'cubic'"):
+        f.depth_sampling = "cubic"
     t = hivox.TrackParams(iterations=[3, 5], model_subsample=4, loss="tukey")
     assert (t.iterations, t.model_subsample, t.loss) == ([3, 5], 4, "tukey")
     assert "2 levels (iterations 3/5 finest first), tukey loss" in repr(t)
