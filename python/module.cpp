@@ -528,6 +528,19 @@ PYBIND11_MODULE(hivox, m) {
           "Raycasts the model: depth (float32 m, 0 = no hit), normals (world), color (uint8), "
           "levels (int8, -1 = no hit).")
       .def(
+          "last_raycast",
+          [](const Reconstruction& r) {
+            RaycastResult result;
+            {
+              py::gil_scoped_release release;
+              result = r.last_raycast();
+            }
+            return raycast_dict(result);
+          },
+          "The model raycast the last frame was fused with, which the next one tracks against, "
+          "at the tracking model's resolution (track.model_subsample; empty before the first "
+          "frame): the arrays of render().")
+      .def(
           "extract_mesh",
           [](const Reconstruction& r, const MeshParams& params) {
             TriangleMesh mesh;

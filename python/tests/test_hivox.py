@@ -232,6 +232,9 @@ def test_tracking_takes_its_parameters():
         assert s["tracking"] == "good" and s["track_inlier_ratio"] > 0.4
         assert np.linalg.norm(s["T_wc"][:3, 3] - f["T_wc_gt"][:3, 3]) < 0.01
     assert max(iterations) <= 4 and min(iterations) >= 1, iterations
+    model = rec.last_raycast()  # 160x120 at a quarter
+    assert model["depth"].shape == (30, 40) and model["normals"].shape == (30, 40, 3)
+    assert (model["depth"] > 0).mean() > 0.9
     p.track.max_distance_m = 0.0
     with pytest.raises(hivox.Error, match="max_distance_m must be > 0"):
         hivox.Reconstruction(p, data.camera)
