@@ -53,6 +53,11 @@ def test_params_take_keywords_print_and_validate():
     assert "step 0.50 mu, min weight 1, hints from 1 mu ahead" in repr(c)
     with pytest.raises(hivox.Error, match="step_fraction must be in"):
         hivox.RaycastParams(step_fraction=1.5).validate()
+    p = hivox.ReconstructionParams(raycast=c, previous_raycast_hints=False)
+    assert "step 0.50 mu" in repr(p) and not p.previous_raycast_hints
+    p.raycast.step_fraction = 1.5  # the struct in place, as map, fusion and refine
+    with pytest.raises(hivox.Error, match="step_fraction must be in"):
+        p.validate()
 
 
 def test_the_device_is_chosen_by_name():
