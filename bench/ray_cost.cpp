@@ -82,6 +82,11 @@ struct Ray {
   int64_t cross_level = 0, irregular = 0;  ///< cells sampled across levels, irregular ones
   float depth_m = 0;                       ///< the hit's
   int level = -1;                          ///< the hit's
+  /// Its search at the hints failed (or it had none) and it had a range to march.
+  bool marched() const {
+    return (outcome == kernels::RayOutcome::Marched || outcome == kernels::RayOutcome::Miss) &&
+           z_max > 0.0f;
+  }
 };
 
 const char* outcome_name(kernels::RayOutcome o) {
@@ -181,9 +186,7 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
       const Ray& r = v.rays[static_cast<std::size_t>(y) * cam.width + x];
       const std::size_t w = static_cast<std::size_t>(y / kWarpHeight) * wx + x / kWarpWidth;
       hint_max[w] = std::max(hint_max[w], r.hint_ns);
-      const bool marched =
-          r.outcome == kernels::RayOutcome::Marched || r.outcome == kernels::RayOutcome::Miss;
-      if (marched && r.z_max > 0.0f) {
+      if (r.marched()) {
         marches.push_back(std::max(r.ns - r.hint_ns, 0.0));
         ++marching[w];
         march_sum[w] += marches.back();
@@ -245,8 +248,8 @@ void report(const Variant& v, const PinholeCamera& cam, int top) {
     int64_t count[7] = {};
     double sum[7] = {}, most[7] = {};
     for (const Ray& r : v.rays) {
+      if (!r.marched()) continue;
       const bool hit = r.outcome == kernels::RayOutcome::Marched;
-      if (!(hit || r.outcome == kernels::RayOutcome::Miss) || r.z_max <= 0.0f) continue;
       const float off = std::abs(r.depth_m - r.hints.hint);
       const int b = r.hints.hint <= 0.0f ? (hit ? 0 : 1)
                     : !hit               ? 2

@@ -47,6 +47,16 @@ void keyword_init(py::class_<T>& cls) {
   }));
 }
 
+/// A field of `T` that holds a choice, read and set by its name as the CLI spells it
+/// (`hivox::to_string` and `parse`; a bad name raises the library's error).
+template <typename T, typename E, typename Parse>
+void name_property(py::class_<T>& cls, const char* name, E T::*field, Parse parse,
+                   const char* doc) {
+  cls.def_property(
+      name, [field](const T& p) { return std::string(to_string(p.*field)); },
+      [field, parse](T& p, const std::string& v) { p.*field = parse(v); }, doc);
+}
+
 template <typename T>
 std::string repr_of(const char* name, const T& v) {
   return fmt::format("hivox.{}({})", name, v.to_string());
@@ -248,26 +258,16 @@ PYBIND11_MODULE(hivox, m) {
           "max_depth_m", [](const FusionParams& p) { return p.depth_range.max_m; },
           [](FusionParams& p, float v) { p.depth_range.max_m = v; })
       .def_readwrite("integrate_color", &FusionParams::integrate_color)
-      .def_property(
-          "depth_sampling",
-          [](const FusionParams& p) { return std::string(to_string(p.depth_sampling)); },
-          [](FusionParams& p, const std::string& name) {
-            p.depth_sampling = parse_depth_sampling(name);
-          },
-          "how a voxel reads the depth image: 'bilinear' or 'nearest'")
       .def("validate", &FusionParams::validate)
       .def("__repr__", [](const FusionParams& p) { return repr_of("FusionParams", p); });
+  name_property(fusion, "depth_sampling", &FusionParams::depth_sampling, parse_depth_sampling,
+                "how a voxel reads the depth image: 'bilinear' or 'nearest'");
 
   py::class_<RefineParams> refine(m, "RefineParams");
   keyword_init(refine);
-  refine
-      .def_property(
-          "criterion", [](const RefineParams& p) { return std::string(to_string(p.criterion)); },
-          [](RefineParams& p, const std::string& name) {
-            p.criterion = parse_refine_criterion(name);
-          },
-          "complexity criterion: 'detail' or 'det-cov' (the paper's)")
-      .def_readwrite("split_threshold", &RefineParams::split_threshold)
+  name_property(refine, "criterion", &RefineParams::criterion, parse_refine_criterion,
+                "complexity criterion: 'detail' or 'det-cov' (the paper's)");
+  refine.def_readwrite("split_threshold", &RefineParams::split_threshold)
       .def_readwrite("merge_threshold", &RefineParams::merge_threshold)
       .def_readwrite("split_noise_factor", &RefineParams::split_noise_factor)
       .def_readwrite("every_n_frames", &RefineParams::every_n_frames)
@@ -295,10 +295,6 @@ PYBIND11_MODULE(hivox, m) {
                      "new one; its length is the number of levels)")
       .def_readwrite("max_distance_m", &TrackParams::max_distance_m)
       .def_readwrite("max_normal_angle_deg", &TrackParams::max_normal_angle_deg)
-      .def_property(
-          "loss", [](const TrackParams& p) { return std::string(to_string(p.loss)); },
-          [](TrackParams& p, const std::string& name) { p.loss = parse_robust_loss(name); },
-          "robust loss of the residuals: 'none', 'huber' or 'tukey'")
       .def_readwrite("robust_scale", &TrackParams::robust_scale)
       .def_readwrite("residual_floor_m", &TrackParams::residual_floor_m)
       .def_readwrite("constant_velocity", &TrackParams::constant_velocity)
@@ -313,6 +309,8 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("lost_jump_deg", &TrackParams::lost_jump_deg)
       .def("validate", &TrackParams::validate)
       .def("__repr__", [](const TrackParams& p) { return repr_of("TrackParams", p); });
+  name_property(track, "loss", &TrackParams::loss, parse_robust_loss,
+                "robust loss of the residuals: 'none', 'huber' or 'tukey'");
 
   py::class_<RaycastParams> raycast(m, "RaycastParams");
   keyword_init(raycast);
