@@ -263,6 +263,21 @@ PYBIND11_MODULE(hivox, m) {
   name_property(fusion, "depth_sampling", &FusionParams::depth_sampling, parse_depth_sampling,
                 "how a voxel reads the depth image: 'bilinear' or 'nearest'");
 
+  py::class_<SensorNoise> noise(m, "SensorNoise");
+  keyword_init(noise);
+  noise.def_readwrite("sigma_min_m", &SensorNoise::sigma_min_m)
+      .def_readwrite("quadratic_per_m", &SensorNoise::quadratic_per_m)
+      .def_readwrite("z0_m", &SensorNoise::z0_m)
+      .def("sigma_m", &SensorNoise::sigma_m, py::arg("z_m"),
+           "the axial noise sigma at depth z_m: sigma_min_m + quadratic_per_m * max(0, z_m - "
+           "z0_m)^2, metres")
+      .def_static("kinect", &SensorNoise::kinect, "a structured-light Kinect's (the default)")
+      .def_static("none", &SensorNoise::none, "a perfect sensor's (noise-free synthetic depth)")
+      .def("__repr__", [](const SensorNoise& n) {
+        return fmt::format("hivox.SensorNoise(sigma_min_m={:g}, quadratic_per_m={:g}, z0_m={:g})",
+                           n.sigma_min_m, n.quadratic_per_m, n.z0_m);
+      });
+
   py::class_<RefineParams> refine(m, "RefineParams");
   keyword_init(refine);
   name_property(refine, "criterion", &RefineParams::criterion, parse_refine_criterion,
@@ -279,6 +294,9 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("settled_weight", &RefineParams::settled_weight)
       .def_readwrite("min_samples", &RefineParams::min_samples)
       .def_readwrite("split_weight_scale", &RefineParams::split_weight_scale)
+      .def_readwrite("noise", &RefineParams::noise,
+                     "the sensor noise the thresholds compare detail with (a SensorNoise; None: "
+                     "the camera's own). Read as a copy: assign a new one to change it")
       .def("validate", &RefineParams::validate)
       .def("__repr__", [](const RefineParams& p) {
         return fmt::format("hivox.RefineParams({})", p.to_string(std::nullopt));
@@ -295,6 +313,9 @@ PYBIND11_MODULE(hivox, m) {
                      "new one; its length is the number of levels)")
       .def_readwrite("max_distance_m", &TrackParams::max_distance_m)
       .def_readwrite("max_normal_angle_deg", &TrackParams::max_normal_angle_deg)
+      .def_readwrite("noise", &TrackParams::noise,
+                     "the depth noise residuals are weighted by (a SensorNoise). Read as a copy: "
+                     "assign a new one to change it")
       .def_readwrite("robust_scale", &TrackParams::robust_scale)
       .def_readwrite("residual_floor_m", &TrackParams::residual_floor_m)
       .def_readwrite("constant_velocity", &TrackParams::constant_velocity)
@@ -327,6 +348,27 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("compute_normals", &MeshParams::compute_normals)
       .def_readwrite("with_color", &MeshParams::with_color)
       .def_readwrite("min_piece_triangles", &MeshParams::min_piece_triangles)
+      .def_property(
+          "bounds",
+          [](const MeshParams& p) -> py::object {
+            if (!p.bounds) return py::none();
+            const Box3f& b = *p.bounds;
+            return py::make_tuple(py::make_tuple(b.min_m.x, b.min_m.y, b.min_m.z),
+                                  py::make_tuple(b.max_m.x, b.max_m.y, b.max_m.z));
+          },
+          [](MeshParams& p,
+             const std::optional<std::pair<std::array<float, 3>, std::array<float, 3>>>& v) {
+            if (!v) {
+              p.bounds.reset();
+              return;
+            }
+            const auto& [lo, hi] = *v;
+            const Box3f box{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+            box.validate("mesh bounds");
+            p.bounds = box;
+          },
+          "mesh only this box, ((xmin, ymin, zmin), (xmax, ymax, zmax)) in metres, world frame "
+          "(None: everything); triangles with a corner outside are left out")
       .def("validate", &MeshParams::validate)
       .def("__repr__", [](const MeshParams& p) { return repr_of("MeshParams", p); });
 
@@ -461,16 +503,24 @@ PYBIND11_MODULE(hivox, m) {
 
   py::class_<Reconstruction>(m, "Reconstruction")
       .def(py::init([](const ReconstructionParams& params, const PinholeCamera& camera,
-                       double depth_scale, bool noise_free) {
+                       double depth_scale, bool noise_free,
+                       const std::optional<SensorNoise>& depth_noise) {
              CameraRig rig = CameraRig::registered(camera);
              rig.depth_scale = depth_scale;
+             if (noise_free && depth_noise)
+               throw Error(ErrorCode::InvalidArgument,
+                           "Reconstruction: noise_free and depth_noise both given; pass one");
              if (noise_free) rig.depth_noise = SensorNoise::none();
+             if (depth_noise) rig.depth_noise = *depth_noise;
              return make_reconstruction(params, rig);
            }),
            py::arg("params"), py::arg("camera"), py::arg("depth_scale") = 0.0,
-           py::arg("noise_free") = false,
+           py::arg("noise_free") = false, py::arg("depth_noise") = py::none(),
            "A reconstruction of frames from one registered RGB-D camera. depth_scale: raw units "
-           "per metre of uint16 depth images (float depth is metres).")
+           "per metre of uint16 depth images (float depth is metres). depth_noise: the camera's "
+           "axial noise (a SensorNoise; default a Kinect's), which refinement's thresholds compare "
+           "detail with unless RefineParams.noise says otherwise; noise_free=True is "
+           "SensorNoise.none().")
       .def(
           "integrate",
           [](Reconstruction& r, const py::array& depth, const py::object& color,

@@ -197,6 +197,73 @@ def test_maps_save_load_and_continue(tmp_path):
         hivox.load_map(tmp_path / "x.hvx")
 
 
+def test_meshes_are_cropped_to_their_bounds():
+    # A mesh made inside a box (the library skips the blocks outside) holds exactly the whole
+    # mesh's triangles whose three corners lie inside it.
+    data = hivox.open_dataset(SCENE)
+    rec = hivox.Reconstruction(small_params(), data.camera, noise_free=True)
+    for i in range(len(data)):
+        f = data.read(i)
+        rec.integrate(f["depth"], None, f["T_wc_gt"])
+    whole = rec.extract_mesh()
+    v = whole["vertices"]
+    lo = v.min(axis=0) + 0.3 * (v.max(axis=0) - v.min(axis=0))
+    hi = v.max(axis=0)
+    params = hivox.MeshParams(bounds=(tuple(lo), tuple(hi)))
+    assert np.allclose(params.bounds, (lo, hi)) and "inside [" in repr(params)
+    part = rec.extract_mesh(params)
+
+    def corners(mesh):
+        return {tuple(map(tuple, np.round(mesh["vertices"][t], 6))) for t in mesh["triangles"]}
+
+    inside = ((v >= lo) & (v <= hi)).all(axis=1)
+    kept = whole["triangles"][inside[whole["triangles"]].all(axis=1)]
+    assert 0 < len(kept) < len(whole["triangles"])
+    assert corners(part) == corners({"vertices": v, "triangles": kept})
+    params.bounds = None
+    assert params.bounds is None
+    assert len(rec.extract_mesh(params)["triangles"]) == len(whole["triangles"])
+    with pytest.raises(hivox.Error, match="mesh bounds"):
+        params.bounds = ((0.0, 0.0, 1.0), (1.0, 1.0, 0.0))
+    with pytest.raises(TypeError):
+        params.bounds = (0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
+
+
+def test_refinement_compares_detail_with_the_noise_it_is_given():
+    # Two levels, the desk's noise-free frames: refinement splits where detail exceeds the larger
+    # of its threshold and a fraction of the sensor's noise at the block's depth. The noise can be
+    # the camera's (Reconstruction's depth_noise) or refinement's own (RefineParams.noise): the
+    # same noise either way gives the same map, and a noisier sensor splits less.
+    data = hivox.open_dataset("synthetic:desk?frames=40&width=160&height=120&noise=none")
+    kinect = hivox.SensorNoise.kinect()
+    assert kinect.sigma_m(0.4) == pytest.approx(kinect.sigma_min_m)
+    assert kinect.sigma_m(1.4) == pytest.approx(kinect.sigma_min_m + kinect.quadratic_per_m)
+    assert hivox.SensorNoise.none().sigma_m(3.0) == 0.0
+    loud = hivox.SensorNoise(sigma_min_m=0.01, quadratic_per_m=0.02)
+
+    def splits(noise=None, depth_noise=None, noise_free=False):
+        p = hivox.ReconstructionParams(map=hivox.MapParams(voxel_size_m=0.004, levels=2),
+                                       refine=hivox.RefineParams(every_n_frames=1))
+        p.refine.noise = noise
+        rec = hivox.Reconstruction(p, data.camera, noise_free=noise_free, depth_noise=depth_noise)
+        for i in range(0, 40, 4):
+            f = data.read(i)
+            rec.integrate(f["depth"], None, f["T_wc_gt"])
+        return rec.stats["blocks_per_level"]
+
+    quiet = splits(noise_free=True)
+    assert splits(noise=hivox.SensorNoise.none()) == quiet
+    assert splits(noise=loud, noise_free=True) == splits(depth_noise=loud)
+    assert splits(depth_noise=loud)[0] < quiet[0]
+    r = hivox.RefineParams(noise=loud)
+    assert r.noise.sigma_min_m == pytest.approx(0.01) and "sigma(z)" in repr(r)
+    r.noise = hivox.SensorNoise(sigma_min_m=-1.0)
+    with pytest.raises(hivox.Error, match="refine sensor noise terms must be >= 0"):
+        r.validate()
+    with pytest.raises(hivox.Error, match="noise_free and depth_noise"):
+        hivox.Reconstruction(small_params(), data.camera, noise_free=True, depth_noise=loud)
+
+
 @pytest.mark.parametrize("refine_after_raycast", [False, True])
 def test_tracking_follows_the_camera(refine_after_raycast):
     # 300 frames along the scene's path, the first 8 of them (max_frames=8 would spread the path
