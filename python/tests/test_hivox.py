@@ -49,6 +49,12 @@ def test_params_take_keywords_print_and_validate():
         t.loss = "cauchy"
     with pytest.raises(hivox.Error, match="model_subsample must be 1, 2 or 4, got 3"):
         hivox.TrackParams(model_subsample=3).validate()
+    quiet = hivox.TrackParams(noise=hivox.SensorNoise.none(), residual_floor_m=0.0)
+    assert quiet.noise.sigma_m(2.0) == 0.0
+    with pytest.raises(hivox.Error, match="residual_floor_m must be > 0 with a noise-free sensor"):
+        quiet.validate()
+    quiet.noise = hivox.SensorNoise.kinect()
+    quiet.validate()
     c = hivox.RaycastParams(step_fraction=0.5, hint_margin_mu=1.0)
     assert "step 0.50 mu, min weight 1, hints from 1 mu ahead" in repr(c)
     with pytest.raises(hivox.Error, match="step_fraction must be in"):
