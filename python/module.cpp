@@ -299,7 +299,7 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("split_weight_scale", &RefineParams::split_weight_scale)
       .def_readwrite("noise", &RefineParams::noise,
                      "the sensor noise the thresholds compare detail with (a SensorNoise; None: "
-                     "the camera's own). Read as a copy: assign a new one to change it")
+                     "the camera's own)")
       .def("validate", &RefineParams::validate)
       .def("__repr__", [](const RefineParams& p) {
         return fmt::format("hivox.RefineParams({})", p.to_string(std::nullopt));
@@ -317,8 +317,7 @@ PYBIND11_MODULE(hivox, m) {
       .def_readwrite("max_distance_m", &TrackParams::max_distance_m)
       .def_readwrite("max_normal_angle_deg", &TrackParams::max_normal_angle_deg)
       .def_readwrite("noise", &TrackParams::noise,
-                     "the depth noise residuals are weighted by (a SensorNoise). Read as a copy: "
-                     "assign a new one to change it")
+                     "the depth noise residuals are weighted by (a SensorNoise)")
       .def_readwrite("robust_scale", &TrackParams::robust_scale)
       .def_readwrite("residual_floor_m", &TrackParams::residual_floor_m)
       .def_readwrite("constant_velocity", &TrackParams::constant_velocity)

@@ -55,6 +55,10 @@ def test_params_take_keywords_print_and_validate():
         quiet.validate()
     quiet.noise = hivox.SensorNoise.kinect()
     quiet.validate()
+    quiet.noise.quadratic_per_m = 0.0  # edited in place, as the other nested structs
+    quiet.noise.sigma_min_m = 0.0
+    with pytest.raises(hivox.Error, match="residual_floor_m must be > 0 with a noise-free sensor"):
+        quiet.validate()
     c = hivox.RaycastParams(step_fraction=0.5, hint_margin_mu=1.0)
     assert "step 0.50 mu, min weight 1, hints from 1 mu ahead" in repr(c)
     with pytest.raises(hivox.Error, match="step_fraction must be in"):
@@ -263,7 +267,7 @@ def test_refinement_compares_detail_with_the_noise_it_is_given():
     assert splits(depth_noise=loud)[0] < quiet[0]
     r = hivox.RefineParams(noise=loud)
     assert r.noise.sigma_min_m == pytest.approx(0.01) and "sigma(z)" in repr(r)
-    r.noise = hivox.SensorNoise(sigma_min_m=-1.0)
+    r.noise.sigma_min_m = -1.0  # in place
     with pytest.raises(hivox.Error, match="refine sensor noise terms must be >= 0"):
         r.validate()
     with pytest.raises(hivox.Error, match="noise_free and depth_noise"):
